@@ -1,0 +1,21 @@
+"""drillgym environments: the simulated UR5 bone-drilling cell (and, later, the real one).
+
+``gym.make("drillgym/UR5BoneDrill-v0", **scenario)`` builds the simulated cell; ``ENV_IDS`` lists every
+registered id.
+"""
+
+from gymnasium.envs.registration import register, registry
+
+from envs.constants import MAX_EPISODE_STEPS
+from envs.scenario import Scenario
+
+ENV_IDS = ["drillgym/UR5BoneDrill-v0"]
+
+if ENV_IDS[0] not in registry:
+    register(
+        id=ENV_IDS[0],
+        entry_point="envs.drill_env:UR5BoneDrillEnv",
+        max_episode_steps=MAX_EPISODE_STEPS,
+    )
+
+__all__ = ["ENV_IDS", "Scenario"]

@@ -1,0 +1,185 @@
+"""The simulated drilling cell: quasi-static UR5 + bending drill + bone.
+
+Composes the arm (Pinocchio kinematics, joint compliance ``J Kθ⁻¹ Jᵀ``), the cantilever drill, the
+cutting-force tables and the tip balance (:mod:`envs.drilling.contact`). Per agent step the arm's
+compliance is refreshed at the current pose; per F/T sample (100 Hz) the tip balance is solved.
+Pure numpy + Pinocchio: no PyBullet here.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from envs.cell_params import R_BASE_TASK, CellParams
+from envs.drilling.bone import BonePreset, get_bone_preset
+from envs.drilling.contact import ContactSample, TipContactSolver
+from envs.drilling.force_model import EngagementTable
+from envs.drilling.geometry import DrillGeometry
+from envs.drilling.hole import Hole
+from envs.drilling.tool import CantileverTool
+from envs.robot.compliance import JointCompliance
+from envs.robot.ur5 import FLANGE_FRAME, Q_HOME_RAD, TCP_FRAME, TRACKER_FRAME, UR5Kinematics
+from envs.scenario import Scenario
+
+
+@functools.lru_cache(maxsize=64)
+def _engagement_table(
+    geometry: DrillGeometry, bone: BonePreset, beta_rad: float, cortical_m: float, max_depth_m: float
+) -> EngagementTable:
+    return EngagementTable.build(geometry, bone, beta_rad, cortical_m, max_depth_m)
+
+
+@functools.lru_cache(maxsize=16)
+def _kinematics(tcp_offset_m: float, marker: tuple[float, float, float]) -> UR5Kinematics:
+    return UR5Kinematics(tcp_offset_m, marker)
+
+
+class SimCell:
+    """Quasi-static physics of the UR5 drilling cell for one scenario."""
+
+    def __init__(self, scenario: Scenario, params: CellParams | None = None, bone: BonePreset | None = None) -> None:
+        """Build the cell; ``bone`` overrides the scenario's named preset with a custom specimen."""
+        self.scenario = scenario
+        self.params = params or CellParams()
+        p = self.params
+        self.geometry = scenario.geometry
+        self.tool = CantileverTool(
+            diameter_m=scenario.drill_diameter_m,
+            stickout_m=scenario.stickout_m,
+            effective_diameter_ratio=p.effective_diameter_ratio,
+        )
+        self.tcp_offset_m = p.sensor_to_chuck_m + scenario.stickout_m
+        self.kin = _kinematics(self.tcp_offset_m, tuple(p.tracker_marker_flange_m))
+        self.joints = JointCompliance(np.asarray(p.stiffness_nm_rad, dtype=float))
+        self.R_base_task = R_BASE_TASK
+        self.entry_base_m = p.entry_point
+        self.T_base_task = np.eye(4)
+        self.T_base_task[:3, :3] = R_BASE_TASK
+        self.T_base_task[:3, 3] = self.entry_base_m
+        max_depth = scenario.depth_m + 2e-3
+        if bone is None:
+            bone = get_bone_preset(scenario.bone)
+        self.bone = bone.scaled(scenario.density_scale)
+        self.table = _engagement_table(
+            self.geometry, self.bone, scenario.beta_rad, scenario.cortical_thickness_m, max_depth
+        )
+        self.hole = Hole(max_depth)
+        self.solver = TipContactSolver(
+            self.table, self.geometry, scenario.beta_rad, self.hole, p.lateral_cut_resistance_n
+        )
+        self.C_tool = self.tool.compliance_tool_m_n()
+        self._q_start = self._ik_cached(0.0)
+        self.reset()
+
+    # ------------------------------------------------------------------ poses
+    def tip_pose_base(self, tip_task_m: np.ndarray) -> np.ndarray:
+        """``T_base_tcp`` for a rigid tip at ``tip_task_m`` with the drill along the planned axis."""
+        t = self.T_base_task.copy()
+        t[:3, 3] = self.entry_base_m + self.R_base_task @ tip_task_m
+        return t
+
+    def _ik_cached(self, depth_m: float) -> np.ndarray:
+        return _start_ik(self.kin, tuple(self.tip_pose_base(np.array([0.0, 0.0, depth_m]))[:3, 3]))
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, start_tip_task_m: np.ndarray | None = None) -> None:
+        """Uncut bone, unloaded arm, tip at ``start_tip_task_m`` (default 3 mm above the entry)."""
+        start = np.array([0.0, 0.0, -3e-3]) if start_tip_task_m is None else np.asarray(start_tip_task_m, float)
+        self.solver.reset((float(start[0]), float(start[1]), float(start[2])))
+        self.q_motor_rad = _start_ik(self.kin, tuple(self.tip_pose_base(start)[:3, 3])).copy()
+        self._update_compliance()
+        self.sample = ContactSample(tuple(start), tuple(start), (0.0, 0.0, 0.0), 0.0, float(start[2]), 0, False)
+
+    def _update_compliance(self) -> None:
+        j = self.kin.jacobian(self.q_motor_rad, TCP_FRAME)
+        self.J_tcp = j
+        c_base = self.joints.translational_compliance_m_n(j)
+        self.C_robot = self.R_base_task.T @ c_base @ self.R_base_task
+        self.C_total = self.C_robot + self.C_tool
+
+    def begin_step(self, chip_m: float, advance_per_update_m: float) -> None:
+        """Freeze compliance, chip thickness (m) and the axial advance per F/T sample (m)."""
+        self.solver.prepare(self.C_total, chip_m, advance_per_update_m)
+
+    def update(self, target_task_m: tuple[float, float, float], servo_gain: float) -> ContactSample:
+        """One F/T sample: servo moves ``servo_gain`` of the way to the target, then the tip balances."""
+        self.sample = self.solver.update(target_task_m, servo_gain)
+        return self.sample
+
+    def end_step(self) -> None:
+        """Track the servo target with the motor-side joint angles; refresh J and the compliance.
+
+        One Newton step of inverse kinematics from the previous angles per agent step (the target
+        moves ≤ 0.5 mm per step, so the residual is < 1 nm).
+        """
+        target = self.tip_pose_base(np.asarray(self.sample.rigid))
+        err = self.kin.pose_error(self.q_motor_rad, target, TCP_FRAME)
+        self.q_motor_rad = self.q_motor_rad + np.linalg.solve(self.J_tcp, err)
+        self._update_compliance()
+
+    @property
+    def force(self) -> np.ndarray:
+        """External force on the drill at the latest sample (N, task axes)."""
+        return np.asarray(self.sample.force)
+
+    @property
+    def tip(self) -> np.ndarray:
+        """True tip position at the latest sample (m, task frame)."""
+        return np.asarray(self.sample.tip)
+
+    @property
+    def rigid_tip(self) -> np.ndarray:
+        """Servo-held rigid tip at the latest sample (m, task frame)."""
+        return np.asarray(self.sample.rigid)
+
+    def tip_deflection_robot_m(self) -> np.ndarray:
+        """Tip displacement due to joint compliance, C_robot F (m, task frame)."""
+        return self.C_robot @ self.force
+
+    def tip_deflection_tool_m(self) -> np.ndarray:
+        """Tip displacement due to drill bending, C_tool F (m, task frame)."""
+        return self.C_tool @ self.force
+
+    # ------------------------------------------------------------------ sensing helpers
+    def sensor_wrench(self, sample: ContactSample) -> tuple[float, ...]:
+        """True wrench on the tool at the F/T sensor origin, sensor frame (task axes): (N, N·m).
+
+        The tip force acts ``tcp_offset`` ahead of the sensor along z: τ = (0, 0, L) × F + M_axis ẑ.
+        """
+        fx, fy, fz = sample.force
+        arm = self.tcp_offset_m
+        return (fx, fy, fz, -arm * fy, arm * fx, sample.torque_axis)
+
+    def joint_deflection_rad(self) -> np.ndarray:
+        """δq = Kθ⁻¹ Jᵀ W of the current load (rad): what the encoders do not see."""
+        w = np.concatenate(
+            [self.R_base_task @ self.force, self.R_base_task @ np.array([0.0, 0.0, self.sample.torque_axis])]
+        )
+        return self.joints.joint_deflection_rad(self.J_tcp, w)
+
+    def q_actual_rad(self) -> np.ndarray:
+        """Link-side joint angles: motor angles plus the elastic twist (rad)."""
+        return self.q_motor_rad + self.joint_deflection_rad()
+
+    def tcp_rtde_base_m(self) -> np.ndarray:
+        """TCP position the controller reports (FK of the motor angles, base frame, m)."""
+        return self.entry_base_m + self.R_base_task @ self.rigid_tip
+
+    def marker_base_m(self, q_rad: np.ndarray | None = None) -> np.ndarray:
+        """True tracker-marker position (base frame, m) at the deflected arm."""
+        q = self.q_actual_rad() if q_rad is None else q_rad
+        return self.kin.fk(q, TRACKER_FRAME)[:3, 3]
+
+    def flange_pose_base(self, q_rad: np.ndarray) -> np.ndarray:
+        """``T_base_flange`` at ``q_rad``."""
+        return self.kin.fk(q_rad, FLANGE_FRAME)
+
+
+@functools.lru_cache(maxsize=64)
+def _start_ik(kin: UR5Kinematics, tip_base: tuple[float, float, float]) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, :3] = R_BASE_TASK
+    t[:3, 3] = tip_base
+    return kin.ik(t, Q_HOME_RAD)

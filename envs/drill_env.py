@@ -1,0 +1,358 @@
+"""Gymnasium environment: a UR5 drilling an inclined bone surface (Li et al. 2023's experiment)."""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from envs.cell import SimCell
+from envs.cell_params import CellParams
+from envs.constants import (
+    ACTION_DIM,
+    CONTROL_DT_S,
+    PHYSICS_DT_S,
+    RTDE_RATE_HZ,
+    SUBSTEPS_PER_STEP,
+    TRACKER_RATE_HZ,
+    scale_action,
+)
+from envs.drilling.bone import BonePreset
+from envs.metrics import EpisodeRecorder, episode_metrics
+from envs.observation import observation_space, pack_observation
+from envs.pybullet_world import PyBulletWorld
+from envs.robot.ur5 import TRACKER_FRAME
+from envs.scenario import Scenario
+from envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
+from envs.task import DrillPath, Phase
+
+
+class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
+    """A UR5 with compliant joints drilling an inclined bone surface: Li et al. 2023's experiment.
+
+    ## Description
+
+    A UR5 (CB3) with compliant joints holds a spindle with a straight twist drill and drills a bone
+    specimen whose surface is inclined at the interaction angle β to the drill axis, as in Li et al.
+    2023. The inclined entry loads the lips unequally (Li's four stages), the unbalanced force bends
+    the drill and the arm, the tip skids downhill, and once the drill is inside, the hole wall guides
+    it, so an early deviation is locked in. A compensator corrects the drill-tip target so the tip
+    stays on the planned axis. Physics: quasi-static (see ``docs/physics.md``); world and rendering:
+    PyBullet DIRECT.
+
+    Frames. ``base``: the UR controller's base frame. ``task``: origin at the planned entry point on
+    the bone surface, z along the planned drill axis into the bone, x in the plane of inclination
+    pointing uphill (where the surface meets the drill first), y = z × x. With the default cell
+    layout x_task = +y_base, y_task = +x_base, z_task = −z_base. ``sensor``: the F/T sensor, axes of
+    the task frame at the nominal pose (z along the drill toward the bone).
+
+    ## Action Space
+
+    ``Box(-1, 1, (4,), float32)``; scaling in :mod:`envs.constants`.
+
+    | Num | Quantity | Min | Max | Frame | Unit |
+    |-----|----------|-----|-----|-------|------|
+    | 0-2 | drill-tip target correction, relative to the nominal path | -2e-3 | 2e-3 | base | m (after × ``MAX_CORRECTION_M``) |
+    | 3 | feed-rate override, scale = 2**(2 a) | 0.25 | 4 | - | × nominal feed |
+
+    The correction is absolute (not incremental) and takes effect ``latency_s`` after the step.
+    Out-of-range actions are clipped to [-1, 1]; a NaN or infinite action raises ``ValueError`` and the
+    env state is unchanged.
+
+    ## Observation Space
+
+    ``Dict`` of float32 Boxes, only what the real cell measures:
+
+    | Key | Quantity | Min | Max | Frame | Unit |
+    |-----|----------|-----|-----|-------|------|
+    | ft_wrench | latest F/T sample (Fx, Fy, Fz, Tx, Ty, Tz), 100 Hz, tared | -500 | 500 | sensor | N, N·m |
+    | ft_wrench_mean | mean of the 5 F/T samples of the last step | -500 | 500 | sensor | N, N·m |
+    | q_rad | joint angles from RTDE (125 Hz, motor side) | -2π | 2π | joints | rad |
+    | tcp_error_base_m | RTDE TCP minus the nominal path point | -0.1 | 0.1 | base | m |
+    | tracker_error_base_m | tracker marker minus where a rigid arm on the nominal path puts it | -0.1 | 0.1 | base | m |
+    | tracker_valid | 1 if a tracker is fitted and tracking, else 0 | 0 | 1 | - | - |
+    | path_depth_m | nominal tip depth past the entry point | -0.1 | 0.1 | task z | m |
+    | phase | one-hot approach / feed / retract | 0 | 1 | - | - |
+    | correction_base_m | correction currently commanded | -0.01 | 0.01 | base | m |
+    | feed_scale | feed override currently commanded | 0 | 4 | - | - |
+
+    Sign convention: forces are those the environment (bone) exerts on the tool. Privileged state (true
+    tip position and deflection, stage, hole) is in ``info`` only.
+
+    ## Rewards
+
+    Per step: ``-w_dev · deviation_mm - w_force · lateral_force_n - w_smooth · |Δa|²``, with the tip
+    deviation from the planned axis and the true lateral force averaged over the step. Every term is in
+    ``info["reward_terms"]``.
+
+    ## Starting State
+
+    Tip 3 mm above the planned entry point on the planned axis, arm unloaded, bone uncut. Sensor
+    noise is drawn from the env's ``np_random`` (seeded by ``reset(seed=...)``).
+
+    ## Episode End
+
+    Terminated when the retract is complete (``info["metrics"]`` holds the episode metrics) or when
+    the measured force exceeds ``force_limit_n`` (``info["failure"] = "force_limit"``). Truncated by the
+    registration time limit (4000 steps) or at three times the nominal duration.
+
+    ## Arguments
+
+    | Argument | Default | Range | Unit | Meaning |
+    |----------|---------|-------|------|---------|
+    | beta_deg | 30 | [-40, 40] | deg | interaction angle β between the drill axis and the surface normal |
+    | feed_mm_s | 0.5 | (0, 3] | mm/s | nominal feed rate |
+    | spindle_rpm | 20000 | [1000, 60000] | rpm | spindle speed |
+    | drill_diameter_mm | 1.5 | [0.5, 6] | mm | twist-drill diameter (118° point, 2 lips) |
+    | stickout_mm | 36 | [10, 100] | mm | drill free length from the chuck (calibrated) |
+    | depth_mm | 6 | [2, 30] | mm | target depth past the entry point |
+    | cortical_thickness_mm | 8 | [0.3, 40] | mm | cortical layer thickness over the cancellous core |
+    | bone | buffalo_femur | presets | - | specimen preset (``envs.drilling.BONE_PRESETS``) |
+    | density_scale | 1 | [0.3, 3] | - | scales every cutting coefficient |
+    | bone_variability | 0.05 | [0, 0.3] | - | std of the per-episode (seeded) hardness factor of the specimen |
+    | ft_noise_n | 0.02 | [0, 2] | N | F/T force noise (std per axis) |
+    | tracker_noise_mm | 0.05 | [0, 2] | mm | tracker noise (std per axis) |
+    | latency_s | 0.014 | [0, 0.5] | s | command latency (Li: ~14 ms) |
+    | servo_time_constant_s | 0.02 | [0.001, 0.5] | s | servo tracking lag |
+    | tracker | True | - | - | whether a tracker is fitted |
+    | force_limit_n | 40 | [1, 500] | N | safety stop on the measured force |
+
+    Also ``cell_params`` (:class:`envs.cell_params.CellParams`), ``bone_material`` (a custom
+    :class:`envs.drilling.BonePreset` replacing the named ``bone``), the reward weights
+    ``reward_deviation_weight`` (per mm), ``reward_force_weight`` (per N), ``reward_smooth_weight``,
+    and ``render_mode`` (``"rgb_array"``). Invalid values raise ``ValueError`` naming the argument,
+    its value and the allowed range.
+
+    ## Version History
+
+    * v0: initial release.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": round(1.0 / CONTROL_DT_S)}  # noqa: RUF012
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        cell_params: CellParams | None = None,
+        bone_material: BonePreset | None = None,
+        reward_deviation_weight: float = 1.0,
+        reward_force_weight: float = 0.1,
+        reward_smooth_weight: float = 0.01,
+        **scenario_kwargs: Any,
+    ) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode={render_mode!r} is not supported; allowed: {self.metadata['render_modes']}")
+        self.scenario = Scenario.from_kwargs(**scenario_kwargs)
+        self.render_mode = render_mode
+        self.w_dev, self.w_force, self.w_smooth = (
+            float(reward_deviation_weight),
+            float(reward_force_weight),
+            float(reward_smooth_weight),
+        )
+        self.cell = SimCell(self.scenario, cell_params, bone_material)
+        self.path = DrillPath(self.scenario.depth_m, self.scenario.feed_m_s)
+        self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
+        self.observation_space = observation_space()  # type: ignore[assignment]
+        self.recorder = EpisodeRecorder()
+        self.max_time_s = 3.0 * self.path.nominal_duration_s()
+        self.world: PyBulletWorld | None = PyBulletWorld()
+        self.world.place_bone(self.cell.T_base_task, self.scenario.beta_rad)
+        self._reset_state()
+
+    # ------------------------------------------------------------------ gym API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Start a new hole: tip 3 mm above the entry point, uncut bone, sensors re-seeded."""
+        super().reset(seed=seed)
+        self._reset_state()
+        return self._observation(), self._info()
+
+    def _reset_state(self) -> None:
+        self.path.reset()
+        self.cell.reset(np.array([0.0, 0.0, self.path.s_m]))
+        rng = self.np_random
+        # This specimen's hardness: bone varies from sample to sample (std ``bone_variability``).
+        factor = 1.0 + self.scenario.bone_variability * float(rng.standard_normal())
+        self.cell.solver.force_scale = min(max(factor, 0.5), 1.5)
+        self.ft = ForceTorqueSensor(self.scenario.ft_noise_n, rng)
+        self.tracker = PositionTracker(self.scenario.tracker_noise_m, rng)
+        self.t_s = 0.0
+        self.correction_base_m = np.zeros(3)
+        self.feed_scale = 1.0
+        self.pending: deque[tuple[float, np.ndarray, float]] = deque()
+        self.prev_action = np.zeros(ACTION_DIM)
+        self.recorder.clear()
+        self.ft_samples = np.zeros((2, 6))
+        self.ft_last = np.zeros(6)
+        self.ft_mean = np.zeros(6)
+        self.failure: str | None = None
+        self.metrics: dict[str, float] | None = None
+        self.marker_start_base = self.cell.marker_base_m(self.cell.q_motor_rad)
+        self.s_start_m = self.path.s_m
+        self.tracker_stamp = -1.0
+        self.tracker_reading = np.zeros(3)
+        self.rtde_tcp_base = self.cell.tcp_rtde_base_m()
+        self.step_terms: dict[str, float] = {}
+        self.servo_gain = 1.0 - math.exp(-PHYSICS_DT_S / self.scenario.servo_time_constant_s)
+
+    def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """Apply one correction + feed override for 50 ms (5 physics updates / F/T samples)."""
+        a = np.asarray(action, dtype=float).reshape(-1)
+        if a.shape != (ACTION_DIM,):
+            raise ValueError(f"action must have shape ({ACTION_DIM},), got {np.shape(action)}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action={a.tolist()} contains NaN or inf; rejected (env state unchanged)")
+        if self.path.phase == Phase.DONE or self.failure is not None:
+            raise RuntimeError("step() called after the episode ended; call reset()")
+        a = np.clip(a, -1.0, 1.0)
+        corr, scale = scale_action(a)
+        self.pending.append((self.t_s + self.scenario.latency_s, corr, scale))
+        sc = self.scenario
+        rt = self.cell.R_base_task.T
+        rtde_time = latest_sample_time_s(self.t_s + CONTROL_DT_S, RTDE_RATE_HZ)
+        wrenches = np.empty((SUBSTEPS_PER_STEP, 6))
+        samples = []
+        rec = self.recorder
+        self.cell.begin_step(self._chip_m(), self._advance_m())
+        cx, cy, cz = (rt @ self.correction_base_m).tolist()
+        update = self.cell.update
+        for k in range(SUBSTEPS_PER_STEP):
+            t_next = self.t_s + PHYSICS_DT_S
+            while self.pending and self.pending[0][0] <= t_next + 1e-12:
+                _, self.correction_base_m, scale = self.pending.popleft()
+                if scale != self.feed_scale:
+                    self.feed_scale = scale
+                    self.cell.begin_step(self._chip_m(), self._advance_m())
+                cx, cy, cz = (rt @ self.correction_base_m).tolist()
+            phase = self.path.phase
+            s = self.path.advance(PHYSICS_DT_S, self.feed_scale)
+            if self.t_s <= rtde_time < t_next:
+                self.rtde_tcp_base = self.cell.tcp_rtde_base_m()
+            smp = update((cx, cy, cz + s), self.servo_gain)
+            samples.append(smp)
+            self.t_s = t_next
+            wrenches[k] = self.cell.sensor_wrench(smp)
+            rec.t_s.append(self.t_s)
+            rec.phase.append(phase.value)
+            rec.stage.append(smp.stage)
+            rec.depth_cmd_m.append(s)
+            rec.deviation_m.append(math.hypot(smp.tip[0], smp.tip[1]))
+        readings = self.ft.sample_block(wrenches)
+        rec.ft_force_n.extend(readings[:, :3])
+        if self.failure is None and float(np.max(np.linalg.norm(readings[:, :3], axis=1))) > sc.force_limit_n:
+            self.failure = "force_limit"
+        if rtde_time >= self.t_s - 1e-12:
+            self.rtde_tcp_base = self.cell.tcp_rtde_base_m()
+        self.ft_last = readings[-1]
+        self.ft_mean = readings.mean(axis=0)
+        self.cell.end_step()
+        self._sample_tracker()
+        rec.tracker_deviation_m.extend([self.tracker_lateral_m] * SUBSTEPS_PER_STEP)
+        dev_mean = sum(math.hypot(x.tip[0], x.tip[1]) for x in samples) / SUBSTEPS_PER_STEP
+        lat_mean = sum(math.hypot(x.force[0], x.force[1]) for x in samples) / SUBSTEPS_PER_STEP
+        terms = {
+            "deviation": -self.w_dev * dev_mean * 1e3,
+            "force": -self.w_force * lat_mean,
+            "smooth": -self.w_smooth * float(np.sum((a - self.prev_action) ** 2)),
+        }
+        self.step_terms = terms
+        self.prev_action = a
+        terminated = self.path.phase == Phase.DONE or self.failure is not None
+        truncated = (not terminated) and self.t_s >= self.max_time_s
+        if terminated or truncated:
+            self.metrics = self.episode_metrics()
+        return self._observation(), float(sum(terms.values())), terminated, truncated, self._info()
+
+    # ------------------------------------------------------------------ helpers
+    def _advance_m(self) -> float:
+        return max(self.path.speed_m_s(self.feed_scale), 0.0) * PHYSICS_DT_S
+
+    def _chip_m(self) -> float:
+        sc = self.scenario
+        return sc.geometry.chip_thickness_m(sc.feed_m_s * self.feed_scale, sc.spindle_rpm)
+
+    def _sample_tracker(self) -> None:
+        stamp = latest_sample_time_s(self.t_s, TRACKER_RATE_HZ)
+        if stamp != self.tracker_stamp:
+            self.tracker_stamp = stamp
+            self.tracker_reading = self.tracker.sample(self.cell.marker_base_m())
+        planned = self.marker_start_base + self.cell.R_base_task @ np.array([0.0, 0.0, self.path.s_m - self.s_start_m])
+        self.tracker_error_base = self.tracker_reading - planned
+        lateral = self.cell.R_base_task.T @ self.tracker_error_base
+        self.tracker_lateral_m = math.hypot(lateral[0], lateral[1])
+
+    def _nominal_tcp_base(self) -> np.ndarray:
+        return self.cell.entry_base_m + self.cell.R_base_task @ np.array([0.0, 0.0, self.path.s_m])
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        if self.recorder.t_s:
+            tracker_err = self.tracker_error_base if self.scenario.tracker else np.zeros(3)
+        else:
+            tracker_err = np.zeros(3)
+        phase = np.zeros(3)
+        phase[min(int(self.path.phase), 2)] = 1.0
+        return pack_observation(
+            {
+                "ft_wrench": self.ft_last,
+                "ft_wrench_mean": self.ft_mean,
+                "q_rad": self.cell.q_motor_rad,
+                "tcp_error_base_m": self.rtde_tcp_base - self._nominal_tcp_base(),
+                "tracker_error_base_m": tracker_err,
+                "tracker_valid": np.array([1.0 if self.scenario.tracker else 0.0]),
+                "path_depth_m": np.array([self.path.s_m]),
+                "phase": phase,
+                "correction_base_m": self.correction_base_m,
+                "feed_scale": np.array([self.feed_scale]),
+            }
+        )
+
+    def _info(self) -> dict[str, Any]:
+        smp = self.cell.sample
+        info: dict[str, Any] = {
+            "t_s": self.t_s,
+            "phase": int(self.path.phase),
+            "stage": smp.stage,
+            "depth_cmd_m": self.path.s_m,
+            "tip_pos_task_m": np.array(smp.tip),
+            "deviation_m": math.hypot(smp.tip[0], smp.tip[1]),
+            "tip_deflection_robot_m": self.cell.tip_deflection_robot_m(),
+            "tip_deflection_tool_m": self.cell.tip_deflection_tool_m(),
+            "force_true_n": np.array(smp.force),
+            "depth_local_m": smp.depth_local,
+            "reward_terms": dict(self.step_terms),
+            "failure": self.failure,
+        }
+        if self.metrics is not None:
+            info["metrics"] = dict(self.metrics)
+        return info
+
+    def episode_metrics(self) -> dict[str, float]:
+        """Metrics of the episode so far (see :mod:`envs.metrics`)."""
+        centre = self.cell.hole.centre_at(self.scenario.entry_depth_m)
+        offset = math.hypot(centre[0], centre[1]) if centre is not None else float("nan")
+        return episode_metrics(self.recorder, self.scenario.entry_depth_m, self.scenario.depth_m, offset)
+
+    def render(self) -> np.ndarray | None:
+        """RGB frame of the cell (``render_mode="rgb_array"``), headless."""
+        if self.render_mode != "rgb_array" or self.world is None:
+            return None
+        q = self.cell.q_actual_rad()
+        self.world.set_joint_angles(q)
+        self.world.place_drill(self.cell.flange_pose_base(q), self.cell.tcp_offset_m, self.scenario.drill_diameter_m)
+        return self.world.render(self.cell.entry_base_m)
+
+    def close(self) -> None:
+        """Release the PyBullet client."""
+        if self.world is not None:
+            self.world.close()
+            self.world = None
+        super().close()
+
+    def tracker_marker_pose_base(self) -> np.ndarray:
+        """True ``T_base_marker`` (privileged; for tests and diagnostics)."""
+        return self.cell.kin.fk(self.cell.q_actual_rad(), TRACKER_FRAME)

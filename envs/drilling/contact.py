@@ -1,0 +1,247 @@
+"""Quasi-static tip balance at the bone, one solve per F/T sample (pure Python floats, fast).
+
+Each update finds the tip position ``p`` (task frame) where the cutting force, the bone around the tip
+and the elastic arm + drill balance:
+
+    p = c + C · (F_cut(d(p)) + K_cut · (p_prev − p))
+
+``c``: the rigid tip the servo holds; ``C``: arm + drill compliance (3x3, task axes); ``d(p) = z + x tan β``:
+the tip depth below the local surface, so a tip skidding downhill loses engagement and one pushed
+uphill gains it; ``K_cut = (K_lat / Δz) · diag(w_x, w_y, 0)``: to move sideways by Δp while advancing
+Δz, the drill must cut the side of its own hole, which takes a force ``K_lat · Δp / Δz``. Moving uphill
+always cuts fresh bone (``w_x = 1`` once in contact); downhill and across the slope it cuts only where
+the hole's circumference already exists (``w = g``, the outer corner's engaged share of a revolution),
+so an entering drill skids down the slope freely, cannot come back, and once fully inside copies its
+deviation forward, relaxing only over ``K_lat / k`` of depth. The lateral feedback is solved
+implicitly (its loop gain exceeds 1 at Li's operating point): ``d`` is the stable root of
+``d = z_front + tan β · x(d)`` on the piecewise-linear force table.
+
+Contact with the bottom of the hole is unilateral: the tip cannot pass the deepest point cut without
+cutting. If the arm pushes it there against the full cutting force it cuts and the bottom advances;
+if it pushes less, the tip rests on the bottom with a scaled-down force; pulled back, contact is lost.
+``C`` and ``g`` are refreshed once per agent step (50 ms, ≤ 0.2 mm of feed).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs.drilling.force_model import EngagementTable, engaged_corner_fraction, stage_bounds, stage_of
+from envs.drilling.geometry import DrillGeometry
+from envs.drilling.hole import Hole
+
+
+@dataclass
+class ContactSample:
+    """One update of the balance (task frame, SI)."""
+
+    tip: tuple[float, float, float]
+    rigid: tuple[float, float, float]
+    force: tuple[float, float, float]
+    torque_axis: float
+    depth_local: float
+    stage: int
+    cutting: bool
+
+
+class TipContactSolver:
+    """Solves the tip balance for one scenario; holds the cut-state (bottom, hole)."""
+
+    def __init__(
+        self,
+        table: EngagementTable,
+        geometry: DrillGeometry,
+        beta_rad: float,
+        hole: Hole,
+        lateral_cut_resistance_n: float,
+    ) -> None:
+        self.table = table
+        self.geometry = geometry
+        self.beta_rad = beta_rad
+        self.tan_beta = math.tan(beta_rad)
+        self.hole = hole
+        self.k_lat_n = lateral_cut_resistance_n
+        self.grid = table.depth_m.tolist()
+        self._bounds = stage_bounds(geometry, beta_rad)
+        self._key: tuple[float, float] = (math.nan, math.nan)
+        self.force_scale = 1.0
+        """Per-specimen multiplier on every cutting force (bone variability), set before an episode."""
+        self.reset((0.0, 0.0, -3e-3))
+
+    def reset(self, start: tuple[float, float, float]) -> None:
+        """Uncut bone; rigid and true tip at ``start``."""
+        self.hole.reset()
+        self.bottom_z = -math.inf
+        self.rigid = list(start)
+        self.tip = list(start)
+        self.force = [0.0, 0.0, 0.0]
+        self.torque = 0.0
+        self.depth_local = start[2] + start[0] * self.tan_beta
+        self.touching = False
+        self._j = 1
+
+    # ------------------------------------------------------------------ per agent step
+    def prepare(self, compliance_m_n: np.ndarray, chip_m: float, advance_per_update_m: float) -> None:
+        """Freeze compliance (m/N), chip (m) and the expected axial advance per update (m)."""
+        if (chip_m, self.force_scale) != self._key:
+            self._key = (chip_m, self.force_scale)
+            rows = self.force_scale * (self.table.edge + chip_m * self.table.per_chip)
+            self._rows = rows
+            self._fx, self._fy, self._fz, self._mz = (rows[:, i].tolist() for i in range(4))
+        self._c = np.asarray(compliance_m_n, dtype=float)
+        self._g = (
+            engaged_corner_fraction(self.depth_local, self.geometry, self.beta_rad) if self.depth_local > 0 else 0.0
+        )
+        self._k_cut = self.k_lat_n / max(advance_per_update_m, 1e-7)
+        self._variants: dict[int, tuple] = {}
+
+    def _get_variant(self, v: int) -> tuple:
+        """0: free; 1: guided where the circumference exists; 2: also blocked uphill (built lazily)."""
+        if v == 2 and self._g >= 1.0:
+            v = 1
+        if v not in self._variants:
+            k, g = self._k_cut, self._g
+            kx, ky = ((0.0, 0.0), (k * g, k * g), (k, k * g))[v]
+            self._variants[v] = self._variant(self._c, kx, ky)
+        return self._variants[v]
+
+    @staticmethod
+    def _variant(c: np.ndarray, kx: float, ky: float) -> tuple:
+        """Matrices of the balance with lateral cut stiffnesses ``kx``, ``ky`` (N/m), as Python floats."""
+        kc = np.diag([kx, ky, 0.0])
+        m = _inv3(np.eye(3) + c @ kc)
+        s = m @ c
+        mck = s @ kc
+        return m.tolist(), s.tolist(), mck.tolist(), (kx, ky)
+
+    # ------------------------------------------------------------------ per F/T sample
+    def update(self, target: tuple[float, float, float], servo_gain: float) -> ContactSample:
+        """Move the servo toward ``target`` (gain in (0, 1]) and solve the balance."""
+        r = self.rigid
+        for i in range(3):
+            r[i] += servo_gain * (target[i] - r[i])
+        prev = self.tip
+        v = 1 if self.touching else 0
+        sol = self._solve(self._get_variant(v))
+        if v == 1 and self._g < 1.0 and sol[0][0] > prev[0] + 1e-12:  # moving uphill into uncut bone: blocked
+            sol = self._solve(self._get_variant(2))
+        tip, force, lam, d, touching, torque = sol
+        cutting = touching and lam >= 1.0 and tip[2] > self.bottom_z
+        if cutting:
+            self.bottom_z = tip[2]
+            self.hole.record(tip[2], np.array(tip[:2]))
+        self.tip = tip
+        self.force = force
+        self.torque = lam * torque
+        self.depth_local = d
+        self.touching = touching
+        stage = stage_of(d, self._bounds) if touching else 0
+        return ContactSample(
+            (tip[0], tip[1], tip[2]),
+            (r[0], r[1], r[2]),
+            (force[0], force[1], force[2]),
+            self.torque,
+            d,
+            stage,
+            cutting,
+        )
+
+    def _solve(self, variant: tuple) -> tuple[list[float], list[float], float, float, bool, float]:
+        m, s, mck, (kx, ky) = variant
+        r, prev = self.rigid, self.tip
+        base = [
+            m[i][0] * r[0] + m[i][1] * r[1] + m[i][2] * r[2] + mck[i][0] * prev[0] + mck[i][1] * prev[1]
+            for i in range(3)
+        ]
+        front = max(self.bottom_z, prev[2])
+        d = self._solve_depth(front, base[0], s[0])
+        f, torque = self._row(d)
+        touching = f[0] != 0.0 or f[1] != 0.0 or f[2] != 0.0
+        sf = [s[i][0] * f[0] + s[i][1] * f[1] + s[i][2] * f[2] for i in range(3)]
+        full_z = base[2] + sf[2]
+        if not touching or full_z >= self.bottom_z:
+            lam = 1.0
+        elif base[2] > self.bottom_z:
+            lam = (base[2] - self.bottom_z) / (base[2] - full_z)
+        else:
+            lam = 0.0
+        tip = [base[i] + lam * sf[i] for i in range(3)]
+        force = [lam * f[0] + kx * (prev[0] - tip[0]), lam * f[1] + ky * (prev[1] - tip[1]), lam * f[2]]
+        return tip, force, lam, d, touching, torque
+
+    def _row(self, d: float) -> tuple[tuple[float, float, float], float]:
+        grid = self.grid
+        n = len(grid)
+        if d <= grid[0]:
+            j, t = 1, 0.0
+        elif d >= grid[-1]:
+            j, t = n - 1, 1.0
+        else:
+            j = bisect.bisect_right(grid, d)
+            t = (d - grid[j - 1]) / (grid[j] - grid[j - 1])
+        fx, fy, fz, mz = self._fx, self._fy, self._fz, self._mz
+        a = j - 1
+        return (
+            (fx[a] + t * (fx[j] - fx[a]), fy[a] + t * (fy[j] - fy[a]), fz[a] + t * (fz[j] - fz[a])),
+            mz[a] + t * (mz[j] - mz[a]),
+        )
+
+    def _solve_depth(self, front_z: float, base_x: float, s_x: list[float]) -> float:
+        """Stable root of h(d) = d - tanβ · q(d) - (front_z + tanβ · base_x).
+
+        ``q(d) = s_x · F(d)`` is the tip's x-shift under the table force at depth d (piecewise linear).
+        """
+        tb = self.tan_beta
+        rhs = front_z + tb * base_x
+        if tb == 0.0:
+            return rhs
+        fx, fy, fz = self._fx, self._fy, self._fz
+        a, b, c = s_x
+
+        def q(i: int) -> float:
+            return a * fx[i] + b * fy[i] + c * fz[i]
+
+        grid = self.grid
+        n = len(grid)
+        j = min(max(self._j, 1), n - 1)
+        for _ in range(4 * n):
+            d0, d1 = grid[j - 1], grid[j]
+            h0 = d0 - tb * q(j - 1) - rhs
+            h1 = d1 - tb * q(j) - rhs
+            if h0 > 0.0:
+                if j == 1:
+                    self._j = 1
+                    return rhs + tb * q(0)  # above the grid: no force there, q constant
+                j -= 1
+            elif h1 < 0.0:
+                if j == n - 1:
+                    self._j = j
+                    return rhs + tb * q(n - 1)
+                j += 1
+            else:
+                self._j = j
+                return d0 + (d1 - d0) * (-h0) / (h1 - h0) if h1 != h0 else d0
+        raise RuntimeError("tip balance: no stable root found")  # pragma: no cover
+
+
+def _inv3(a: np.ndarray) -> np.ndarray:
+    """Inverse of a 3x3 matrix by cofactors (faster than LAPACK at this size)."""
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = a.tolist()
+    c00 = a11 * a22 - a12 * a21
+    c01 = a12 * a20 - a10 * a22
+    c02 = a10 * a21 - a11 * a20
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    return (
+        np.array(
+            [
+                [c00, a02 * a21 - a01 * a22, a01 * a12 - a02 * a11],
+                [c01, a00 * a22 - a02 * a20, a02 * a10 - a00 * a12],
+                [c02, a01 * a20 - a00 * a21, a00 * a11 - a01 * a10],
+            ]
+        )
+        / det
+    )

@@ -1,0 +1,65 @@
+"""The hole already cut, and how its wall guides the drill (lock-in of an early deviation)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+class Hole:
+    """Centreline of the hole cut so far, sampled along the planned axis.
+
+    Frame: the task frame (origin at the planned entry point, z along the planned axis into the bone).
+    New hole is cut where the tip is; once the drill body is inside, the wall pushes the tip back
+    toward the centreline cut ``guide_length_m`` behind it with stiffness ``k_wall · g``, where
+    ``g ∈ [0, 1]`` is how much of the hole circumference exists (the outer-corner engagement). So a
+    deviation made at entry is copied forward and relaxes only as fast as the wall can be cut sideways.
+    """
+
+    def __init__(self, max_depth_m: float, bin_m: float = 5e-6) -> None:
+        self.bin_m = bin_m
+        n = math.ceil(max_depth_m / bin_m) + 2
+        self.centre_xy_m = np.zeros((n, 2))
+        self.filled = np.zeros(n, dtype=bool)
+        self.deepest_bin = -1
+        self.first_bin = -1
+
+    def reset(self) -> None:
+        """Uncut bone."""
+        self.filled[:] = False
+        self.deepest_bin = -1
+        self.first_bin = -1
+
+    def record(self, depth_m: float, tip_xy_m: np.ndarray) -> None:
+        """Cut the hole to ``depth_m`` (along the planned axis) with its centre at ``tip_xy_m``."""
+        k = int(depth_m / self.bin_m)
+        if k <= self.deepest_bin or k < 0:
+            return
+        k = min(k, self.filled.size - 1)
+        lo = max(self.deepest_bin + 1, 0)
+        self.centre_xy_m[lo : k + 1] = tip_xy_m
+        self.filled[lo : k + 1] = True
+        if self.first_bin < 0:
+            self.first_bin = lo
+        self.deepest_bin = k
+
+    def centre_at(self, depth_m: float) -> np.ndarray | None:
+        """Centreline (m, task xy) at ``depth_m``; the first cut point above it; None before any cut."""
+        if self.deepest_bin < 0:
+            return None
+        k = int(depth_m / self.bin_m)
+        k = min(max(k, self.first_bin), self.deepest_bin)
+        return self.centre_xy_m[k]
+
+    def centre_below(self, depth_m: float) -> np.ndarray | None:
+        """Centreline (m, task xy) at ``depth_m`` if the hole reaches that deep past its first cut, else None."""
+        k = int(depth_m / self.bin_m)
+        if self.deepest_bin < 0 or k < self.first_bin or k > self.deepest_bin:
+            return None
+        return self.centre_xy_m[k]
+
+    def profile(self) -> tuple[np.ndarray, np.ndarray]:
+        """Depths (m) and centres (m, task xy) of the cut bins, shallow to deep."""
+        idx = np.flatnonzero(self.filled)
+        return idx * self.bin_m, self.centre_xy_m[idx].copy()

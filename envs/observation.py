@@ -1,0 +1,47 @@
+"""Observation space of the drilling cell: only what the real cell measures.
+
+Shared by the simulated and the real env, so a policy trained in one runs unchanged on the other.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+from envs.constants import FEED_OVERRIDE_LOG2_MAX
+
+OBS_BOUNDS: dict[str, tuple[int, float]] = {
+    "ft_wrench": (6, 500.0),
+    "ft_wrench_mean": (6, 500.0),
+    "q_rad": (6, 2.0 * np.pi),
+    "tcp_error_base_m": (3, 0.1),
+    "tracker_error_base_m": (3, 0.1),
+    "tracker_valid": (1, 1.0),
+    "path_depth_m": (1, 0.1),
+    "phase": (3, 1.0),
+    "correction_base_m": (3, 0.01),
+    "feed_scale": (1, 2.0**FEED_OVERRIDE_LOG2_MAX),
+}
+"""Observation keys -> (size, bound). See the env docstring for meaning, frame and unit."""
+_NONNEG_KEYS = ("tracker_valid", "phase", "feed_scale")
+
+
+def observation_space() -> spaces.Dict:
+    """The Dict observation space (float32 Boxes)."""
+    return spaces.Dict(
+        {k: spaces.Box(0.0 if k in _NONNEG_KEYS else -b, b, (n,), np.float32) for k, (n, b) in OBS_BOUNDS.items()}
+    )
+
+
+_KEYS = tuple(OBS_BOUNDS)
+_SIZES = [n for n, _ in OBS_BOUNDS.values()]
+_OFFSETS = np.cumsum([0, *_SIZES])
+_HI = np.concatenate([np.full(n, b) for n, b in OBS_BOUNDS.values()])
+_LO = np.concatenate([np.full(n, 0.0 if k in _NONNEG_KEYS else -b) for k, (n, b) in OBS_BOUNDS.items()])
+
+
+def pack_observation(values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Cast to float32 and clip each entry into its box (a saturated sensor, never out of space)."""
+    flat = np.concatenate([np.ravel(values[k]) for k in _KEYS])
+    flat = np.clip(flat, _LO, _HI).astype(np.float32)
+    return {k: flat[_OFFSETS[i] : _OFFSETS[i + 1]] for i, k in enumerate(_KEYS)}

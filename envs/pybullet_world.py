@@ -1,0 +1,165 @@
+"""The only module that imports PyBullet: the visible world of the drilling cell.
+
+PyBullet (DIRECT mode, no GUI) holds the UR5 from ``example-robot-data``, the bone block inclined at
+β and the drill on the flange. Joint compliance this stiff is unstable as explicit PyBullet springs
+above ~0.1 ms steps, so the physics of the cell is the quasi-static model in :mod:`envs.cell`; the
+world mirrors its state (deflected joint angles, drill pose) for rendering and independent
+kinematic cross-checks (PyBullet's own forward kinematics of the same URDF).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pybullet as pb
+
+from envs.robot.ur5 import R_BASE_BASELINK, ur5_urdf_path
+
+UR5_JOINTS = (
+    "shoulder_pan_joint",
+    "shoulder_lift_joint",
+    "elbow_joint",
+    "wrist_1_joint",
+    "wrist_2_joint",
+    "wrist_3_joint",
+)
+
+
+@functools.cache
+def pybullet_ur5_urdf() -> str:
+    """A copy of the UR5 URDF with ``package://`` mesh paths resolved (PyBullet cannot resolve them).
+
+    Visual meshes are swapped for the collision STL files, which PyBullet's renderer reads reliably.
+    """
+    src = ur5_urdf_path()
+    robots_dir = src.parents[2]  # .../example-robot-data/robots
+    text = src.read_text()
+    text = text.replace("package://example-robot-data/robots/", f"{robots_dir.as_posix()}/")
+    text = text.replace("/visual/", "/collision/").replace(".dae", ".stl")
+    out = Path(tempfile.gettempdir()) / f"drillgym_ur5_{abs(hash(text)) & 0xFFFFFFFF:08x}.urdf"
+    if not out.exists():
+        out.write_text(text)
+    return str(out)
+
+
+def quat_xyzw_from_matrix(rot: np.ndarray) -> np.ndarray:
+    """PyBullet quaternion (x, y, z, w) of a 3x3 rotation matrix."""
+    m = np.asarray(rot, dtype=float)
+    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2.0
+    x = math.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2.0
+    y = math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2.0
+    z = math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2.0
+    x = math.copysign(x, m[2, 1] - m[1, 2])
+    y = math.copysign(y, m[0, 2] - m[2, 0])
+    z = math.copysign(z, m[1, 0] - m[0, 1])
+    return np.array([x, y, z, w])
+
+
+class PyBulletWorld:
+    """A PyBullet DIRECT client with the UR5, the bone block and the drill. Frames: UR ``base``."""
+
+    def __init__(self) -> None:
+        self.client = pb.connect(pb.DIRECT)
+        self.robot = pb.loadURDF(
+            pybullet_ur5_urdf(),
+            useFixedBase=True,
+            flags=pb.URDF_USE_INERTIA_FROM_FILE,
+            physicsClientId=self.client,
+        )
+        self.joint_index: dict[str, int] = {}
+        self.link_index: dict[str, int] = {}
+        for i in range(pb.getNumJoints(self.robot, physicsClientId=self.client)):
+            info = pb.getJointInfo(self.robot, i, physicsClientId=self.client)
+            self.joint_index[info[1].decode()] = i
+            self.link_index[info[12].decode()] = i
+        self.joints = [self.joint_index[n] for n in UR5_JOINTS]
+        self.bone: int | None = None
+        self.drill: int | None = None
+
+    # frames: PyBullet's world is the URDF base_link; UR base = base_link turned by pi about z.
+    @staticmethod
+    def _to_world(p_base: np.ndarray) -> np.ndarray:
+        return R_BASE_BASELINK.T @ np.asarray(p_base, dtype=float)
+
+    @staticmethod
+    def _to_base(p_world: np.ndarray) -> np.ndarray:
+        return R_BASE_BASELINK @ np.asarray(p_world, dtype=float)
+
+    def set_joint_angles(self, q_rad: np.ndarray) -> None:
+        """Put the arm at ``q_rad`` (kinematic reset, no dynamics)."""
+        for j, q in zip(self.joints, q_rad, strict=True):
+            pb.resetJointState(self.robot, j, float(q), physicsClientId=self.client)
+
+    def link_pose_base(self, link: str) -> np.ndarray:
+        """``T_base_link`` (4x4) from PyBullet's own forward kinematics."""
+        state = pb.getLinkState(
+            self.robot, self.link_index[link], computeForwardKinematics=True, physicsClientId=self.client
+        )
+        t = np.eye(4)
+        rot = np.array(pb.getMatrixFromQuaternion(state[5])).reshape(3, 3)
+        t[:3, :3] = R_BASE_BASELINK @ rot
+        t[:3, 3] = self._to_base(np.array(state[4]))
+        return t
+
+    def place_bone(self, T_base_task: np.ndarray, beta_rad: float, size_m: float = 0.03) -> None:
+        """A bone block whose top face passes through the entry point, inclined by β about task y."""
+        if self.bone is not None:
+            pb.removeBody(self.bone, physicsClientId=self.client)
+        half = [size_m / 2, size_m / 2, size_m / 4]
+        # Block frame: task frame turned by -beta about y, so its top face is z_task = -x_task tan(beta).
+        c, s = math.cos(beta_rad), math.sin(beta_rad)
+        r_task_block = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
+        r_base_block = T_base_task[:3, :3] @ r_task_block
+        centre_base = T_base_task[:3, 3] + r_base_block @ np.array([0.0, 0.0, half[2]])
+        vis = pb.createVisualShape(
+            pb.GEOM_BOX, halfExtents=half, rgbaColor=[0.93, 0.88, 0.75, 1], physicsClientId=self.client
+        )
+        col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=self.client)
+        self.bone = pb.createMultiBody(
+            0,
+            col,
+            vis,
+            basePosition=self._to_world(centre_base).tolist(),
+            baseOrientation=quat_xyzw_from_matrix(R_BASE_BASELINK.T @ r_base_block).tolist(),
+            physicsClientId=self.client,
+        )
+
+    def place_drill(self, T_base_flange: np.ndarray, length_m: float, diameter_m: float) -> None:
+        """Draw the spindle + drill as a cylinder along the flange z axis."""
+        if self.drill is None:
+            vis = pb.createVisualShape(
+                pb.GEOM_CYLINDER,
+                radius=diameter_m * 4,
+                length=length_m,
+                rgbaColor=[0.6, 0.6, 0.65, 1],
+                physicsClientId=self.client,
+            )
+            self.drill = pb.createMultiBody(0, -1, vis, physicsClientId=self.client)
+        centre = T_base_flange[:3, 3] + T_base_flange[:3, 2] * (length_m / 2)
+        pb.resetBasePositionAndOrientation(
+            self.drill,
+            self._to_world(centre).tolist(),
+            quat_xyzw_from_matrix(R_BASE_BASELINK.T @ T_base_flange[:3, :3]).tolist(),
+            physicsClientId=self.client,
+        )
+
+    def render(self, target_base: np.ndarray, width: int = 320, height: int = 240) -> np.ndarray:
+        """An RGB image (H, W, 3) uint8 from a camera looking at ``target_base``; headless."""
+        target = self._to_world(target_base)
+        view = pb.computeViewMatrixFromYawPitchRoll(
+            target.tolist(), 0.45, 60.0, -25.0, 0.0, 2, physicsClientId=self.client
+        )
+        proj = pb.computeProjectionMatrixFOV(50.0, width / height, 0.01, 3.0, physicsClientId=self.client)
+        img = pb.getCameraImage(width, height, view, proj, renderer=pb.ER_TINY_RENDERER, physicsClientId=self.client)
+        rgba = np.reshape(np.asarray(img[2], dtype=np.uint8), (height, width, 4))
+        return rgba[:, :, :3].copy()
+
+    def close(self) -> None:
+        """Disconnect the client (idempotent)."""
+        if self.client >= 0 and pb.isConnected(self.client):
+            pb.disconnect(self.client)
+        self.client = -1

@@ -1,0 +1,52 @@
+"""The ``drillgym`` command: one front for every user-facing job.
+
+Each sub-command lives in its own module exposing ``add_arguments(parser)`` and ``run(args) -> int``;
+modules are imported only when their sub-command runs, so ``drillgym --help`` stays fast and a job
+never imports what it does not use (Ray, torch, ...).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+COMMANDS: dict[str, tuple[str, str]] = {
+    "demo": ("eval.demo", "Run the paper scenario end to end and print where the results are."),
+    "identify-stiffness": (
+        "envs.robot.stiffness_cli",
+        "Identify the UR5 joint stiffnesses from simulated load tests (Li 2023 eq. 8, Table 1).",
+    ),
+    "bench-speed": ("eval.bench_speed", "Real-time factor and peak memory of the simulated cell."),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Argument parser with one sub-parser per command (arguments added lazily)."""
+    parser = argparse.ArgumentParser(prog="drillgym", description="Robot-assisted bone drilling with a UR5.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (_, help_text) in COMMANDS.items():
+        sub.add_parser(name, help=help_text, description=help_text)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``drillgym`` console script."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    if not argv or argv[0] in ("-h", "--help") or argv[0] not in COMMANDS:
+        if argv and argv[0] not in ("-h", "--help"):
+            parser.error(f"unknown command {argv[0]!r}; choose from {', '.join(COMMANDS)}")
+        parser.print_help()
+        return 0
+    name = argv[0]
+    module = importlib.import_module(COMMANDS[name][0])
+    sub = argparse.ArgumentParser(prog=f"drillgym {name}", description=COMMANDS[name][1])
+    module.add_arguments(sub)
+    args = sub.parse_args(argv[1:])
+    return int(module.run(args) or 0)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
