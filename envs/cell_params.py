@@ -30,6 +30,8 @@ class CellParams:
     """K_lat: sideways force per unit of lateral-to-axial cut ratio, i.e. moving the tip sideways by Δp
     while advancing Δz takes K_lat · Δp / Δz (N). Sets how fast a locked-in deviation relaxes:
     over K_lat / k_tool of depth. Calibrated."""
+    guidance_exponent: float = 2.0
+    """Side guidance grows as (engaged share of the lips)**this: how soon a skidding tip is caught. Calibrated."""
     effective_diameter_ratio: float = 0.85
     """Drill core bending diameter over nominal diameter (fluted section)."""
     stiffness_nm_rad: np.ndarray = field(default_factory=lambda: KTHETA_LI2023_NM_RAD.copy())

@@ -202,7 +202,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Apply one correction + feed override for 50 ms (5 physics updates / F/T samples)."""
-        a = np.asarray(action, dtype=float).reshape(-1)
+        a = np.asarray(action, dtype=float)
         if a.shape != (ACTION_DIM,):
             raise ValueError(f"action must have shape ({ACTION_DIM},), got {np.shape(action)}")
         if not np.all(np.isfinite(a)):

@@ -67,12 +67,12 @@ class BonePreset:
 # Calibrated on Li 2023's uncompensated run (buffalo cortical bone, 1.5 mm drill, 20,000 rpm,
 # 0.5 mm/s, beta 30 deg): see docs/physics.md for the fit and its plausibility checks.
 BUFFALO_CORTICAL = BoneMaterial(
-    k_tc_pa=315e6,
+    k_tc_pa=290e6,
     k_fc_pa=250e6,
-    k_rc_pa=420e6,
-    k_te_n_m=3.36e3,
+    k_rc_pa=386e6,
+    k_te_n_m=3.09e3,
     k_fe_n_m=3.0e3,
-    k_re_n_m=8.4e3,
+    k_re_n_m=7.73e3,
     k_chisel_n_m=10e3,
 )
 """Cortical buffalo bone, calibrated (Li 2023's specimen)."""

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.drilling.force_model import EngagementTable, engaged_corner_fraction, stage_bounds, stage_of
+from envs.drilling.force_model import EngagementTable, stage_bounds, stage_of
 from envs.drilling.geometry import DrillGeometry
 from envs.drilling.hole import Hole
 
@@ -58,6 +58,7 @@ class TipContactSolver:
         beta_rad: float,
         hole: Hole,
         lateral_cut_resistance_n: float,
+        guidance_exponent: float = 1.0,
     ) -> None:
         self.table = table
         self.geometry = geometry
@@ -65,6 +66,7 @@ class TipContactSolver:
         self.tan_beta = math.tan(beta_rad)
         self.hole = hole
         self.k_lat_n = lateral_cut_resistance_n
+        self.guidance_exponent = guidance_exponent
         self.grid = table.depth_m.tolist()
         self._bounds = stage_bounds(geometry, beta_rad)
         self._key: tuple[float, float] = (math.nan, math.nan)
@@ -93,9 +95,8 @@ class TipContactSolver:
             self._rows = rows
             self._fx, self._fy, self._fz, self._mz = (rows[:, i].tolist() for i in range(4))
         self._c = np.asarray(compliance_m_n, dtype=float)
-        self._g = (
-            engaged_corner_fraction(self.depth_local, self.geometry, self.beta_rad) if self.depth_local > 0 else 0.0
-        )
+        share = float(np.interp(self.depth_local, self.table.depth_m, self.table.engaged_fraction))
+        self._g = share**self.guidance_exponent
         self._k_cut = self.k_lat_n / max(advance_per_update_m, 1e-7)
         self._variants: dict[int, tuple] = {}
 
@@ -125,7 +126,8 @@ class TipContactSolver:
         for i in range(3):
             r[i] += servo_gain * (target[i] - r[i])
         prev = self.tip
-        v = 1 if self.touching else 0
+        inside = prev[2] + prev[0] * self.tan_beta > self._bounds[0]  # the tip itself is below the surface
+        v = 1 if self.touching and inside else 0
         sol = self._solve(self._get_variant(v))
         if v == 1 and self._g < 1.0 and sol[0][0] > prev[0] + 1e-12:  # moving uphill into uncut bone: blocked
             sol = self._solve(self._get_variant(2))
@@ -139,7 +141,7 @@ class TipContactSolver:
         self.torque = lam * torque
         self.depth_local = d
         self.touching = touching
-        stage = stage_of(d, self._bounds) if touching else 0
+        stage = stage_of(d, self._bounds) if touching and lam > 0.0 else 0
         return ContactSample(
             (tip[0], tip[1], tip[2]),
             (r[0], r[1], r[2]),

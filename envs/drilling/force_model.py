@@ -103,6 +103,8 @@ class EngagementTable:
     depth_m: np.ndarray
     edge: np.ndarray
     per_chip: np.ndarray
+    engaged_fraction: np.ndarray
+    """Share of the lips' length in bone, averaged over a revolution, in [0, 1]."""
 
     @classmethod
     def build(
@@ -133,9 +135,12 @@ class EngagementTable:
 
         edge_tab = np.zeros((grid.size, 4))
         chip_tab = np.zeros((grid.size, 4))
+        fraction = np.zeros(grid.size)
+        lip_total = float((is_lip[:, 0] * db).sum()) * N_ANGULAR
         for i, d in enumerate(grid):
             e = d - setback
             engaged = e > 0.0
+            fraction[i] = float(((engaged & is_lip) * db[:, None]).sum()) / lip_total
             cortical = engaged & (e < layer_depth)
             cancellous = engaged & ~cortical
             for mask, mat in ((cortical, bone.cortical), (cancellous, bone.cancellous)):
@@ -154,7 +159,7 @@ class EngagementTable:
                     f = f + thrust * (kf * lip_phi.sum() + kch * chisel_len)
                     tab[i, :3] += weight * f
                     tab[i, 3] += weight * (-kt * lip_r_phi.sum())  # torque opposes the +z spin
-        return cls(depth_m=grid, edge=edge_tab, per_chip=chip_tab)
+        return cls(depth_m=grid, edge=edge_tab, per_chip=chip_tab, engaged_fraction=fraction)
 
 
 class ForceModel:

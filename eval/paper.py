@@ -1,0 +1,22 @@
+"""Li et al. 2023's reported figures for the uncompensated experiment (β 30°, 0.5 mm/s, 1.5 mm drill).
+
+The calibration targets of the simulated cell; the compensated results are predictions, not targets.
+"""
+
+from __future__ import annotations
+
+LI2023_UNCOMPENSATED: dict[str, float] = {
+    "deviation_mean_mm": 0.703,
+    "lateral_force_max_n": 1.3,
+    "lateral_force_stable_n": 1.2,
+    "hole_offset_mm": 0.8,
+}
+"""Li §4: mean tip deviation, max and stable-stage lateral force, entry-hole centre offset."""
+
+CALIBRATION_TOLERANCE: dict[str, float] = {
+    "deviation_mean_mm": 0.20,
+    "lateral_force_max_n": 0.20,
+    "lateral_force_stable_n": 0.25,
+    "hole_offset_mm": 0.25,
+}
+"""Relative tolerance accepted for each calibrated quantity."""

@@ -1,0 +1,68 @@
+"""Figures a reader would rather look at than read (matplotlib, headless)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from envs.metrics import FORCE_FILTER_SAMPLES, moving_average
+from eval.rollout import EpisodeResult
+
+STAGE_COLOURS = {1: "#fde0c5", 2: "#facba6", 3: "#f8b58b", 4: "#e0ecf4"}
+
+
+def shade_stages(ax: plt.Axes, t_s: np.ndarray, stage: np.ndarray) -> None:
+    """Shade the engagement stages 1-4 behind a time plot."""
+    start = 0
+    for i in range(1, len(stage) + 1):
+        if i == len(stage) or stage[i] != stage[start]:
+            s = int(stage[start])
+            if s in STAGE_COLOURS:
+                ax.axvspan(t_s[start], t_s[i - 1], color=STAGE_COLOURS[s], lw=0, zorder=0)
+                if t_s[i - 1] - t_s[start] > 0.3:
+                    ax.text(
+                        0.5 * (t_s[start] + t_s[i - 1]),
+                        0.97,
+                        f"stage {s}",
+                        transform=ax.get_xaxis_transform(),
+                        ha="center",
+                        va="top",
+                        fontsize=7,
+                        color="0.35",
+                    )
+            start = i
+
+
+def plot_episode(result: EpisodeResult, path: Path, title: str = "") -> None:
+    """Lateral force (F/T, 0.2 s filter) and tip deviation over time, engagement stages shaded."""
+    tr = result.trace
+    t, stage = tr["t_s"], tr["stage"]
+    force = moving_average(tr["ft_force_n"], FORCE_FILTER_SAMPLES)
+    lateral = np.hypot(force[:, 0], force[:, 1])
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.5, 5.2), sharex=True)
+    for ax in (a1, a2):
+        shade_stages(ax, t, stage)
+        ax.grid(alpha=0.3)
+    a1.plot(t, lateral, color="C3", lw=1.2, label="lateral force |Fxy| (F/T, 20-sample mean)")
+    a1.plot(t, -force[:, 2] / 10.0, color="0.4", lw=0.8, ls="--", label="thrust / 10")
+    a1.set_ylabel("force (N)")
+    a1.legend(loc="upper right", fontsize=8)
+    a2.plot(t, tr["deviation_m"] * 1e3, color="C0", lw=1.2, label="tip deviation from the planned axis")
+    a2.set_ylabel("deviation (mm)")
+    a2.set_xlabel("time (s)")
+    a2.legend(loc="upper right", fontsize=8)
+    m = result.metrics
+    a1.set_title(
+        (title + "\n" if title else "")
+        + f"mean dev {m['deviation_mean_mm']:.3f} mm, max |Fxy| {m['lateral_force_max_n']:.2f} N, "
+        f"stable {m['lateral_force_stable_n']:.2f} N, hole offset {m['hole_offset_mm']:.2f} mm",
+        fontsize=9,
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -1,0 +1,209 @@
+from __future__ import annotations
+
+import itertools
+import math
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium import spaces
+from gymnasium.utils.env_checker import check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import envs
+from envs.observation import OBS_BOUNDS
+
+ENV_ID = envs.ENV_IDS[0]
+PRIVILEGED_INFO_KEYS = (
+    "tip_pos_task_m",
+    "stage",
+    "deviation_m",
+    "tip_deflection_robot_m",
+    "tip_deflection_tool_m",
+    "force_true_n",
+)
+REQUIRED_METRICS = (
+    "deviation_mean_mm",
+    "deviation_max_mm",
+    "lateral_force_max_n",
+    "lateral_force_stable_n",
+    "hole_offset_mm",
+    "drill_time_s",
+)
+ZERO = np.zeros(4, dtype=np.float32)
+
+
+def run_episode(env: gym.Env, action: np.ndarray = ZERO, seed: int = 0) -> list[tuple]:
+    """(obs, reward, terminated, truncated, info) of every step, the reset as step 0 (reward None)."""
+    obs, info = env.reset(seed=seed)
+    out = [(obs, None, False, False, info)]
+    while True:
+        obs, reward, terminated, truncated, info = env.step(action)
+        out.append((obs, reward, terminated, truncated, info))
+        if terminated or truncated:
+            return out
+
+
+@pytest.fixture(scope="module")
+def zero_episode():
+    env = gym.make(ENV_ID)
+    steps = run_episode(env)
+    yield env, steps
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_gymnasium_env_checker_passes_including_render(env_id):
+    # render_mode="rgb_array" renders headless (PyBullet DIRECT + TinyRenderer), so the render check runs.
+    env = gym.make(env_id, render_mode="rgb_array")
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            check_env(env.unwrapped, skip_render_check=False)
+        assert not [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_stable_baselines3_env_checker_passes(env_id):
+    env = gym.make(env_id)
+    try:
+        sb3_check_env(env.unwrapped, warn=True)
+    finally:
+        env.close()
+
+
+def test_action_space_is_unit_box_of_four_float32():
+    env = gym.make(ENV_ID)
+    try:
+        space = env.action_space
+        assert isinstance(space, spaces.Box)
+        assert space.shape == (4,)
+        assert space.dtype == np.float32
+        np.testing.assert_array_equal(space.low, -np.ones(4, np.float32))
+        np.testing.assert_array_equal(space.high, np.ones(4, np.float32))
+    finally:
+        env.close()
+
+
+def test_observation_space_is_dict_with_exactly_the_obs_bounds_keys(zero_episode):
+    env, steps = zero_episode
+    space = env.observation_space
+    assert isinstance(space, spaces.Dict)
+    assert set(space.spaces) == set(OBS_BOUNDS)
+    for key, (size, _) in OBS_BOUNDS.items():
+        sub = space[key]
+        assert isinstance(sub, spaces.Box) and sub.dtype == np.float32 and sub.shape == (size,), key
+    for i, (obs, *_) in enumerate(steps):
+        assert set(obs) == set(OBS_BOUNDS), f"step {i}: keys {sorted(obs)}"
+
+
+def test_every_observation_of_a_zero_action_episode_is_inside_the_space(zero_episode):
+    env, steps = zero_episode
+    for i, (obs, *_) in enumerate(steps):
+        if not env.observation_space.contains(obs):
+            bad = [k for k, v in obs.items() if not env.observation_space[k].contains(v)]
+            pytest.fail(f"step {i}: observation outside the space for {bad}")
+
+
+@pytest.mark.parametrize("action", [[1, 1, 1, 1], [-1, -1, -1, -1], [1, -1, 1, 0.5]])
+def test_observations_stay_inside_the_space_under_saturated_actions(action):
+    env = gym.make(ENV_ID)
+    try:
+        for i, (obs, *_) in enumerate(run_episode(env, np.array(action, np.float32))):
+            assert env.observation_space.contains(obs), f"step {i}"
+    finally:
+        env.close()
+
+
+def test_observation_holds_no_privileged_state(zero_episode):
+    _, steps = zero_episode
+    obs, *_, info = steps[-1]
+    for key in PRIVILEGED_INFO_KEYS:
+        assert key in info, f"{key} missing from info"
+        assert key not in obs, f"privileged {key} leaked into the observation"
+
+
+def test_zero_action_episode_terminates_with_finite_metrics(zero_episode):
+    _, steps = zero_episode
+    _, _, terminated, truncated, info = steps[-1]
+    assert terminated and not truncated
+    assert info["failure"] is None
+    metrics = info["metrics"]
+    for name in REQUIRED_METRICS:
+        assert name in metrics, name
+        assert math.isfinite(metrics[name]), f"{name}={metrics[name]}"
+    for i, (*_, t, tr, _) in enumerate(steps[:-1]):
+        assert not t and not tr, f"episode ended early at step {i}"
+
+
+def test_step_info_has_stage_deflections_and_reward_terms_summing_to_reward(zero_episode):
+    _, steps = zero_episode
+    for i, (_, reward, _, _, info) in enumerate(steps[1:], start=1):
+        assert info["stage"] in range(5), f"step {i}: stage={info['stage']}"
+        assert np.shape(info["tip_deflection_robot_m"]) == (3,), f"step {i}"
+        assert np.shape(info["tip_deflection_tool_m"]) == (3,), f"step {i}"
+        terms = info["reward_terms"]
+        assert terms, f"step {i}: empty reward_terms"
+        assert math.isclose(sum(terms.values()), reward, rel_tol=1e-12, abs_tol=1e-12), f"step {i}: {terms} vs {reward}"
+        assert math.isfinite(reward), f"step {i}"
+
+
+def test_stages_appear_in_order_during_paper_scenario(zero_episode):
+    _, steps = zero_episode
+    infos = [info for *_, info in steps[1:]]
+    drilling = [info["stage"] for info in infos if info["phase"] < 2]
+    assert all(b >= a for a, b in itertools.pairwise(drilling)), drilling
+    assert set(drilling) == {0, 1, 2, 3, 4}, f"stages seen before retract: {sorted(set(drilling))}"
+    assert any(info["phase"] == 2 for info in infos), "no retract phase"
+
+
+def test_step_after_termination_raises_and_reset_recovers():
+    env = gym.make(ENV_ID)
+    try:
+        run_episode(env)
+        with pytest.raises(RuntimeError):
+            env.step(ZERO)
+        env.reset(seed=1)
+        obs, reward, terminated, truncated, _ = env.step(ZERO)
+        assert not terminated and not truncated
+        assert env.observation_space.contains(obs) and math.isfinite(reward)
+    finally:
+        env.close()
+
+
+def test_force_limit_terminates_with_failure_and_metrics():
+    env = gym.make(ENV_ID, force_limit_n=2.0)
+    try:
+        *_, (_, _, terminated, truncated, info) = run_episode(env)
+        assert terminated and not truncated
+        assert info["failure"] == "force_limit"
+        assert "metrics" in info
+        with pytest.raises(RuntimeError):
+            env.step(ZERO)
+    finally:
+        env.close()
+
+
+def test_slowest_feed_override_truncates_at_three_times_nominal_duration():
+    env = gym.make(ENV_ID)
+    try:
+        *_, (_, _, terminated, truncated, info) = run_episode(env, np.array([0, 0, 0, -1], np.float32))
+        assert truncated and not terminated
+        assert info["t_s"] >= env.unwrapped.max_time_s
+        assert "metrics" in info
+    finally:
+        env.close()
+
+
+def test_after_retract_the_tip_is_out_of_the_bone_and_unloaded(zero_episode):
+    env, steps = zero_episode
+    obs, *_, info = steps[-1]
+    tip = info["tip_pos_task_m"]
+    beta = env.unwrapped.scenario.beta_rad
+    assert tip[2] + tip[0] * math.tan(beta) < 0.0, f"tip {tip} not above the surface"
+    assert info["stage"] == 0
+    np.testing.assert_array_equal(info["force_true_n"], np.zeros(3))
+    assert np.linalg.norm(obs["ft_wrench"][:3]) < 0.2, obs["ft_wrench"]  # noise only (0.02 N std per axis)
