@@ -9,7 +9,7 @@ and the elastic arm + drill balance:
 the tip depth below the local surface, so a tip skidding downhill loses engagement and one pushed
 uphill gains it; ``K_cut = (K_lat / Δz) · diag(w_x, w_y, 0)``: to move sideways by Δp while advancing
 Δz, the drill must cut the side of its own hole, which takes a force ``K_lat · Δp / Δz``. Moving uphill
-always cuts fresh bone (``w_x = 1`` once in contact); downhill and across the slope it cuts only where
+always cuts fresh bone (``w = 1`` along the slope once in contact); downhill and across the slope it cuts only where
 the hole's circumference already exists (``w = g``, the outer corner's engaged share of a revolution),
 so an entering drill skids down the slope freely, cannot come back, and once fully inside copies its
 deviation forward, relaxing only over ``K_lat / k`` of depth. The lateral feedback is solved
@@ -69,6 +69,7 @@ class TipContactSolver:
         self.guidance_exponent = guidance_exponent
         self.grid = table.depth_m.tolist()
         self._bounds = stage_bounds(geometry, beta_rad)
+        self._uphill_sign = math.copysign(1.0, beta_rad) if beta_rad != 0.0 else 0.0
         self._key: tuple[float, float] = (math.nan, math.nan)
         self.force_scale = 1.0
         """Per-specimen multiplier on every cutting force (bone variability), set before an episode."""
@@ -129,7 +130,8 @@ class TipContactSolver:
         inside = prev[2] + prev[0] * self.tan_beta > self._bounds[0]  # the tip itself is below the surface
         v = 1 if self.touching and inside else 0
         sol = self._solve(self._get_variant(v))
-        if v == 1 and self._g < 1.0 and sol[0][0] > prev[0] + 1e-12:  # moving uphill into uncut bone: blocked
+        uphill = self._uphill_sign * (sol[0][0] - prev[0])
+        if v == 1 and self._g < 1.0 and uphill > 1e-12:  # moving uphill into uncut bone: blocked
             sol = self._solve(self._get_variant(2))
         tip, force, lam, d, touching, torque = sol
         cutting = touching and lam >= 1.0 and tip[2] > self.bottom_z
