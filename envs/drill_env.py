@@ -159,7 +159,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.observation_space = observation_space()  # type: ignore[assignment]
         self.recorder = EpisodeRecorder()
         self.max_time_s = 3.0 * self.path.nominal_duration_s()
-        self.world: PyBulletWorld | None = PyBulletWorld()
+        self.world: PyBulletWorld | None = PyBulletWorld(visual_meshes=render_mode is not None)
         self.world.place_bone(self.cell.T_base_task, self.scenario.beta_rad)
         self._reset_state()
 
@@ -343,7 +343,12 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             return None
         q = self.cell.q_actual_rad()
         self.world.set_joint_angles(q)
-        self.world.place_drill(self.cell.flange_pose_base(q), self.cell.tcp_offset_m, self.scenario.drill_diameter_m)
+        self.world.place_drill(
+            self.cell.flange_pose_base(q),
+            self.cell.params.sensor_to_chuck_m,
+            self.scenario.stickout_m,
+            self.scenario.drill_diameter_m,
+        )
         return self.world.render(self.cell.entry_base_m)
 
     def close(self) -> None:
