@@ -24,6 +24,7 @@ from envs.constants import (
 from envs.drilling.bone import BonePreset
 from envs.metrics import EpisodeRecorder, episode_metrics
 from envs.observation import observation_space, pack_observation
+from envs.plan import DrillPlan
 from envs.pybullet_world import PyBulletWorld
 from envs.robot.ur5 import TRACKER_FRAME
 from envs.scenario import Scenario
@@ -330,6 +331,11 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if self.metrics is not None:
             info["metrics"] = dict(self.metrics)
         return info
+
+    @property
+    def plan(self) -> DrillPlan:
+        """The surgical plan of this scenario (what a controller may know before drilling)."""
+        return DrillPlan.from_scenario(self.scenario, self.cell.T_base_task, self.cell.tcp_offset_m)
 
     def episode_metrics(self) -> dict[str, float]:
         """Metrics of the episode so far (see :mod:`envs.metrics`)."""
