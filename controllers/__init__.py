@@ -1,1 +1,20 @@
-"""placeholder."""
+"""Controllers: map an observation of the drilling cell to an action; SB3's ``predict`` protocol.
+
+``make_controller("li2023:kp=1.0")`` builds one from a spec; ``CONTROLLERS`` lists the names.
+"""
+
+from controllers.base import Controller
+from controllers.li2023 import Li2023Config, Li2023Controller
+from controllers.none import NoCompensation, NoCompensationConfig
+from controllers.registry import CONTROLLERS, make_controller, parse_spec
+
+__all__ = [
+    "CONTROLLERS",
+    "Controller",
+    "Li2023Config",
+    "Li2023Controller",
+    "NoCompensation",
+    "NoCompensationConfig",
+    "make_controller",
+    "parse_spec",
+]

@@ -1,0 +1,79 @@
+"""What every controller is: SB3's ``predict`` on top of a per-step ``act``.
+
+A controller maps one observation of the cell (the Dict of :mod:`envs.observation`) to one action
+(``Box(-1, 1, (4,))``: tip correction in the base frame + feed override). It is told the surgical
+plan (:class:`envs.plan.DrillPlan`) before each episode and keeps its own state (filters, PID,
+path prediction), reset at episode start.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any, ClassVar
+
+import numpy as np
+
+from envs.constants import ACTION_DIM
+from envs.plan import DrillPlan
+
+
+class Controller(ABC):
+    """Base class: ``set_plan`` then ``predict`` (SB3 protocol) or ``act`` step by step."""
+
+    name: ClassVar[str] = "controller"
+    config: Any
+
+    def __init__(self) -> None:
+        self.plan: DrillPlan | None = None
+
+    def set_plan(self, plan: DrillPlan) -> None:
+        """Tell the controller the planned hole and tool; resets its state."""
+        self.plan = plan
+        self.reset()
+
+    @abstractmethod
+    def reset(self) -> None:
+        """Forget the previous episode (filters, integrators, queued corrections)."""
+
+    @abstractmethod
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """One action (float32, shape (4,), in [-1, 1]) for one observation."""
+
+    def predict(
+        self,
+        observation: dict[str, np.ndarray],
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
+        """SB3's ``PolicyPredictor.predict``: accepts one observation or a batch of one."""
+        if self.plan is None:
+            raise RuntimeError(f"{self.name}: call set_plan(env.unwrapped.plan) before predict()")
+        batched = np.ndim(observation["path_depth_m"]) == 2
+        if batched:
+            if np.shape(observation["path_depth_m"])[0] != 1:
+                raise ValueError(
+                    f"{self.name} is a single-env controller; got a batch of {len(observation['path_depth_m'])}"
+                )
+            observation = {k: np.asarray(v)[0] for k, v in observation.items()}
+        if episode_start is not None and bool(np.any(episode_start)):
+            self.reset()
+        action = np.clip(np.asarray(self.act(observation), dtype=np.float32), -1.0, 1.0)
+        if action.shape != (ACTION_DIM,):
+            raise RuntimeError(f"{self.name} produced an action of shape {action.shape}")
+        return (action[None] if batched else action), state
+
+    def describe(self) -> dict[str, Any]:
+        """Name and configuration, JSON-ready (written into every episode log)."""
+        from dataclasses import asdict, is_dataclass
+
+        cfg = asdict(self.config) if is_dataclass(self.config) else {}
+        return {"name": self.name, "config": {k: _jsonable(v) for k, v in cfg.items()}}
+
+
+def _jsonable(v: Any) -> Any:
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, tuple):
+        return list(v)
+    return v

@@ -1,0 +1,169 @@
+"""``li2023``: Li et al. 2023's force-position hybrid compensator (§2.3, Figs. 6-7).
+
+* **Offline** (Fig. 6, upper path): before drilling, the planned path is shifted against the drill's
+  predicted bending, ``ΔP = -k_D⁻¹ F``, with ``F`` the unbalanced force of the controller's own
+  multi-stage force model along the planned depth and ``k_D`` the cantilever stiffness.
+* **Online** (Fig. 6, lower path): the F/T force, filtered over 20 samples at 100 Hz, is turned into
+  the tool's deviation ``Δx = C_D T₁ F_f + T₂ K_FD⁻¹ F_f`` (robot compliance + drill bending) plus the
+  correction the robot is already executing (measured by RTDE), so ``Δx`` is the tip's deviation
+  from the planned path.
+* **PID on adjacent points** (eq. 14-15): every 600 ms trajectory point i, ``Δd_i = Δx_i - Δx_{i-1}``
+  and ``u_i = KP Δd_i + KI Σ Δd + KD (Δd_i - Δd_{i-1})``; KI's sum is the deviation itself, KP acts on
+  its change between points (the paper's "speed up the response").
+* **Path prediction** (Fig. 7): at point i the robot is already moving to P_{i+1}, so u_i is added
+  to the original target P_{i+2}; the robot moves linearly between corrected points.
+
+Compensation is applied across the drill axis (Li compensates the main deviation direction; both
+lateral axes here), never along it. Units: SI; frames: base unless named.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from controllers.base import Controller
+from controllers.models import LI2023_MODEL_PEAK_N, OfflineForceModel, RobotComplianceModel, tool_compliance_m_n
+from envs.constants import CONTROL_DT_S, FT_RATE_HZ, MAX_CORRECTION_M, SUBSTEPS_PER_STEP, unscale_action
+
+
+@dataclass
+class Li2023Config:
+    """Gains and timing of the hybrid compensator (defaults: the paper's best setting)."""
+
+    kp: float = 4.0
+    """Proportional gain on the change of deviation between adjacent points (Li: 4.0 best)."""
+    ki: float = 1.0
+    """Gain on the accumulated deviation, i.e. the deviation itself (Li gives no value)."""
+    kd: float = 0.0
+    """Gain on the change of the change (Li gives no value)."""
+    filter_samples: int = 20
+    """F/T samples averaged per compensation (Li: 20 at 100 Hz = 0.2 s)."""
+    point_period_s: float = 0.6
+    """Time per trajectory point (Li: 600 ms)."""
+    prediction_points: int = 2
+    """u_i is applied at P_{i + this} (Li's path prediction: 2)."""
+    offline: bool = True
+    """Apply the offline correction from the force model."""
+    online: bool = True
+    """Apply the online force-feedback correction."""
+    model_peak_force_n: float = LI2023_MODEL_PEAK_N
+    """Scale of the controller's force model: its peak at β 30°, 0.5 mm/s (Li Fig. 9a)."""
+    tool_effective_diameter_ratio: float = 0.85
+    """Bending diameter of the fluted drill over its nominal diameter, for k_D."""
+    max_correction_m: float = MAX_CORRECTION_M
+    """Clip on the total correction per axis (m)."""
+
+    def __post_init__(self) -> None:
+        if self.filter_samples < 1 or self.filter_samples % SUBSTEPS_PER_STEP:
+            raise ValueError(
+                f"filter_samples={self.filter_samples} must be a positive multiple of {SUBSTEPS_PER_STEP} "
+                "(F/T samples per agent step)"
+            )
+        steps = self.point_period_s / CONTROL_DT_S
+        if self.point_period_s <= 0 or abs(steps - round(steps)) > 1e-9:
+            raise ValueError(f"point_period_s={self.point_period_s} must be a positive multiple of {CONTROL_DT_S} s")
+        if self.prediction_points < 1:
+            raise ValueError(f"prediction_points={self.prediction_points} must be >= 1")
+        if not all(math.isfinite(v) for v in (self.kp, self.ki, self.kd)):
+            raise ValueError("kp, ki and kd must be finite")
+
+
+class Li2023Controller(Controller):
+    """Force-position hybrid compensation with path prediction."""
+
+    name = "li2023"
+
+    def __init__(self, config: Li2023Config | None = None) -> None:
+        super().__init__()
+        self.config = config or Li2023Config()
+        self.steps_per_point = round(self.config.point_period_s / CONTROL_DT_S)
+
+    def set_plan(self, plan) -> None:  # type: ignore[no-untyped-def]
+        """Build the controller's own models for this plan, then reset."""
+        self.robot = RobotComplianceModel(plan.tcp_offset_m)
+        self.C_tool = tool_compliance_m_n(plan, self.config.tool_effective_diameter_ratio)
+        self.offline_model = OfflineForceModel.for_plan(plan, self.config.model_peak_force_n)
+        self.R = plan.R_base_task
+        axis = self.R[:, 2]
+        self.lateral = np.eye(3) - np.outer(axis, axis)  # projector across the drill axis (base frame)
+        super().set_plan(plan)
+
+    def reset(self) -> None:
+        """Empty the force filter, the PID memory and the queued corrections."""
+        n_steps = self.config.filter_samples // SUBSTEPS_PER_STEP
+        self.force_window: deque[np.ndarray] = deque(maxlen=n_steps)
+        self.tcp_window: deque[np.ndarray] = deque(maxlen=n_steps)
+        self.step = 0
+        self.prev_dx = np.zeros(3)
+        self.prev_dd = np.zeros(3)
+        self.sum_dd = np.zeros(3)
+        # online correction at the corrected points: (time of the point, correction) pairs
+        self.points: deque[tuple[float, np.ndarray]] = deque([(0.0, np.zeros(3))])
+        self.last_online = np.zeros(3)
+
+    # ------------------------------------------------------------------ models
+    def offline_correction_base_m(self, depth_m: float) -> np.ndarray:
+        """ΔP = -k_D⁻¹ F_model at the planned depth, lateral, base frame (m)."""
+        f_task = np.zeros(3)
+        f_task[:2] = self.offline_model.lateral_at(depth_m)
+        return -(self.R @ (self.C_tool @ f_task))
+
+    def deviation_estimate_base_m(
+        self, q_rad: np.ndarray, tcp_error_base_m: np.ndarray, force_sensor_n: np.ndarray
+    ) -> np.ndarray:
+        """Δx: executed correction (RTDE) + robot deflection C_D T₁ F + drill bending T₂ K_FD⁻¹ F; lateral.
+
+        ``tcp_error_base_m`` and ``force_sensor_n`` are averaged over the same filter window.
+        """
+        f_base = self.R @ force_sensor_n
+        robot = self.robot.translational_compliance_m_n(q_rad) @ f_base
+        tool = self.R @ (self.C_tool @ force_sensor_n)
+        return self.lateral @ (tcp_error_base_m + robot + tool)
+
+    # ------------------------------------------------------------------ control
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """Correction = offline profile + online PID correction (interpolated between points)."""
+        cfg = self.config
+        t = self.step * CONTROL_DT_S
+        self.force_window.append(np.asarray(obs["ft_wrench_mean"][:3], dtype=float))
+        self.tcp_window.append(np.asarray(obs["tcp_error_base_m"], dtype=float))
+        if cfg.online and self.step % self.steps_per_point == 0:
+            self._compensation_point(obs, t)
+        online = self._online_at(t + CONTROL_DT_S) if cfg.online else np.zeros(3)
+        offline = self.offline_correction_base_m(float(obs["path_depth_m"][0])) if cfg.offline else np.zeros(3)
+        self.step += 1
+        total = np.clip(offline + online, -cfg.max_correction_m, cfg.max_correction_m)
+        return unscale_action(total, 1.0)
+
+    def _compensation_point(self, obs: dict[str, np.ndarray], t: float) -> None:
+        cfg = self.config
+        force = np.mean(self.force_window, axis=0)
+        dx = self.deviation_estimate_base_m(obs["q_rad"], np.mean(self.tcp_window, axis=0), force)
+        dd = dx - self.prev_dx
+        self.sum_dd += dd
+        u = cfg.kp * dd + cfg.ki * self.sum_dd + cfg.kd * (dd - self.prev_dd)
+        self.prev_dx, self.prev_dd = dx, dd
+        t_apply = t + cfg.prediction_points * cfg.point_period_s
+        target = np.clip(-u, -cfg.max_correction_m, cfg.max_correction_m)
+        self.points.append((t_apply, target))
+
+    def _online_at(self, t: float) -> np.ndarray:
+        """Correction the robot has reached at time t, moving linearly between corrected points."""
+        while len(self.points) >= 2 and self.points[1][0] <= t:
+            self.points.popleft()
+        t0, c0 = self.points[0]
+        if len(self.points) == 1 or t <= t0:
+            return c0
+        # the point before the next one is reached at the previous point's time
+        t1, c1 = self.points[1]
+        t_start = t1 - self.config.point_period_s
+        if t <= t_start:
+            return c0
+        return c0 + (c1 - c0) * (t - t_start) / (t1 - t_start)
+
+
+FT_SAMPLES_PER_POINT = round(FT_RATE_HZ * 0.6)

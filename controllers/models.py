@@ -1,0 +1,104 @@
+"""The controllers' own models of the cell: the papers' stiffness and force models.
+
+These are the controllers' copies, with their own parameters (what a user would measure or take from
+the papers), not a look at the simulator's state: robot compliance from Li's identified joint
+stiffness and the robot's nominal kinematics, the drill as a cantilever of the measured stick-out,
+and Li's mechanistic force model with coefficients fitted to Li's own published model curve.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs.drilling.bone import BUFFALO_CORTICAL, BonePreset
+from envs.drilling.force_model import EngagementTable
+from envs.drilling.geometry import DrillGeometry
+from envs.drilling.tool import CantileverTool
+from envs.plan import DrillPlan
+from envs.robot.compliance import KTHETA_LI2023_NM_RAD, JointCompliance
+from envs.robot.ur5 import TCP_FRAME, UR5Kinematics
+
+LI2023_MODEL_PEAK_N = 1.3
+"""Peak unbalanced force of Li's model at β 30°, 0.5 mm/s (Fig. 9a; "similar" to the measured 1.3 N)."""
+
+
+@functools.lru_cache(maxsize=8)
+def _kinematics(tcp_offset_m: float) -> UR5Kinematics:
+    return UR5Kinematics(tcp_offset_m)
+
+
+class RobotComplianceModel:
+    """C = J Kθ⁻¹ Jᵀ from the robot's nominal kinematics and a joint-stiffness estimate."""
+
+    def __init__(self, tcp_offset_m: float, stiffness_nm_rad: np.ndarray | None = None) -> None:
+        self.kin = _kinematics(round(tcp_offset_m, 9))
+        self.joints = JointCompliance(
+            np.asarray(KTHETA_LI2023_NM_RAD if stiffness_nm_rad is None else stiffness_nm_rad, dtype=float)
+        )
+
+    def jacobian(self, q_rad: np.ndarray) -> np.ndarray:
+        """6x6 TCP Jacobian in the base frame."""
+        return self.kin.jacobian(np.asarray(q_rad, dtype=float), TCP_FRAME)
+
+    def translational_compliance_m_n(self, q_rad: np.ndarray) -> np.ndarray:
+        """C_D (3x3, m/N, base frame) at joint angles ``q_rad``."""
+        return self.joints.translational_compliance_m_n(self.jacobian(q_rad))
+
+
+def tool_compliance_m_n(plan: DrillPlan, effective_diameter_ratio: float = 0.85) -> np.ndarray:
+    """K_FD⁻¹: the drill's tip compliance (3x3, m/N, tool frame) for the measured stick-out."""
+    tool = CantileverTool(
+        diameter_m=plan.drill_diameter_m, stickout_m=plan.stickout_m, effective_diameter_ratio=effective_diameter_ratio
+    )
+    return tool.compliance_tool_m_n()
+
+
+@dataclass(frozen=True)
+class OfflineForceModel:
+    """Li's multi-stage force model, tabulated over the planned depth for one plan.
+
+    The functional form is the mechanistic model of :mod:`envs.drilling`; the coefficients are a
+    literature cortical-bone set scaled so that the model's peak unbalance at Li's operating point
+    (β 30°, 0.5 mm/s, 1.5 mm, 20,000 rpm, tip on the planned axis) equals Li's published model value.
+    """
+
+    depth_m: np.ndarray
+    lateral_task_n: np.ndarray
+    """(n, 2) unbalanced force on the tool, task x and y (N), tip on the planned axis."""
+
+    @classmethod
+    def for_plan(cls, plan: DrillPlan, peak_at_li_point_n: float = LI2023_MODEL_PEAK_N) -> OfflineForceModel:
+        """Build the tables for ``plan``."""
+        bone = _li_model_bone(peak_at_li_point_n)
+        geom = DrillGeometry(diameter_m=plan.drill_diameter_m)
+        table = _table(geom, bone, plan.beta_rad, plan.cortical_thickness_m, plan.depth_m + 2e-3)
+        chip = geom.chip_thickness_m(plan.feed_m_s, plan.spindle_rpm)
+        rows = table.edge + chip * table.per_chip
+        return cls(depth_m=table.depth_m, lateral_task_n=rows[:, :2].copy())
+
+    def lateral_at(self, depth_m: float) -> np.ndarray:
+        """Predicted unbalanced force (task x, y; N) with the tip at ``depth_m`` on the planned axis."""
+        return np.array(
+            [np.interp(depth_m, self.depth_m, self.lateral_task_n[:, i], left=0.0, right=0.0) for i in range(2)]
+        )
+
+
+@functools.lru_cache(maxsize=8)
+def _li_model_bone(peak_n: float) -> BonePreset:
+    """Literature coefficients scaled to Li's model peak (computed once, at Li's operating point)."""
+    geom = DrillGeometry()
+    base = BonePreset("li2023_model", BUFFALO_CORTICAL, BUFFALO_CORTICAL.scaled(0.15), "Li 2023 model")
+    table = _table(geom, base, np.radians(30.0), 8e-3, 4e-3)
+    rows = table.edge + geom.chip_thickness_m(0.5e-3, 20000.0) * table.per_chip
+    scale = peak_n / float(np.hypot(rows[:, 0], rows[:, 1]).max())
+    return base.scaled(scale)
+
+
+@functools.lru_cache(maxsize=32)
+def _table(
+    geom: DrillGeometry, bone: BonePreset, beta: float, cortical_m: float, max_depth_m: float
+) -> EngagementTable:
+    return EngagementTable.build(geom, bone, float(beta), cortical_m, max_depth_m)

@@ -1,0 +1,67 @@
+"""Controller specs: ``name[:field=value,...]`` -> a configured controller."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+from controllers.base import Controller
+from controllers.li2023 import Li2023Config, Li2023Controller
+from controllers.none import NoCompensation, NoCompensationConfig
+
+CONTROLLERS: dict[str, tuple[Callable[[Any], Controller], type]] = {
+    "none": (NoCompensation, NoCompensationConfig),
+    "li2023": (Li2023Controller, Li2023Config),
+}
+"""name -> (class, config dataclass)."""
+
+
+def parse_spec(spec: str) -> tuple[str, dict[str, str]]:
+    """Split ``"li2023:kp=1.0,ki=0.5"`` into ``("li2023", {"kp": "1.0", "ki": "0.5"})``."""
+    name, _, rest = spec.strip().partition(":")
+    overrides: dict[str, str] = {}
+    if rest and name != "residual":
+        for item in rest.split(","):
+            key, eq, value = item.partition("=")
+            if not eq or not key.strip():
+                raise ValueError(f"controller spec {spec!r}: expected field=value, got {item!r}")
+            overrides[key.strip()] = value.strip()
+    return name, overrides
+
+
+def _convert(field: dataclasses.Field, raw: str) -> Any:
+    kind = field.type if isinstance(field.type, type) else str(field.type)
+    if kind in (bool, "bool"):
+        if raw.lower() in ("1", "true", "yes", "on"):
+            return True
+        if raw.lower() in ("0", "false", "no", "off"):
+            return False
+        raise ValueError(f"{field.name}={raw!r} is not a boolean")
+    if kind in (int, "int"):
+        return int(raw)
+    if kind in (float, "float"):
+        return float(raw)
+    return raw
+
+
+def make_controller(spec: str) -> Controller:
+    """Build a controller from a spec; unknown names or fields raise ``ValueError`` listing the options."""
+    name, overrides = parse_spec(spec)
+    if name == "residual":
+        from training.residual_policy import load_residual_controller  # type: ignore[import-not-found]
+
+        return load_residual_controller(spec.partition(":")[2])
+    if name not in CONTROLLERS:
+        raise ValueError(f"unknown controller {name!r}; choose from {sorted(CONTROLLERS)} or residual:PATH")
+    cls, cfg_cls = CONTROLLERS[name]
+    fields = {f.name: f for f in dataclasses.fields(cfg_cls)}
+    kwargs = {}
+    for key, raw in overrides.items():
+        if key not in fields:
+            raise ValueError(f"{name} has no parameter {key!r}; parameters: {sorted(fields)}")
+        try:
+            kwargs[key] = _convert(fields[key], raw)
+        except ValueError as e:
+            raise ValueError(f"{name}: {key}={raw!r}: {e}") from e
+    return cls(cfg_cls(**kwargs))
