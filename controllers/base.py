@@ -67,7 +67,7 @@ class Controller(ABC):
         """Name and configuration, JSON-ready (written into every episode log)."""
         from dataclasses import asdict, is_dataclass
 
-        cfg = asdict(self.config) if is_dataclass(self.config) else {}
+        cfg = asdict(self.config) if is_dataclass(self.config) and not isinstance(self.config, type) else {}
         return {"name": self.name, "config": {k: _jsonable(v) for k, v in cfg.items()}}
 
 

@@ -27,7 +27,8 @@ import numpy as np
 
 from controllers.base import Controller
 from controllers.models import LI2023_MODEL_PEAK_N, OfflineForceModel, RobotComplianceModel, tool_compliance_m_n
-from envs.constants import CONTROL_DT_S, FT_RATE_HZ, MAX_CORRECTION_M, SUBSTEPS_PER_STEP, unscale_action
+from envs.constants import CONTROL_DT_S, MAX_CORRECTION_M, SUBSTEPS_PER_STEP, unscale_action
+from envs.plan import DrillPlan
 
 
 @dataclass
@@ -36,8 +37,9 @@ class Li2023Config:
 
     kp: float = 4.0
     """Proportional gain on the change of deviation between adjacent points (Li: 4.0 best)."""
-    ki: float = 1.0
-    """Gain on the accumulated deviation, i.e. the deviation itself (Li gives no value)."""
+    ki: float = 0.25
+    """Gain on the accumulated deviation, i.e. on the deviation itself (Li gives no value). Low because
+    pushing on a drill whose hole is already cut mostly bends the drill: the wall yields slowly."""
     kd: float = 0.0
     """Gain on the change of the change (Li gives no value)."""
     filter_samples: int = 20
@@ -82,7 +84,7 @@ class Li2023Controller(Controller):
         self.config = config or Li2023Config()
         self.steps_per_point = round(self.config.point_period_s / CONTROL_DT_S)
 
-    def set_plan(self, plan) -> None:  # type: ignore[no-untyped-def]
+    def set_plan(self, plan: DrillPlan) -> None:
         """Build the controller's own models for this plan, then reset."""
         self.robot = RobotComplianceModel(plan.tcp_offset_m)
         self.C_tool = tool_compliance_m_n(plan, self.config.tool_effective_diameter_ratio)
@@ -164,6 +166,3 @@ class Li2023Controller(Controller):
         if t <= t_start:
             return c0
         return c0 + (c1 - c0) * (t - t_start) / (t1 - t_start)
-
-
-FT_SAMPLES_PER_POINT = round(FT_RATE_HZ * 0.6)

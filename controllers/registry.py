@@ -49,7 +49,7 @@ def make_controller(spec: str) -> Controller:
     """Build a controller from a spec; unknown names or fields raise ``ValueError`` listing the options."""
     name, overrides = parse_spec(spec)
     if name == "residual":
-        from training.residual_policy import load_residual_controller  # type: ignore[import-not-found]
+        from training.residual_policy import load_residual_controller
 
         return load_residual_controller(spec.partition(":")[2])
     if name not in CONTROLLERS:

@@ -7,19 +7,18 @@ and the elastic arm + drill balance:
 
 ``c``: the rigid tip the servo holds; ``C``: arm + drill compliance (3x3, task axes); ``d(p) = z + x tan β``:
 the tip depth below the local surface, so a tip skidding downhill loses engagement and one pushed
-uphill gains it; ``K_cut = (K_lat / Δz) · diag(w_x, w_y, 0)``: to move sideways by Δp while advancing
-Δz, the drill must cut the side of its own hole, which takes a force ``K_lat · Δp / Δz``. Moving uphill
-always cuts fresh bone (``w = 1`` along the slope once in contact); downhill and across the slope it cuts only where
-the hole's circumference already exists (``w = g``, the outer corner's engaged share of a revolution),
-so an entering drill skids down the slope freely, cannot come back, and once fully inside copies its
-deviation forward, relaxing only over ``K_lat / k`` of depth. The lateral feedback is solved
-implicitly (its loop gain exceeds 1 at Li's operating point): ``d`` is the stable root of
+uphill gains it; ``K_cut = (K_lat / Δz) · s² · diag(1, 1, 0)``: to move sideways by Δp while advancing
+Δz, the drill must cut the side of its own hole, which takes a force ``K_lat · s² · Δp / Δz``, with ``s``
+the share of the lips' length in bone. An entering drill, barely engaged, skids down the slope; as it
+bites it is caught, and once fully inside (s = 1) the hole copies its deviation forward, relaxing only
+over ``K_lat / k`` of depth: an early deviation is locked in. The lateral feedback is solved implicitly
+(its loop gain exceeds 1 at Li's operating point): ``d`` is the stable root of
 ``d = z_front + tan β · x(d)`` on the piecewise-linear force table.
 
 Contact with the bottom of the hole is unilateral: the tip cannot pass the deepest point cut without
 cutting. If the arm pushes it there against the full cutting force it cuts and the bottom advances;
 if it pushes less, the tip rests on the bottom with a scaled-down force; pulled back, contact is lost.
-``C`` and ``g`` are refreshed once per agent step (50 ms, ≤ 0.2 mm of feed).
+``C`` and ``s`` are refreshed once per agent step (50 ms, ≤ 0.2 mm of feed).
 """
 
 from __future__ import annotations
@@ -69,7 +68,6 @@ class TipContactSolver:
         self.guidance_exponent = guidance_exponent
         self.grid = table.depth_m.tolist()
         self._bounds = stage_bounds(geometry, beta_rad)
-        self._uphill_sign = math.copysign(1.0, beta_rad) if beta_rad != 0.0 else 0.0
         self._key: tuple[float, float] = (math.nan, math.nan)
         self.force_scale = 1.0
         """Per-specimen multiplier on every cutting force (bone variability), set before an episode."""
@@ -102,12 +100,10 @@ class TipContactSolver:
         self._variants: dict[int, tuple] = {}
 
     def _get_variant(self, v: int) -> tuple:
-        """0: free; 1: guided where the circumference exists; 2: also blocked uphill (built lazily)."""
-        if v == 2 and self._g >= 1.0:
-            v = 1
+        """0: free (out of the bone); 1: guided by the bone around the tip (built lazily)."""
         if v not in self._variants:
             k, g = self._k_cut, self._g
-            kx, ky = ((0.0, 0.0), (k * g, k * g), (k, k * g))[v]
+            kx, ky = ((0.0, 0.0), (k * g, k * g))[v]
             self._variants[v] = self._variant(self._c, kx, ky)
         return self._variants[v]
 
@@ -130,9 +126,6 @@ class TipContactSolver:
         inside = prev[2] + prev[0] * self.tan_beta > self._bounds[0]  # the tip itself is below the surface
         v = 1 if self.touching and inside else 0
         sol = self._solve(self._get_variant(v))
-        uphill = self._uphill_sign * (sol[0][0] - prev[0])
-        if v == 1 and self._g < 1.0 and uphill > 1e-12:  # moving uphill into uncut bone: blocked
-            sol = self._solve(self._get_variant(2))
         tip, force, lam, d, touching, torque = sol
         cutting = touching and lam >= 1.0 and tip[2] > self.bottom_z
         if cutting:
