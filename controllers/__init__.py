@@ -7,6 +7,7 @@ from controllers.base import Controller
 from controllers.li2023 import Li2023Config, Li2023Controller
 from controllers.none import NoCompensation, NoCompensationConfig
 from controllers.registry import CONTROLLERS, make_controller, parse_spec
+from controllers.zhang2005 import Zhang2005Config, Zhang2005Controller
 
 __all__ = [
     "CONTROLLERS",
@@ -15,6 +16,8 @@ __all__ = [
     "Li2023Controller",
     "NoCompensation",
     "NoCompensationConfig",
+    "Zhang2005Config",
+    "Zhang2005Controller",
     "make_controller",
     "parse_spec",
 ]

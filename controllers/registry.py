@@ -9,10 +9,12 @@ from typing import Any
 from controllers.base import Controller
 from controllers.li2023 import Li2023Config, Li2023Controller
 from controllers.none import NoCompensation, NoCompensationConfig
+from controllers.zhang2005 import Zhang2005Config, Zhang2005Controller
 
 CONTROLLERS: dict[str, tuple[Callable[[Any], Controller], type]] = {
     "none": (NoCompensation, NoCompensationConfig),
     "li2023": (Li2023Controller, Li2023Config),
+    "zhang2005": (Zhang2005Controller, Zhang2005Config),
 }
 """name -> (class, config dataclass)."""
 
@@ -49,8 +51,10 @@ def make_controller(spec: str) -> Controller:
     """Build a controller from a spec; unknown names or fields raise ``ValueError`` listing the options."""
     name, overrides = parse_spec(spec)
     if name == "residual":
-        from training.residual_policy import load_residual_controller
-
+        try:
+            from training.residual_policy import load_residual_controller
+        except ImportError as e:
+            raise ValueError("residual:PATH needs training.residual_policy, which this install lacks") from e
         return load_residual_controller(spec.partition(":")[2])
     if name not in CONTROLLERS:
         raise ValueError(f"unknown controller {name!r}; choose from {sorted(CONTROLLERS)} or residual:PATH")

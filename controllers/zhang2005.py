@@ -1,0 +1,140 @@
+"""``zhang2005``: Zhang et al. 2005's real-time deformation compensation and controlled material removal.
+
+* **Deformation compensation** (§III, Fig. 6): the F/T wrench, filtered and with the tool's gravity
+  removed, is moved to the drill tip and turned into the joint deflection ``Δq = Kq⁻¹ Jᵀ W`` of the
+  full coupled stiffness model; the joint references are offset by ``-Δq``, i.e. the tip target by
+  ``-J Δq`` (all three axes: thrust that bends the arm sideways is compensated too).
+* **Controlled material removal rate** (§IV, eq. 7-8, Fig. 8): the MRR ``w·d·f`` of a drill is
+  ``π R² f``, set by the feed alone, and is regulated through the cutting (thrust) force: a PI on the
+  feed speed holds the thrust at a reference. Off until the drill is fully engaged (the inclined entry
+  should not be rushed), with anti-windup at the feed limits.
+
+The two parts are usable separately (``deformation``, ``cmrr``). Units: SI; frames: base unless named.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from controllers.base import Controller
+from controllers.models import RobotComplianceModel
+from envs.constants import CONTROL_DT_S, FEED_OVERRIDE_LOG2_MAX, MAX_CORRECTION_M, SUBSTEPS_PER_STEP, unscale_action
+from envs.plan import DrillPlan
+from envs.robot.compliance import KTHETA_LI2023_NM_RAD
+
+GRAVITY_M_S2 = 9.81
+
+
+@dataclass
+class Zhang2005Config:
+    """Deformation compensation and controlled-MRR settings."""
+
+    deformation: bool = True
+    """Compensate the arm's deflection from the measured wrench."""
+    cmrr: bool = True
+    """Regulate the thrust with the feed speed (controlled material removal rate)."""
+    joint_stiffness_nm_rad: tuple[float, ...] = field(default_factory=lambda: tuple(KTHETA_LI2023_NM_RAD))
+    """Kq, the controller's joint-stiffness estimate (N·m/rad); default Li's identified values."""
+    filter_samples: int = 10
+    """F/T samples averaged before use (100 Hz)."""
+    tool_mass_kg: float = 0.0
+    """Spindle + drill mass below the sensor for gravity removal (0: the sensor was tared in the drilling pose)."""
+    tool_com_sensor_m: tuple[float, float, float] = (0.0, 0.0, 0.06)
+    """Tool centre of mass in the sensor frame (m)."""
+    thrust_ref_n: float = 8.0
+    """Reference thrust F_r (N): a cortical-bone limit for a 1.5 mm drill."""
+    kp_feed_mm_s_per_n: float = 0.05
+    """Proportional gain of the feed PI ((mm/s)/N)."""
+    ki_feed_mm_s_per_ns: float = 0.8
+    """Integral gain of the feed PI ((mm/s)/(N·s)); the thrust rises ~4 N per mm/s in cortical bone."""
+    cmrr_start_margin_mm: float = 0.5
+    """CMRR engages this far past full engagement of the planned entry (mm)."""
+    max_correction_m: float = MAX_CORRECTION_M
+    """Clip on the correction per axis (m)."""
+
+    def __post_init__(self) -> None:
+        if self.filter_samples < 1:
+            raise ValueError(f"filter_samples={self.filter_samples} must be >= 1")
+        if len(self.joint_stiffness_nm_rad) != 6 or min(self.joint_stiffness_nm_rad) <= 0:
+            raise ValueError(f"joint_stiffness_nm_rad={self.joint_stiffness_nm_rad} must be 6 positive values")
+        if self.thrust_ref_n <= 0 or not math.isfinite(self.thrust_ref_n):
+            raise ValueError(f"thrust_ref_n={self.thrust_ref_n} must be a positive number of newtons")
+
+
+class Zhang2005Controller(Controller):
+    """Real-time deformation compensation + controlled material removal rate."""
+
+    name = "zhang2005"
+
+    def __init__(self, config: Zhang2005Config | None = None) -> None:
+        super().__init__()
+        self.config = config or Zhang2005Config()
+
+    def set_plan(self, plan: DrillPlan) -> None:
+        """Build the stiffness model for the plan's tool, then reset."""
+        self.robot = RobotComplianceModel(plan.tcp_offset_m, np.asarray(self.config.joint_stiffness_nm_rad))
+        self.R = plan.R_base_task
+        self.tip_in_sensor_m = np.array([0.0, 0.0, plan.tcp_offset_m])
+        entry = plan.drill_diameter_m / 2 * (1 / math.tan(math.radians(59.0)) + math.tan(abs(plan.beta_rad)))
+        self.cmrr_start_depth_m = entry + self.config.cmrr_start_margin_mm * 1e-3
+        self.feed_nominal_mm_s = plan.feed_m_s * 1e3
+        super().set_plan(plan)
+
+    def reset(self) -> None:
+        """Empty the filter and the feed integrator."""
+        n_steps = max(1, math.ceil(self.config.filter_samples / SUBSTEPS_PER_STEP))
+        self.window: deque[np.ndarray] = deque(maxlen=n_steps)
+        self.integral_mm_s = 0.0
+
+    # ------------------------------------------------------------------ models
+    def gravity_wrench_sensor(self) -> np.ndarray:
+        """Wrench of the tool's weight in the sensor frame, minus what the tare already removed (zero here)."""
+        return np.zeros(6)  # tared in the drilling pose, which the path keeps; kept as the hook Zhang describes
+
+    def tip_wrench_base(self, wrench_sensor: np.ndarray) -> np.ndarray:
+        """External wrench on the tool moved to the drill tip, base axes: (N, N·m)."""
+        f_s = wrench_sensor[:3]
+        tau_tip_s = wrench_sensor[3:] - np.cross(self.tip_in_sensor_m, f_s)
+        return np.concatenate([self.R @ f_s, self.R @ tau_tip_s])
+
+    def deflection_base_m(self, q_rad: np.ndarray, wrench_sensor: np.ndarray) -> np.ndarray:
+        """Tip displacement J Kq⁻¹ Jᵀ W of the arm under the measured wrench (m, base frame)."""
+        j = self.robot.jacobian(q_rad)
+        dq = self.robot.joints.joint_deflection_rad(j, self.tip_wrench_base(wrench_sensor))
+        return j[:3] @ dq
+
+    # ------------------------------------------------------------------ control
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """Correction -J Δq and a PI-regulated feed scale."""
+        cfg = self.config
+        self.window.append(np.asarray(obs["ft_wrench_mean"], dtype=float))
+        wrench = np.mean(self.window, axis=0) - self.gravity_wrench_sensor()
+        correction = np.zeros(3)
+        if cfg.deformation:
+            correction = np.clip(
+                -self.deflection_base_m(obs["q_rad"], wrench), -cfg.max_correction_m, cfg.max_correction_m
+            )
+        scale = 1.0
+        feeding = bool(obs["phase"][1] > 0.5)
+        if cfg.cmrr and feeding and float(obs["path_depth_m"][0]) >= self.cmrr_start_depth_m:
+            scale = self._feed_scale(thrust_n=-wrench[2])
+        return unscale_action(correction, scale)
+
+    def _feed_scale(self, thrust_n: float) -> float:
+        """PI on the feed (mm/s) holding the thrust at the reference; clamped, with anti-windup."""
+        cfg = self.config
+        error = cfg.thrust_ref_n - thrust_n
+        lo = self.feed_nominal_mm_s * 2.0**-FEED_OVERRIDE_LOG2_MAX
+        hi = self.feed_nominal_mm_s * 2.0**FEED_OVERRIDE_LOG2_MAX
+        proportional = self.feed_nominal_mm_s + cfg.kp_feed_mm_s_per_n * error
+        # anti-windup: the integrator never pushes the feed past its limits
+        self.integral_mm_s = min(
+            max(self.integral_mm_s + cfg.ki_feed_mm_s_per_ns * error * CONTROL_DT_S, lo - proportional),
+            hi - proportional,
+        )
+        feed = min(max(proportional + self.integral_mm_s, lo), hi)
+        return feed / self.feed_nominal_mm_s
