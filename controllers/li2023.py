@@ -53,7 +53,8 @@ class Li2023Config:
     online: bool = True
     """Apply the online force-feedback correction."""
     model_peak_force_n: float = LI2023_MODEL_PEAK_N
-    """Scale of the controller's force model: its peak at β 30°, 0.5 mm/s (Li Fig. 9a)."""
+    """Scale of the controller's force model: its peak at β 30°, 0.5 mm/s, fitted by least squares to the
+    F/T force of an uncompensated trial hole (:func:`controllers.models.fit_model_peak_n`)."""
     tool_effective_diameter_ratio: float = 0.85
     """Bending diameter of the fluted drill over its nominal diameter, for k_D."""
     max_correction_m: float = MAX_CORRECTION_M

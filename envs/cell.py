@@ -67,7 +67,13 @@ class SimCell:
         )
         self.hole = Hole(max_depth)
         self.solver = TipContactSolver(
-            self.table, self.geometry, scenario.beta_rad, self.hole, p.lateral_cut_resistance_n, p.guidance_exponent
+            self.table,
+            self.geometry,
+            scenario.beta_rad,
+            self.hole,
+            p.lateral_cut_resistance_n,
+            p.guidance_exponent,
+            p.skid_relief,
         )
         self.C_tool = self.tool.compliance_tool_m_n()
         self._q_start = self._ik_cached(0.0)

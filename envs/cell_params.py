@@ -32,6 +32,8 @@ class CellParams:
     over K_lat / k_tool of depth. Calibrated."""
     guidance_exponent: float = 2.0
     """Side guidance grows as (engaged share of the lips)**this: how soon a skidding tip is caught. Calibrated."""
+    skid_relief: float = 1.0
+    """How much of the surface drop a sideways tip sees: its engagement depth is z + relief · x tan β. Calibrated."""
     effective_diameter_ratio: float = 0.85
     """Drill core bending diameter over nominal diameter (fluted section)."""
     stiffness_nm_rad: np.ndarray = field(default_factory=lambda: KTHETA_LI2023_NM_RAD.copy())

@@ -243,8 +243,10 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             rec.stage.append(smp.stage)
             rec.depth_cmd_m.append(s)
             rec.deviation_m.append(math.hypot(smp.tip[0], smp.tip[1]))
+            rec.tip_task_m.append(smp.tip)  # for episode logs (eval/logs)
         readings = self.ft.sample_block(wrenches)
         rec.ft_force_n.extend(readings[:, :3])
+        rec.ft_torque_nm.extend(readings[:, 3:])  # for episode logs (eval/logs)
         if self.failure is None and float(np.max(np.linalg.norm(readings[:, :3], axis=1))) > sc.force_limit_n:
             self.failure = "force_limit"
         if rtde_time >= self.t_s - 1e-12:

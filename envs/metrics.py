@@ -48,6 +48,11 @@ class EpisodeRecorder:
     deviation_m: list[float] = field(default_factory=list)
     ft_force_n: list[np.ndarray] = field(default_factory=list)
     tracker_deviation_m: list[float] = field(default_factory=list)
+    # For episode logs only (not used by the metrics):
+    ft_torque_nm: list[np.ndarray] = field(default_factory=list)
+    """F/T torque readings (Tx, Ty, Tz) (N·m, sensor frame), one per sample."""
+    tip_task_m: list[tuple[float, float, float]] = field(default_factory=list)
+    """True drill-tip position (m, task frame), one per sample; privileged (sim only)."""
 
     def clear(self) -> None:
         """Drop everything recorded."""

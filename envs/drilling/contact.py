@@ -58,11 +58,12 @@ class TipContactSolver:
         hole: Hole,
         lateral_cut_resistance_n: float,
         guidance_exponent: float = 1.0,
+        skid_relief: float = 1.0,
     ) -> None:
         self.table = table
         self.geometry = geometry
         self.beta_rad = beta_rad
-        self.tan_beta = math.tan(beta_rad)
+        self.tan_beta = skid_relief * math.tan(beta_rad)
         self.hole = hole
         self.k_lat_n = lateral_cut_resistance_n
         self.guidance_exponent = guidance_exponent
