@@ -13,8 +13,8 @@
 * **Path prediction** (Fig. 7): at point i the robot is already moving to P_{i+1}, so u_i is added
   to the original target P_{i+2}; the robot moves linearly between corrected points.
 
-Compensation is applied across the drill axis (Li compensates the main deviation direction; both
-lateral axes here), never along it. Units: SI; frames: base unless named.
+Compensation is applied across the drill axis (both lateral axes by default; Li's X only with
+``axes="x"``), never along it. Units: SI; frames: base unless named.
 """
 
 from __future__ import annotations
@@ -59,6 +59,9 @@ class Li2023Config:
     """Bending diameter of the fluted drill over its nominal diameter, for k_D."""
     max_correction_m: float = MAX_CORRECTION_M
     """Clip on the total correction per axis (m)."""
+    axes: str = "xy"
+    """Task axes compensated: ``"xy"`` (both across the drill) or ``"x"`` (Li's main deviation direction only;
+    here the spindle's tangential force also pushes the tip along y, ~0.4 of x)."""
 
     def __post_init__(self) -> None:
         if self.filter_samples < 1 or self.filter_samples % SUBSTEPS_PER_STEP:
@@ -91,8 +94,10 @@ class Li2023Controller(Controller):
         self.C_tool = tool_compliance_m_n(plan, self.config.tool_effective_diameter_ratio)
         self.offline_model = OfflineForceModel.for_plan(plan, self.config.model_peak_force_n)
         self.R = plan.R_base_task
-        axis = self.R[:, 2]
-        self.lateral = np.eye(3) - np.outer(axis, axis)  # projector across the drill axis (base frame)
+        if self.config.axes not in ("x", "xy"):
+            raise ValueError(f"axes={self.config.axes!r} must be 'x' or 'xy'")
+        cols = [0] if self.config.axes == "x" else [0, 1]
+        self.lateral = sum(np.outer(self.R[:, i], self.R[:, i]) for i in cols)  # projector (base frame)
         super().set_plan(plan)
 
     def reset(self) -> None:
@@ -113,7 +118,7 @@ class Li2023Controller(Controller):
         """ΔP = -k_D⁻¹ F_model at the planned depth, lateral, base frame (m)."""
         f_task = np.zeros(3)
         f_task[:2] = self.offline_model.lateral_at(depth_m)
-        return -(self.R @ (self.C_tool @ f_task))
+        return -(self.lateral @ (self.R @ (self.C_tool @ f_task)))
 
     def deviation_estimate_base_m(
         self, q_rad: np.ndarray, tcp_error_base_m: np.ndarray, force_sensor_n: np.ndarray

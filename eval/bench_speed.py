@@ -68,9 +68,47 @@ def measure(runs: int = 7) -> dict[str, Any]:
     }
 
 
+def controller_cycle_times(
+    specs: tuple[str, ...] = ("none", "li2023", "zhang2005"), episodes: int = 2
+) -> dict[str, Any]:
+    """Per-call ``predict`` time of each controller over whole paper-scenario episodes (µs: p50, p99, max)."""
+    import gymnasium as gym
+
+    import envs  # noqa: F401
+    from controllers import make_controller
+
+    env = gym.make("drillgym/UR5BoneDrill-v0")
+    out: dict[str, Any] = {}
+    for spec in specs:
+        controller = make_controller(spec)
+        times = []
+        for seed in range(episodes):
+            obs, _ = env.reset(seed=seed)
+            controller.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
+            start = True
+            while True:
+                t0 = time.perf_counter()
+                action, _ = controller.predict(obs, episode_start=np.array([start]))
+                times.append(time.perf_counter() - t0)
+                start = False
+                obs, _, terminated, truncated, _ = env.step(action)
+                if terminated or truncated:
+                    break
+        us = np.asarray(times) * 1e6
+        out[spec] = {
+            "p50_us": float(np.percentile(us, 50)),
+            "p99_us": float(np.percentile(us, 99)),
+            "max_us": float(us.max()),
+            "calls": int(us.size),
+        }
+    env.close()
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym bench-speed``."""
     result = measure(args.runs)
+    result["controllers"] = controller_cycle_times()
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
@@ -85,4 +123,7 @@ def run(args: argparse.Namespace) -> int:
     )
     print(f"  env construction   {result['construct_s'] * 1e3:.0f} ms")
     print(f"  peak memory (RSS)  {result['peak_rss_mib']:.0f} MiB")
+    print("controller cycle time (one predict per 50 ms agent step; Li's budget: 50 ms)")
+    for spec, t in result["controllers"].items():
+        print(f"  {spec:10s} p50 {t['p50_us']:7.1f} µs   p99 {t['p99_us']:7.1f} µs   max {t['max_us']:7.1f} µs")
     return 0

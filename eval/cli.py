@@ -19,6 +19,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "Identify the UR5 joint stiffnesses from simulated load tests (Li 2023 eq. 8, Table 1).",
     ),
     "bench-speed": ("eval.bench_speed", "Real-time factor and peak memory of the simulated cell."),
+    "reproduce": (
+        "eval.reproduce",
+        "Reproduce Li 2023 (and Zhang 2005's claims): report.md, reproduction.json, figures.",
+    ),
+    "bench": (
+        "eval.bench",
+        "Benchmark controllers on a scenario suite over seeds: metrics with confidence intervals, paired differences, plots, logs.",
+    ),
 }
 
 
@@ -27,7 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="drillgym", description="Robot-assisted bone drilling with a UR5.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (_, help_text) in COMMANDS.items():
-        sub.add_parser(name, help=help_text, description=help_text)
+        sub.add_parser(name, help=help_text.replace("%", "%%"), description=help_text)
     return parser
 
 

@@ -26,11 +26,8 @@ def test_bench_speed_json_reports_a_real_time_factor(capsys):
     assert result["peak_rss_mib"] > 0
 
 
-def test_demo_writes_metrics_and_a_plot(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path), "--seeds", "2"]) == 0
+def test_demo_runs_the_reproduction_and_says_where_the_results_are(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path), "--quick"]) == 0
     out = capsys.readouterr().out
-    assert "deviation_mean_mm" in out and str(tmp_path) in out
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["deviation_mean_mm"]["paper"] == 0.703
-    assert (tmp_path / "paper_uncompensated.png").stat().st_size > 10_000
-    assert len((tmp_path / "paper_uncompensated.csv").read_text().splitlines()) == 3
+    assert "mean tip deviation, uncompensated" in out and str(tmp_path.resolve()) in out
+    assert (tmp_path / "report.md").exists()

@@ -163,6 +163,45 @@ def _print_report(out: dict[str, Any]) -> None:
     )
 
 
+def identify_and_compare(
+    noise_mm: float = 0.05, load_n: float = 100.0, seed: int = 0, poses: int = 3, lever_mm: float = 0.0
+) -> dict[str, Any]:
+    """The default identification and Table 1 comparison as plain numbers (for reports)."""
+    args = argparse.Namespace(
+        noise_mm=noise_mm, load_n=load_n, seed=seed, poses=poses, lever_mm=lever_mm, bootstrap=1000, json=True
+    )
+    kin = UR5Kinematics(DEFAULT_TCP_OFFSET_M)
+    rng = np.random.default_rng(seed)
+    data = simulate_load_experiments(
+        kin,
+        IDENTIFICATION_POSES_Q_RAD[:poses],
+        axis_loads_n(load_n),
+        KTHETA_LI2023_NM_RAD,
+        noise_mm * 1e-3,
+        rng,
+        frame=TCP_FRAME,
+        point_offset_m=np.array([lever_mm * 1e-3, 0.0, 0.0]),
+    )
+    res = identify_joint_stiffness(data, n_bootstrap=1000, seed=seed, kin=kin)
+    table = reproduce_li_table1(kin, res.compliance_rad_nm, KTHETA_LI2023_NM_RAD, noise_mm * 1e-3, rng)
+    with np.errstate(divide="ignore"):
+        estimate = np.where(res.compliance_rad_nm > 0, 1.0 / np.maximum(res.compliance_rad_nm, 1e-300), np.inf)
+    return {
+        "truth_knm": (KTHETA_LI2023_NM_RAD / 1e3).tolist(),
+        "estimate_knm": (estimate / 1e3).tolist(),
+        "ci_knm": (res.ci95_nm_rad / 1e3).tolist(),
+        "rel_std_error": res.rel_std_error.tolist(),
+        "identified": res.identified.tolist(),
+        "table1_measured_mm": (table.measured_m * 1e3).tolist(),
+        "table1_predicted_mm": (table.predicted_m * 1e3).tolist(),
+        "table1_force_n": table.force_n.tolist(),
+        "table1_max_err_mm": table.max_abs_error_m * 1e3,
+        "noise_mm": noise_mm,
+        "load_n": load_n,
+        "summary": _result_dict(args, axis_loads_n(load_n), res, table),
+    }
+
+
 def run(args: argparse.Namespace) -> int:
     """Simulate the load tests, identify Kθ, reproduce Table 1 and print the result."""
     kin = UR5Kinematics(DEFAULT_TCP_OFFSET_M)

@@ -1,0 +1,157 @@
+"""``drillgym bench``: controllers × scenarios × seeds, with CIs, paired differences, plots and logs.
+
+Every controller runs the same seeds 0..N-1 on every scenario of the suite (a paired comparison; the
+first controller is the baseline). Episodes run in ``--workers`` processes ("spawn": PyBullet and fork
+do not mix); the results do not depend on the number of workers. Outputs in ``--out``: see
+:mod:`eval.bench_report`; one episode log per episode in ``logs/`` (``docs/log_schema.md``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+import re
+import sys
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from pathlib import Path
+from typing import Any
+
+from eval.suites import SUITES
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """CLI arguments."""
+    parser.add_argument("--suite", default="paper", help=f"scenario suite: {', '.join(SUITES)} (default paper)")
+    parser.add_argument(
+        "--controllers",
+        default="none,li2023",
+        help="comma-separated controller specs, the first is the baseline, e.g. none,li2023,li2023:kp=1.0,ki=0.5 "
+        "(a field=value item continues the spec before it; default none,li2023)",
+    )
+    parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 per scenario and controller (default 5)")
+    parser.add_argument("--out", type=Path, default=Path("results/bench"), help="output folder (default results/bench)")
+    parser.add_argument("--workers", type=int, default=1, help="parallel worker processes (default 1: in-process)")
+    parser.add_argument("--no-logs", action="store_true", help="do not write per-episode Parquet logs")
+
+
+def split_controller_specs(text: str) -> list[str]:
+    """``"none,li2023:kp=1,ki=0.5,li2023"`` -> ``["none", "li2023:kp=1,ki=0.5", "li2023"]``."""
+    specs: list[str] = []
+    for item in (s.strip() for s in text.split(",")):
+        if not item:
+            continue
+        if "=" in item and ":" not in item:
+            if not specs:
+                raise ValueError(f"--controllers {text!r}: {item!r} has no controller name before it")
+            specs[-1] += "," + item
+        else:
+            specs.append(item)
+    if not specs:
+        raise ValueError("--controllers is empty; e.g. --controllers none,li2023")
+    return specs
+
+
+def controller_label(spec: str) -> str:
+    """A file-name-safe label of a spec: ``"li2023:kp=1.0"`` -> ``"li2023_kp-1.0"``."""
+    label = spec.replace(":", "_").replace("=", "-").replace(",", "_")
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", label).strip("._") or "controller"
+
+
+def check_arguments(args: argparse.Namespace) -> list[str]:
+    """Controller specs after validating every argument (raises ``ValueError`` with a clear message)."""
+    from controllers import make_controller
+
+    if args.suite not in SUITES:
+        raise ValueError(f"unknown suite {args.suite!r}; choose from {', '.join(SUITES)}")
+    if args.seeds < 1:
+        raise ValueError(f"--seeds={args.seeds} must be >= 1")
+    if args.workers < 1:
+        raise ValueError(f"--workers={args.workers} must be >= 1")
+    specs = split_controller_specs(args.controllers)
+    if len(set(specs)) != len(specs):
+        raise ValueError(f"--controllers lists a spec twice: {specs}")
+    for spec in specs:
+        try:
+            make_controller(spec)
+        except (ValueError, TypeError, OSError) as e:
+            raise ValueError(f"bad controller spec {spec!r}: {e}") from e
+    labels = [controller_label(s) for s in specs]
+    if len(set(labels)) != len(labels):
+        raise ValueError(f"controller specs {specs} give clashing file labels {labels}")
+    return specs
+
+
+def run(args: argparse.Namespace) -> int:
+    """Entry point of ``drillgym bench``."""
+    try:
+        specs = check_arguments(args)
+    except ValueError as e:
+        print(f"drillgym bench: error: {e}", file=sys.stderr)
+        return 2
+    from eval.bench_episode import EpisodeJob
+    from eval.bench_report import write_report
+    from eval.suites import suite_scenarios
+
+    out: Path = args.out
+    scenarios = suite_scenarios(args.suite)
+    jobs = []
+    for sc in scenarios:
+        for spec in specs:
+            for seed in range(args.seeds):
+                name = f"logs/{args.suite}__{sc.name}__{controller_label(spec)}__seed{seed}.parquet"
+                log = None if args.no_logs else out / name
+                jobs.append(EpisodeJob(args.suite, sc.name, sc.kwargs, spec, seed, log, "" if log is None else name))
+    (out if args.no_logs else out / "logs").mkdir(parents=True, exist_ok=True)
+    rows = run_jobs(jobs, args.workers, desc=f"bench {args.suite}")
+    episodes = write_report(out, rows, args.suite, [s.name for s in scenarios], specs, args.seeds)
+    print((out / "summary.md").read_text())
+    print(
+        f"Results: {out.resolve()}/ (episodes.csv, summary.csv, paired.csv, summary.md, plots{', logs/' * (not args.no_logs)})"
+    )
+    failed = episodes[episodes["error"].fillna("") != ""]
+    if len(failed):
+        print(f"drillgym bench: {len(failed)} of {len(episodes)} episodes failed:", file=sys.stderr)
+        for r in failed.itertuples(index=False):
+            print(f"  {r.scenario} {r.controller} seed {r.seed}: {r.error}", file=sys.stderr)
+        print(f"  tracebacks: {out / 'errors.log'}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def run_jobs(jobs: list[Any], workers: int, desc: str = "bench") -> list[dict[str, Any]]:
+    """Run every job (in-process for ``workers == 1``, else in spawned processes); rows in any order."""
+    from tqdm import tqdm
+
+    from eval.bench_episode import close_cached, run_job
+
+    with tqdm(total=len(jobs), desc=desc, unit="ep") as bar:
+        if workers == 1:
+            try:
+                return [_tick(bar, run_job(job)) for job in jobs]
+            finally:
+                close_cached()
+        ctx = multiprocessing.get_context("spawn")
+        rows = []
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx) as pool:
+            futures: dict[Future, Any] = {pool.submit(run_job, job): job for job in jobs}
+            try:
+                for fut in as_completed(futures):
+                    rows.append(_tick(bar, _result(fut, futures[fut])))
+            except KeyboardInterrupt:
+                pool.shutdown(cancel_futures=True)
+                raise
+        return rows
+
+
+def _tick(bar: Any, row: dict[str, Any]) -> dict[str, Any]:
+    bar.update(1)
+    return row
+
+
+def _result(fut: Future, job: Any) -> dict[str, Any]:
+    """The job's row; a worker that died (not an episode error, which run_job records) becomes an error row."""
+    try:
+        return fut.result()
+    except Exception as e:
+        row = {"suite": job.suite, "scenario": job.scenario, "controller": job.controller, "seed": job.seed}
+        return {**row, "error": f"worker failed: {type(e).__name__}: {e}", "log": job.log_name}

@@ -1,0 +1,133 @@
+"""Benchmark outputs: ``episodes.csv``, ``summary.csv``, ``paired.csv``, ``summary.md`` and the plots."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from envs.metrics import METRIC_NAMES
+from envs.scenario import Scenario
+from eval.bench_plots import plot_bars, plot_sweep
+from eval.summary import markdown_table, paired_differences, summarize
+
+SCENARIO_COLUMNS = tuple(f.name for f in fields(Scenario))
+EPISODE_COLUMNS = (
+    "suite",
+    "scenario",
+    *SCENARIO_COLUMNS,
+    "controller",
+    "seed",
+    *METRIC_NAMES,
+    "steps",
+    "sim_time_s",
+    "failure",
+    "error",
+    "log",
+    "wall_time_s",
+)
+"""Columns of ``episodes.csv``: one row per episode, sorted by (suite, scenario, controller, seed)."""
+MAIN_METRICS = (
+    "deviation_mean_mm",
+    "deviation_max_mm",
+    "lateral_force_max_n",
+    "lateral_force_stable_n",
+    "hole_offset_mm",
+    "drill_time_s",
+)
+"""Metrics shown in ``summary.md``."""
+
+
+def episodes_frame(rows: list[dict[str, Any]]) -> pd.DataFrame:
+    """Rows sorted by (suite, scenario, controller, seed), columns in :data:`EPISODE_COLUMNS` order."""
+    rows = sorted(rows, key=lambda r: (r["suite"], r["scenario"], r["controller"], r["seed"]))
+    frame = pd.DataFrame(rows)
+    for c in EPISODE_COLUMNS:
+        if c not in frame:
+            frame[c] = pd.NA
+    return frame[list(EPISODE_COLUMNS)]
+
+
+def write_report(
+    out: Path,
+    rows: list[dict[str, Any]],
+    suite: str,
+    scenarios: Sequence[str],
+    controllers: Sequence[str],
+    seeds: int,
+) -> pd.DataFrame:
+    """Write every output into ``out``; returns the episodes frame."""
+    episodes = episodes_frame(rows)
+    episodes.to_csv(out / "episodes.csv", index=False)
+    tracebacks = [
+        f"{r['scenario']} {r['controller']} seed {r['seed']}\n{r['traceback']}" for r in rows if r.get("traceback")
+    ]
+    if tracebacks:
+        (out / "errors.log").write_text("\n".join(tracebacks))
+    ok = episodes[episodes["error"].fillna("") == ""]
+    groups = [(suite, s, c) for s in scenarios for c in controllers]
+    summary = summarize(ok, METRIC_NAMES, groups)
+    summary.to_csv(out / "summary.csv", index=False)
+    paired = paired_differences(ok, METRIC_NAMES, groups, baseline=controllers[0])
+    paired.to_csv(out / "paired.csv", index=False)
+    plots = _plots(out, suite, summary, ok, controllers)
+    (out / "summary.md").write_text(_markdown(suite, summary, paired, episodes, controllers, seeds, plots))
+    return episodes
+
+
+def _plots(out: Path, suite: str, summary: pd.DataFrame, ok: pd.DataFrame, controllers: Sequence[str]) -> list[str]:
+    if suite == "sweep":
+        names = ["sweep_lateral_force_vs_beta.png", "sweep_deviation_vs_feed.png"]
+        plot_sweep(summary, ok, controllers, "lateral_force_max_n", "beta_deg", "feed_mm_s", out / names[0])
+        plot_sweep(summary, ok, controllers, "deviation_mean_mm", "feed_mm_s", "beta_deg", out / names[1])
+        return names
+    name = f"{suite}_deviation_force.png"
+    plot_bars(summary, controllers, out / name, title=f"{suite} suite: mean ± 95% CI")
+    return [name]
+
+
+def _markdown(
+    suite: str,
+    summary: pd.DataFrame,
+    paired: pd.DataFrame,
+    episodes: pd.DataFrame,
+    controllers: Sequence[str],
+    seeds: int,
+    plots: list[str],
+) -> str:
+    ctrl = ", ".join(f"`{c}`" for c in controllers)
+    parts = [
+        f"# drillgym bench: {suite} suite",
+        "",
+        f"{len(episodes)} episodes: seeds 0..{seeds - 1} (the same seeds for every controller), controllers {ctrl}.",
+        "Cells: mean [95% CI of the mean, Student t]; n counts the episodes that define the metric.",
+        "",
+        "## Metrics",
+        "",
+        markdown_table(summary, MAIN_METRICS),
+    ]
+    if len(controllers) > 1:
+        parts += [
+            "",
+            f"## Paired differences vs `{controllers[0]}`",
+            "",
+            f"Controller minus `{controllers[0]}` on the same seed (negative = smaller); mean [95% CI].",
+            "",
+            markdown_table(paired, MAIN_METRICS, label="Δ "),
+        ]
+    failed = episodes[episodes["error"].fillna("") != ""]
+    if len(failed):
+        parts += ["", f"## Failed episodes ({len(failed)}, left out above; tracebacks in errors.log)", ""]
+        parts += [f"* {r.scenario} `{r.controller}` seed {r.seed}: {r.error}" for r in failed.itertuples(index=False)]
+    stopped = episodes[(episodes["failure"].fillna("") != "") & (episodes["error"].fillna("") == "")]
+    if len(stopped):
+        parts += [
+            "",
+            f"Episodes ended early (safety stop or time limit): {len(stopped)}; see `failure` in episodes.csv.",
+        ]
+    parts += ["", "Files: episodes.csv, summary.csv, paired.csv, " + ", ".join(plots), ""]
+    parts += [f"![{p}]({p})" for p in plots]
+    return "\n".join(parts) + "\n"

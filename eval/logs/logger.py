@@ -1,0 +1,119 @@
+"""``EpisodeLogger``: a Gymnasium wrapper that writes one episode to a Parquet log as it runs.
+
+After each step it takes the F/T samples the step added to the unwrapped env's recorder
+(``env.unwrapped.recorder``, per-sample channels) and the step's action, observation and latest
+RTDE / tracker readings (held for the step's samples), and appends one row per sample
+(:mod:`eval.logs.schema`). The log is compacted when the episode ends or the logger is closed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, SupportsFloat
+
+import gymnasium as gym
+import numpy as np
+
+from envs.constants import scale_action
+from eval.logs.writer import FLUSH_ROWS, EpisodeLogWriter
+
+
+class EpisodeLogger(gym.Wrapper):
+    """Log one episode of ``env`` to ``path`` (``<name>.parquet``; ``<name>/`` while it runs).
+
+    One logger, one episode: the log opens at the first ``reset`` (filling in ``header["seed"]`` if it
+    is None) and is compacted when the episode terminates or truncates, or at ``close_log()`` /
+    ``close()``. A second ``reset`` raises; wrap the env again for the next episode. ``close_log()``
+    finishes the log without closing the env (to reuse it); ``abandon_log()`` keeps the parts as a
+    crash would (the episode did not finish).
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        path: str | Path,
+        header: dict[str, Any],
+        flush_rows: int = FLUSH_ROWS,
+        overwrite: bool = False,
+    ) -> None:
+        super().__init__(env)
+        self.log_path = Path(path)
+        self.header = dict(header)
+        self.flush_rows = flush_rows
+        self.overwrite = overwrite
+        self.writer: EpisodeLogWriter | None = None
+        self._step = 0
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset the env and open the log."""
+        if self.writer is not None:
+            raise RuntimeError(f"EpisodeLogger logs one episode ({self.log_path}); wrap the env again for the next")
+        obs, info = self.env.reset(seed=seed, options=options)
+        if self.header.get("seed") is None:
+            self.header["seed"] = seed
+        self.writer = EpisodeLogWriter(self.log_path, self.header, self.flush_rows, self.overwrite)
+        self._step = 0
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        """Step the env, append the new samples, compact the log if the episode ended."""
+        if self.writer is None:
+            raise RuntimeError("call reset() before step()")
+        rec = self.env.unwrapped.recorder  # type: ignore[attr-defined]
+        n0 = len(rec.t_s)
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if not self.writer.closed:
+            self.writer.append(self._rows(rec, n0, action, obs))
+            if terminated or truncated:
+                self.writer.close()
+        self._step += 1
+        return obs, reward, terminated, truncated, info
+
+    def _rows(self, rec: Any, n0: int, action: Any, obs: dict[str, np.ndarray]) -> dict[str, Any]:
+        n = len(rec.t_s) - n0
+        u: Any = self.env.unwrapped  # latest sensor readings: rtde_tcp_base, tracker_reading
+        ft = np.hstack([np.asarray(rec.ft_force_n[n0:]), np.asarray(rec.ft_torque_nm[n0:])]).reshape(n, 6)
+        tip = np.asarray(rec.tip_task_m[n0:], dtype=float).reshape(n, 3)
+        corr, feed_scale = scale_action(np.clip(np.asarray(action, dtype=float), -1.0, 1.0))
+        valid = bool(obs["tracker_valid"][0] > 0.5)
+        tracker = np.asarray(u.tracker_reading, dtype=float) if valid else np.full(3, np.nan)
+        held = {
+            **dict(zip(("cmd_dx_base_m", "cmd_dy_base_m", "cmd_dz_base_m"), corr.tolist(), strict=True)),
+            "cmd_feed_scale": feed_scale,
+            **{f"q{i}_rad": float(q) for i, q in enumerate(obs["q_rad"])},
+            **_xyz("tcp_", "_base_m", u.rtde_tcp_base),
+            **_xyz("tracker_", "_base_m", tracker),
+            **_xyz("tracker_err_", "_base_m", obs["tracker_error_base_m"]),
+            "tracker_valid": valid,
+        }
+        return {
+            "t_s": rec.t_s[n0:],
+            "step": [self._step] * n,
+            "phase": rec.phase[n0:],
+            "depth_cmd_m": rec.depth_cmd_m[n0:],
+            **{
+                name: ft[:, i]
+                for i, name in enumerate(("ft_fx_n", "ft_fy_n", "ft_fz_n", "ft_tx_nm", "ft_ty_nm", "ft_tz_nm"))
+            },
+            **{k: [v] * n for k, v in held.items()},
+            **{f"sim_tip_{a}_task_m": tip[:, i] for i, a in enumerate("xyz")},
+            "sim_stage": rec.stage[n0:],
+            "sim_deviation_m": rec.deviation_m[n0:],
+        }
+
+    def close_log(self) -> Path | None:
+        """Compact the log now (episode cut short or finished); the env stays open. Returns its path."""
+        return self.writer.close() if self.writer is not None else None
+
+    def abandon_log(self) -> Path | None:
+        """Flush and leave the part directory, as a crash would. Returns the directory."""
+        return self.writer.abandon() if self.writer is not None else None
+
+    def close(self) -> None:
+        """Compact the log, then close the env."""
+        self.close_log()
+        super().close()
+
+
+def _xyz(prefix: str, suffix: str, values: Any) -> dict[str, float]:
+    return {f"{prefix}{a}{suffix}": float(v) for a, v in zip("xyz", np.asarray(values, dtype=float), strict=True)}

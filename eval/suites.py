@@ -1,0 +1,91 @@
+"""Benchmark suites: named lists of scenarios (env keyword arguments, user units).
+
+* ``paper``: Li et al. 2023's experiment (the env defaults: β 30°, 0.5 mm/s, Li's Table 2).
+* ``sweep``: β ∈ {10, 20, 30, 40}° × feed ∈ {0.25, 0.5, 0.75, 1.0, 1.25} mm/s, the rest at defaults.
+* ``heldout``: conditions outside :data:`TRAINING_RANGES` (see :func:`heldout`), for testing how a
+  residual policy trained inside them generalises.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+from envs.scenario import Scenario
+
+TRAINING_RANGES: dict[str, tuple[float, float]] = {
+    "beta_deg": (15.0, 35.0),
+    "feed_mm_s": (0.3, 1.0),
+    "stickout_mm": (30.0, 42.0),
+    "cortical_thickness_mm": (3.0, 10.0),
+}
+"""Numeric scenario parameters a residual policy is trained on: name -> (low, high), inclusive, user units."""
+TRAINING_BONES: tuple[str, ...] = ("buffalo_femur", "bovine_tibia", "porcine_femur")
+"""Bone presets a residual policy is trained on."""
+
+
+class SuiteScenario(NamedTuple):
+    """One scenario of a suite: a name (for files and tables) and the env keyword arguments."""
+
+    name: str
+    kwargs: dict[str, Any]
+
+
+def paper() -> list[SuiteScenario]:
+    """Li et al. 2023's experiment: the env defaults."""
+    return [SuiteScenario("paper", {})]
+
+
+def sweep() -> list[SuiteScenario]:
+    """β × feed grid, named like ``b30_f0.50``."""
+    return [
+        SuiteScenario(f"b{beta:g}_f{feed:.2f}", {"beta_deg": beta, "feed_mm_s": feed})
+        for beta in (10.0, 20.0, 30.0, 40.0)
+        for feed in (0.25, 0.5, 0.75, 1.0, 1.25)
+    ]
+
+
+def heldout() -> list[SuiteScenario]:
+    """Conditions kept out of the residual-training ranges; each leaves them in one parameter.
+
+    * ``beta10``, ``beta40``: β 10° and 40°, outside 15–35° (shallower and steeper entries).
+    * ``feed1.2``: 1.2 mm/s, above the 0.3–1.0 mm/s feeds (thicker chips, higher forces).
+    * ``human_femur``: harder cortex with a denser core; not a training bone.
+    * ``sawbones``: ``sawbones_20pcf``, a soft uniform synthetic block; not a training bone.
+    * ``stickout26``, ``stickout48``: 26 and 48 mm of drill, outside 30–42 mm (stiffer / far softer drill).
+    * ``thin_cortex``: 1.5 mm cortex (depth 6 mm, so the drill breaks into the cancellous core), below 3–10 mm.
+    """
+    return [
+        SuiteScenario("beta10", {"beta_deg": 10.0}),
+        SuiteScenario("beta40", {"beta_deg": 40.0}),
+        SuiteScenario("feed1.2", {"feed_mm_s": 1.2}),
+        SuiteScenario("human_femur", {"bone": "human_femur"}),
+        SuiteScenario("sawbones", {"bone": "sawbones_20pcf"}),
+        SuiteScenario("stickout26", {"stickout_mm": 26.0}),
+        SuiteScenario("stickout48", {"stickout_mm": 48.0}),
+        SuiteScenario("thin_cortex", {"cortical_thickness_mm": 1.5, "depth_mm": 6.0}),
+    ]
+
+
+SUITES: dict[str, Callable[[], list[SuiteScenario]]] = {"paper": paper, "sweep": sweep, "heldout": heldout}
+"""Suite name -> its scenarios."""
+
+
+def suite_scenarios(name: str) -> list[SuiteScenario]:
+    """The scenarios of suite ``name``; an unknown name raises ``ValueError`` listing the suites."""
+    if name not in SUITES:
+        raise ValueError(f"unknown suite {name!r}; choose from {', '.join(SUITES)}")
+    return SUITES[name]()
+
+
+def outside_training(kwargs: dict[str, Any]) -> list[str]:
+    """Why a scenario lies outside the training ranges (empty if it lies inside), defaults filled in."""
+    sc = Scenario.from_kwargs(**kwargs)
+    reasons = [
+        f"{name}={getattr(sc, name):g} outside [{lo:g}, {hi:g}]"
+        for name, (lo, hi) in TRAINING_RANGES.items()
+        if not lo <= getattr(sc, name) <= hi
+    ]
+    if sc.bone not in TRAINING_BONES:
+        reasons.append(f"bone={sc.bone} not in {list(TRAINING_BONES)}")
+    return reasons

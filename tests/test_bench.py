@@ -1,0 +1,152 @@
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pandas as pd
+import pytest
+
+import envs  # noqa: F401
+from controllers.none import NoCompensation, NoCompensationConfig
+from controllers.registry import CONTROLLERS
+from envs.metrics import METRIC_NAMES
+from eval import bench_episode
+from eval.bench import controller_label, split_controller_specs
+from eval.bench_episode import EpisodeJob, run_job
+from eval.cli import main
+from eval.logs import read_episode_log
+from eval.summary import SUMMARY_COLUMNS
+
+
+def test_paper_suite_writes_every_output_with_the_exact_summary_header(tmp_path, capsys):
+    out = tmp_path / "bench"
+    assert main(["bench", "--suite", "paper", "--controllers", "none,li2023", "--seeds", "2", "--out", str(out)]) == 0
+    episodes = pd.read_csv(out / "episodes.csv")
+    assert len(episodes) == 4
+    assert list(episodes[["controller", "seed"]].itertuples(index=False, name=None)) == [
+        ("li2023", 0),
+        ("li2023", 1),
+        ("none", 0),
+        ("none", 1),
+    ]
+    for col in ("suite", "scenario", "beta_deg", "feed_mm_s", "bone", *METRIC_NAMES, "wall_time_s", "error"):
+        assert col in episodes
+    assert episodes["error"].isna().all()
+    assert (out / "summary.csv").read_text().splitlines()[0] == ",".join(SUMMARY_COLUMNS)
+    assert ",".join(SUMMARY_COLUMNS) == "suite,scenario,controller,metric,mean,ci_low,ci_high,n"
+    summary = pd.read_csv(out / "summary.csv")
+    assert len(summary) == 2 * len(METRIC_NAMES) and (summary["n"] == 2).all()
+    md = (out / "summary.md").read_text()
+    assert "Paired differences vs `none`" in md and "| paper | `li2023` | 2 |" in md
+    assert (out / "paper_deviation_force.png").stat().st_size > 10_000
+    for row in episodes.itertuples():
+        header, df = read_episode_log(out / row.log)
+        assert header["run"]["controller_spec"] == row.controller and header["seed"] == row.seed
+        assert len(df) == 5 * row.steps
+    assert "summary.md" in capsys.readouterr().out
+
+
+def test_results_do_not_depend_on_the_number_of_workers(tmp_path):
+    frames = []
+    for k in (1, 2):
+        out = tmp_path / f"w{k}"
+        args = ["bench", "--controllers", "none,li2023", "--seeds", "2", "--out", str(out), "--workers", str(k)]
+        assert main([*args, "--no-logs"]) == 0
+        frames.append((out / "episodes.csv").read_text())
+        assert not (out / "logs").exists()
+    a, b = (pd.read_csv(pd.io.common.StringIO(t)).drop(columns="wall_time_s") for t in frames)
+    pd.testing.assert_frame_equal(a, b)
+
+
+@dataclasses.dataclass
+class CrashConfig:
+    after_steps: int = 30
+
+
+class CrashingController(NoCompensation):
+    """Raises mid-episode, like a controller bug or a cut-off run."""
+
+    name = "crash"
+
+    def __init__(self, config=None):
+        super().__init__(NoCompensationConfig())
+        self.config = config or CrashConfig()
+        self.steps = 0
+
+    def reset(self):
+        self.steps = 0
+
+    def act(self, obs):
+        self.steps += 1
+        if self.steps > self.config.after_steps:
+            raise RuntimeError("controller exploded")
+        return super().act(obs)
+
+
+def test_an_episode_that_raises_keeps_its_partial_log_and_the_bench_goes_on(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(CONTROLLERS, "crash", (CrashingController, CrashConfig))
+    out = tmp_path / "bench"
+    code = main(["bench", "--controllers", "none,crash", "--seeds", "1", "--out", str(out)])
+    assert code == 1
+    assert "1 of 2 episodes failed" in capsys.readouterr().err
+    episodes = pd.read_csv(out / "episodes.csv").set_index("controller")
+    assert "controller exploded" in episodes.loc["crash", "error"]
+    assert np.isnan(episodes.loc["crash", "deviation_mean_mm"])
+    assert episodes.loc["none", "deviation_mean_mm"] > 0
+    assert "controller exploded" in (out / "errors.log").read_text()
+    log = out / episodes.loc["crash", "log"]
+    assert not log.exists() and log.with_suffix("").is_dir()  # the directory of an unfinished log
+    header, df = read_episode_log(log)
+    assert df.attrs["partial"] and header["controller"]["name"] == "crash"
+    assert len(df) == 150  # 30 steps: the process survived the exception, so every recorded sample was flushed
+
+
+def test_killed_run_leaves_a_readable_partial_log(tmp_path):
+    from eval.logs import EpisodeLogger, build_header
+
+    env = gym.make("drillgym/UR5BoneDrill-v0")
+    path = tmp_path / "killed.parquet"
+    logger = EpisodeLogger(env, path, build_header(env, None))
+    logger.reset(seed=0)
+    with pytest.raises(KeyboardInterrupt):
+        for step in range(1000):
+            logger.step(np.zeros(4, dtype=np.float32))
+            if step == 45:
+                raise KeyboardInterrupt  # the process dies here: nothing is closed or compacted
+    header, df = read_episode_log(path)
+    assert df.attrs["partial"] and len(df) == 200 and header["seed"] == 0
+    np.testing.assert_array_equal(df.t_s, env.unwrapped.recorder.t_s[:200])
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--controllers", "none,li2023:kq=1.0"], "kq"),
+        (["--controllers", "none,pid"], "unknown controller 'pid'"),
+        (["--controllers", "li2023:kp=fast"], "kp"),
+        (["--controllers", "none,none"], "twice"),
+        (["--seeds", "0"], "--seeds=0 must be >= 1"),
+        (["--workers", "0"], "--workers=0 must be >= 1"),
+        (["--suite", "marathon"], "unknown suite 'marathon'"),
+    ],
+)
+def test_bad_arguments_are_reported_before_any_episode_runs(tmp_path, capsys, argv, message):
+    out = tmp_path / "bench"
+    assert main(["bench", "--out", str(out), *argv]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_controller_specs_with_several_overrides_split_and_label_cleanly():
+    specs = split_controller_specs("none, li2023:kp=1.0,ki=0.5,li2023")
+    assert specs == ["none", "li2023:kp=1.0,ki=0.5", "li2023"]
+    assert controller_label("li2023:kp=1.0,ki=0.5") == "li2023_kp-1.0_ki-0.5"
+    assert controller_label("residual:runs/a b/model.zip") == "residual_runs_a_b_model.zip"
+    with pytest.raises(ValueError, match="no controller name"):
+        split_controller_specs("kp=1.0,none")
+
+
+def test_a_scenario_the_env_rejects_becomes_an_error_row():
+    row = run_job(EpisodeJob("paper", "bad", {"beta_deg": 80.0}, "none", 0))
+    assert "beta_deg" in row["error"] and np.isnan(row["deviation_mean_mm"])
+    assert bench_episode.run_job(EpisodeJob("paper", "paper", {}, "none", 0))["error"] == ""

@@ -1,0 +1,48 @@
+import pytest
+
+from envs.scenario import Scenario
+from eval.suites import SUITES, TRAINING_BONES, TRAINING_RANGES, outside_training, suite_scenarios
+
+
+def test_every_heldout_scenario_lies_outside_the_training_ranges_in_at_least_one_parameter():
+    heldout = suite_scenarios("heldout")
+    assert [s.name for s in heldout] == [
+        "beta10",
+        "beta40",
+        "feed1.2",
+        "human_femur",
+        "sawbones",
+        "stickout26",
+        "stickout48",
+        "thin_cortex",
+    ]
+    for sc in heldout:
+        assert outside_training(sc.kwargs), f"{sc.name} lies inside the training ranges"
+
+
+def test_the_paper_scenario_lies_inside_the_training_ranges():
+    assert outside_training({}) == []
+    assert set(TRAINING_RANGES) <= {f for f in Scenario.__dataclass_fields__}
+    assert "buffalo_femur" in TRAINING_BONES
+
+
+def test_sweep_is_the_beta_by_feed_grid_with_readable_names():
+    sweep = suite_scenarios("sweep")
+    assert len(sweep) == 20
+    assert "b30_f0.50" in [s.name for s in sweep]
+    assert {(s.kwargs["beta_deg"], s.kwargs["feed_mm_s"]) for s in sweep} == {
+        (b, f) for b in (10.0, 20.0, 30.0, 40.0) for f in (0.25, 0.5, 0.75, 1.0, 1.25)
+    }
+
+
+@pytest.mark.parametrize("suite", list(SUITES))
+def test_every_suite_scenario_is_a_valid_scenario_with_a_unique_name(suite):
+    scenarios = suite_scenarios(suite)
+    assert len({s.name for s in scenarios}) == len(scenarios)
+    for sc in scenarios:
+        Scenario.from_kwargs(**sc.kwargs)
+
+
+def test_unknown_suite_lists_the_known_ones():
+    with pytest.raises(ValueError, match="paper, sweep, heldout"):
+        suite_scenarios("marathon")
