@@ -59,6 +59,9 @@ class Li2023Config:
     """Bending diameter of the fluted drill over its nominal diameter, for k_D."""
     max_correction_m: float = MAX_CORRECTION_M
     """Clip on the total correction per axis (m)."""
+    count_executed_correction: bool = True
+    """Add the correction the robot is executing (RTDE) to the force-based deflection, so Δx is the tip's
+    deviation from the planned path; ``False`` is Li's eq. 13 literally (deflection only)."""
     axes: str = "xy"
     """Task axes compensated: ``"xy"`` (both across the drill) or ``"x"`` (Li's main deviation direction only;
     here the spindle's tangential force also pushes the tip along y, ~0.4 of x)."""
@@ -130,7 +133,8 @@ class Li2023Controller(Controller):
         f_base = self.R @ force_sensor_n
         robot = self.robot.translational_compliance_m_n(q_rad) @ f_base
         tool = self.R @ (self.C_tool @ force_sensor_n)
-        return self.lateral @ (tcp_error_base_m + robot + tool)
+        executed = tcp_error_base_m if self.config.count_executed_correction else np.zeros(3)
+        return self.lateral @ (executed + robot + tool)
 
     # ------------------------------------------------------------------ control
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
