@@ -154,22 +154,38 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             float(reward_force_weight),
             float(reward_smooth_weight),
         )
-        self.cell = SimCell(self.scenario, cell_params, bone_material)
-        self.path = DrillPath(self.scenario.depth_m, self.scenario.feed_m_s)
+        self.cell_params = cell_params
+        self.bone_material = bone_material
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = observation_space()  # type: ignore[assignment]
         self.recorder = EpisodeRecorder()
-        self.max_time_s = 3.0 * self.path.nominal_duration_s()
         self.world: PyBulletWorld | None = PyBulletWorld(visual_meshes=render_mode is not None)
-        self.world.place_bone(self.cell.T_base_task, self.scenario.beta_rad)
+        self._build(self.scenario)
         self._reset_state()
+
+    def _build(self, scenario: Scenario) -> None:
+        """(Re)build the cell, the path and the bone for ``scenario`` (the PyBullet client is kept)."""
+        self.scenario = scenario
+        self.cell = SimCell(scenario, self.cell_params, self.bone_material)
+        self.path = DrillPath(scenario.depth_m, scenario.feed_m_s)
+        self.max_time_s = 3.0 * self.path.nominal_duration_s()
+        if self.world is not None:
+            self.world.place_bone(self.cell.T_base_task, scenario.beta_rad)
 
     # ------------------------------------------------------------------ gym API
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        """Start a new hole: tip 3 mm above the entry point, uncut bone, sensors re-seeded."""
+        """Start a new hole: tip 3 mm above the entry point, uncut bone, sensors re-seeded.
+
+        ``options={"scenario": {...}}`` changes scenario arguments from this episode on (validated like
+        the constructor's; the others keep their values): domain randomisation and log replay use it.
+        """
         super().reset(seed=seed)
+        if options and "scenario" in options:
+            changes = dict(options["scenario"])
+            if changes:
+                self._build(Scenario.from_kwargs(**{**self.scenario.to_dict(), **changes}))
         self._reset_state()
         return self._observation(), self._info()
 

@@ -109,27 +109,26 @@ class PyBulletWorld:
         return t
 
     def place_bone(self, T_base_task: np.ndarray, beta_rad: float, size_m: float = 0.06) -> None:
-        """A bone block whose top face passes through the entry point, inclined by β about task y."""
-        if self.bone is not None:
-            pb.removeBody(self.bone, physicsClientId=self.client)
+        """A bone block whose top face passes through the entry point, inclined by β about task y.
+
+        The block is created once and moved for later scenarios (no PyBullet shapes pile up).
+        """
         half = [size_m / 2, size_m / 3, size_m / 6]
         # Block frame: task frame turned by -beta about y, so its top face is z_task = -x_task tan(beta).
         c, s = math.cos(beta_rad), math.sin(beta_rad)
         r_task_block = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
         r_base_block = T_base_task[:3, :3] @ r_task_block
         centre_base = T_base_task[:3, 3] + r_base_block @ np.array([0.0, 0.0, half[2]])
-        vis = pb.createVisualShape(
-            pb.GEOM_BOX, halfExtents=half, rgbaColor=[0.93, 0.88, 0.75, 1], physicsClientId=self.client
-        )
-        col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=self.client)
-        self.bone = pb.createMultiBody(
-            0,
-            col,
-            vis,
-            basePosition=self._to_world(centre_base).tolist(),
-            baseOrientation=quat_xyzw_from_matrix(R_BASE_BASELINK.T @ r_base_block).tolist(),
-            physicsClientId=self.client,
-        )
+        position = self._to_world(centre_base).tolist()
+        orientation = quat_xyzw_from_matrix(R_BASE_BASELINK.T @ r_base_block).tolist()
+        if self.bone is None:
+            vis = pb.createVisualShape(
+                pb.GEOM_BOX, halfExtents=half, rgbaColor=[0.93, 0.88, 0.75, 1], physicsClientId=self.client
+            )
+            col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=self.client)
+            self.bone = pb.createMultiBody(0, col, vis, position, orientation, physicsClientId=self.client)
+        else:
+            pb.resetBasePositionAndOrientation(self.bone, position, orientation, physicsClientId=self.client)
 
     def place_drill(self, T_base_flange: np.ndarray, spindle_m: float, stickout_m: float, diameter_m: float) -> None:
         """Draw the spindle (flange to chuck) and the drill (chuck to tip) along the flange z axis."""

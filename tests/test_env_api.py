@@ -207,3 +207,35 @@ def test_after_retract_the_tip_is_out_of_the_bone_and_unloaded(zero_episode):
     assert info["stage"] == 0
     np.testing.assert_array_equal(info["force_true_n"], np.zeros(3))
     assert np.linalg.norm(obs["ft_wrench"][:3]) < 0.2, obs["ft_wrench"]  # noise only (0.02 N std per axis)
+
+
+def test_reset_options_change_the_scenario_and_validate_it():
+    env = gym.make(ENV_ID)
+    try:
+        env.reset(seed=0, options={"scenario": {"beta_deg": 10.0, "feed_mm_s": 1.0}})
+        assert env.unwrapped.scenario.beta_deg == 10.0
+        assert env.unwrapped.plan.feed_m_s == pytest.approx(1.0e-3)
+        with pytest.raises(ValueError, match="beta_deg"):
+            env.reset(seed=0, options={"scenario": {"beta_deg": 80.0}})
+        env.reset(seed=0)  # no options: the scenario stays
+        assert env.unwrapped.scenario.beta_deg == 10.0
+    finally:
+        env.close()
+
+
+def test_reset_options_give_the_same_episode_as_a_fresh_env():
+    a = gym.make(ENV_ID, beta_deg=20.0)
+    b = gym.make(ENV_ID)
+    try:
+        a.reset(seed=3)
+        b.reset(seed=3, options={"scenario": {"beta_deg": 20.0}})
+        zero = np.zeros(4, np.float32)
+        for _ in range(60):
+            oa, ra, *_ = a.step(zero)
+            ob, rb, *_ = b.step(zero)
+            assert ra == rb
+            for k in oa:
+                np.testing.assert_array_equal(oa[k], ob[k], err_msg=k)
+    finally:
+        a.close()
+        b.close()
