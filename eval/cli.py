@@ -23,6 +23,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "eval.reproduce",
         "Reproduce Li 2023 (and Zhang 2005's claims): report.md, reproduction.json, figures.",
     ),
+    "train": ("training.train", "Train a residual policy (SB3) on top of a compensator; resumable."),
     "bench": (
         "eval.bench",
         "Benchmark controllers on a scenario suite over seeds: metrics with confidence intervals, paired differences, plots, logs.",

@@ -1,1 +1,10 @@
-"""placeholder."""
+"""Residual RL (stable-baselines3) on top of the papers' compensators.
+
+``drillgym train --config training/configs/residual_sac.yaml --out runs/NAME`` trains one;
+``make_controller("residual:PATH")`` runs it like any controller.
+"""
+
+from training.config import TrainConfig, load_config
+from training.residual_wrapper import ResidualWrapper, combine
+
+__all__ = ["ResidualWrapper", "TrainConfig", "combine", "load_config"]

@@ -1,0 +1,123 @@
+"""Residual RL: wrapper arithmetic, zero start, save/load, a smoke run, the shipped policy."""
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401
+from controllers import make_controller
+from training.config import TrainConfig, load_config
+from training.env_factory import make_train_vec_env
+from training.model import build_model
+from training.residual_wrapper import BASE_ACTION_KEY, ResidualWrapper, combine
+
+ENV_ID = "drillgym/UR5BoneDrill-v0"
+SHIPPED = Path(__file__).resolve().parents[1] / "training" / "policies" / "residual_li2023_sac.zip"
+
+
+def test_combine_adds_the_scaled_residual_and_clips():
+    base = np.array([0.2, -0.9, 0.0, 0.1], np.float32)
+    out = combine(base, np.array([1.0, -1.0, 0.5]), 0.5)
+    np.testing.assert_allclose(out, [0.7, -1.0, 0.25, 0.1], atol=1e-6)  # feed untouched by a 3-d residual
+    out4 = combine(base, np.array([0.0, 0.0, 0.0, -1.0]), 0.5)
+    np.testing.assert_allclose(out4[3], -0.4, atol=1e-6)
+    # the residual is clipped to [-1, 1] before scaling, the sum to the action box
+    np.testing.assert_allclose(combine(base, np.array([9.0, 9.0, 9.0]), 1.0)[:3], [1.0, 0.1, 1.0], atol=1e-6)
+
+
+def test_zero_residual_reproduces_the_base_controller_exactly():
+    wrapped = ResidualWrapper(gym.make(ENV_ID), "li2023", 0.5)
+    plain = gym.make(ENV_ID)
+    base = make_controller("li2023")
+    obs_w, _ = wrapped.reset(seed=1)
+    obs_p, _ = plain.reset(seed=1)
+    base.set_plan(plain.unwrapped.plan)
+    start = True
+    for _ in range(120):
+        a, _ = base.predict(obs_p, episode_start=np.array([start]))
+        start = False
+        np.testing.assert_array_equal(obs_w[BASE_ACTION_KEY], a)
+        obs_w, rw, *_ = wrapped.step(np.zeros(3, np.float32))
+        obs_p, rp, *_ = plain.step(a)
+        assert rw == rp
+    wrapped.close()
+    plain.close()
+
+
+def test_wrapper_rejects_nan_and_wrong_shape_residuals():
+    env = ResidualWrapper(gym.make(ENV_ID))
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="NaN"):
+        env.step(np.array([np.nan, 0, 0], np.float32))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros(4, np.float32))
+    env.close()
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3", "ppo"])
+def test_initial_policy_outputs_zero_residual(algo):
+    cfg = TrainConfig(algo=algo, n_envs=1, net_arch=[16], n_steps=64, batch_size=32, learning_starts=10)
+    venv = make_train_vec_env(cfg)
+    model = build_model(cfg, venv)
+    obs = venv.reset()
+    action, _ = model.predict(obs, deterministic=True)
+    np.testing.assert_array_equal(action, np.zeros_like(action))
+    venv.close()
+
+
+def test_config_yaml_overrides_and_rejects_typos(tmp_path):
+    p = tmp_path / "c.yaml"
+    p.write_text("algo: td3\ntotal_timesteps: 123\n")
+    cfg = load_config(p, {"seed": 7})
+    assert (cfg.algo, cfg.total_timesteps, cfg.seed) == ("td3", 123, 7)
+    p.write_text("learning_rat: 0.1\n")
+    with pytest.raises(ValueError, match="learning_rat"):
+        load_config(p)
+    with pytest.raises(ValueError, match="algo"):
+        TrainConfig(algo="dqn")
+
+
+def test_smoke_training_run_saves_a_policy_that_loads_and_resumes(tmp_path):
+    from eval.cli import main
+
+    cfg = Path(__file__).resolve().parents[1] / "training" / "configs" / "smoke.yaml"
+    out = tmp_path / "run"
+    assert main(["train", "--config", str(cfg), "--out", str(out)]) == 0
+    for name in ("policy.zip", "policy.json", "policy.vecnormalize.pkl", "training_curves.png", "summary.json"):
+        assert (out / name).exists(), name
+    assert list((out / "checkpoints").glob("rl_model_*_steps.zip"))
+    # resume to a larger budget continues from the checkpoint instead of starting over
+    assert main(["train", "--out", str(out), "--resume", "--timesteps", "900"]) == 0
+    import json
+
+    assert json.loads((out / "summary.json").read_text())["timesteps"] >= 900
+    controller = make_controller(f"residual:{out / 'policy.zip'}")
+    env = gym.make(ENV_ID)
+    obs, _ = env.reset(seed=0)
+    controller.set_plan(env.unwrapped.plan)
+    action, _ = controller.predict(obs, episode_start=np.array([True]))
+    assert action.shape == (4,) and np.all(np.abs(action) <= 1.0)
+    env.close()
+
+
+def test_missing_policy_file_is_a_clear_error():
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        make_controller("residual:/nonexistent/policy.zip")
+
+
+@pytest.mark.skipif(not SHIPPED.exists(), reason="no shipped policy")
+def test_shipped_policy_completes_an_episode_from_real_cell_signals_only():
+    from eval.rollout import run_episode
+
+    controller = make_controller(f"residual:{SHIPPED}")
+    env = gym.make(ENV_ID)
+    env.reset(seed=0)
+    controller.set_plan(env.unwrapped.plan)
+    result = run_episode(env, controller, seed=0)
+    env.close()
+    assert np.isfinite(result.metrics["deviation_mean_mm"])
+    # the policy's inputs are the env observation keys (real-cell signals) plus the base action
+    keys = set(controller.bundle.model.observation_space.spaces)
+    assert keys == set(env.observation_space.spaces) | {BASE_ACTION_KEY}

@@ -1,0 +1,112 @@
+"""SB3 callbacks: evaluation against the base controller, and the training-curve record."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.callbacks import EvalCallback
+from stable_baselines3.common.evaluation import evaluate_policy
+from stable_baselines3.common.vec_env import VecEnv
+
+CURVE_COLUMNS = (
+    "timesteps",
+    "policy_reward",
+    "policy_deviation_mean_mm",
+    "policy_lateral_force_max_n",
+    "base_reward",
+    "base_deviation_mean_mm",
+    "base_lateral_force_max_n",
+)
+
+
+class ZeroResidual:
+    """A 'policy' that always outputs a zero residual: the base controller alone."""
+
+    def __init__(self, action_dim: int) -> None:
+        self.action_dim = action_dim
+
+    def predict(
+        self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True
+    ) -> tuple:
+        """Zeros for every env of the batch."""
+        n = len(next(iter(observation.values()))) if isinstance(observation, dict) else len(observation)
+        return np.zeros((n, self.action_dim), dtype=np.float32), state
+
+
+class BaseComparisonEvalCallback(EvalCallback):
+    """SB3's EvalCallback that also scores the base controller and records the drilling metrics.
+
+    The base is evaluated once (it does not learn) on the same seeded episodes; every evaluation of the
+    policy then logs its reward, deviation and max lateral force beside the base's to TensorBoard
+    (``eval/...``) and to ``curve.csv`` in ``log_path``.
+    """
+
+    def __init__(self, eval_env: VecEnv, action_dim: int, **kwargs: Any) -> None:
+        super().__init__(eval_env, **kwargs)
+        self.action_dim = action_dim
+        self._episode_metrics: list[dict[str, float]] = []
+        self.base: dict[str, float] = {}
+        self.curve: list[dict[str, float]] = []
+
+    def _init_callback(self) -> None:
+        super()._init_callback()
+        self._episode_metrics = []
+        rewards, _ = evaluate_policy(
+            ZeroResidual(self.action_dim),
+            self.eval_env,
+            n_eval_episodes=self.n_eval_episodes,
+            deterministic=True,
+            return_episode_rewards=True,
+            callback=self._log_success_callback,
+        )
+        self.base = self._summary(rewards)
+
+    def _log_success_callback(self, locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
+        super()._log_success_callback(locals_, globals_)
+        if locals_.get("done") and "metrics" in locals_["info"]:
+            self._episode_metrics.append(locals_["info"]["metrics"])
+
+    def _summary(self, rewards: Any) -> dict[str, float]:
+        m = self._episode_metrics
+        self._episode_metrics = []
+        return {
+            "reward": float(np.mean(rewards)),
+            "deviation_mean_mm": float(np.mean([x["deviation_mean_mm"] for x in m])) if m else float("nan"),
+            "lateral_force_max_n": float(np.mean([x["lateral_force_max_n"] for x in m])) if m else float("nan"),
+        }
+
+    def _on_step(self) -> bool:
+        evaluating = self.eval_freq > 0 and self.n_calls % self.eval_freq == 0
+        self._episode_metrics = []
+        keep_going = super()._on_step()
+        if evaluating and self.evaluations_results:
+            policy = self._summary(self.evaluations_results[-1])
+            row = {
+                "timesteps": float(self.num_timesteps),
+                "policy_reward": policy["reward"],
+                "policy_deviation_mean_mm": policy["deviation_mean_mm"],
+                "policy_lateral_force_max_n": policy["lateral_force_max_n"],
+                "base_reward": self.base["reward"],
+                "base_deviation_mean_mm": self.base["deviation_mean_mm"],
+                "base_lateral_force_max_n": self.base["lateral_force_max_n"],
+            }
+            self.curve.append(row)
+            for key in (
+                "policy_deviation_mean_mm",
+                "base_deviation_mean_mm",
+                "policy_lateral_force_max_n",
+                "base_reward",
+            ):
+                self.logger.record(f"eval/{key}", row[key])
+            if self.log_path is not None:
+                self._write_curve(Path(self.log_path).parent / "curve.csv")
+        return keep_going
+
+    def _write_curve(self, path: Path) -> None:
+        with open(path, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(CURVE_COLUMNS))
+            w.writeheader()
+            w.writerows(self.curve)

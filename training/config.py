@@ -1,0 +1,85 @@
+"""Training configuration: typed defaults in code, YAML overrides (rl-baselines3-zoo style)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+ALGOS = ("sac", "td3", "ppo")
+
+
+@dataclass
+class TrainConfig:
+    """Everything a residual-training run depends on (units in names; seeds recorded)."""
+
+    algo: str = "sac"
+    """SB3 algorithm: sac (default), td3 or ppo."""
+    base: str = "li2023"
+    """Base controller spec under the residual."""
+    residual_scale: float = 0.5
+    """Residual ±1 = ± this share of the env's action range (0.5: ±1 mm of correction)."""
+    residual_feed: bool = False
+    """Let the residual change the feed (off: compare at the base's feed, as Li does)."""
+    total_timesteps: int = 200_000
+    """Agent steps over all environments."""
+    n_envs: int = 2
+    """Parallel environments (SubprocVecEnv when > 1)."""
+    seed: int = 0
+    """Seed of the policy, the envs and the scenario draws."""
+    domain_randomization: bool = True
+    """Draw a new scenario every episode inside the training ranges."""
+    net_arch: list[int] = field(default_factory=lambda: [64, 64])
+    """Hidden layers of actor and critic."""
+    learning_rate: float = 3e-4
+    batch_size: int = 256
+    buffer_size: int = 200_000
+    learning_starts: int = 2_000
+    gamma: float = 0.98
+    train_freq: int = 1
+    gradient_steps: int = 1
+    ent_coef: str = "auto_0.01"
+    """SAC entropy coefficient: start small so exploration does not swamp the zero-initialised residual."""
+    target_entropy: float = -6.0
+    """SAC target entropy (more negative than −dim(A) = −3: keep the residual's noise modest)."""
+    log_std_init: float = -2.0
+    """Initial log standard deviation of the Gaussian policy (SAC/PPO): std 0.14 of the residual range."""
+    n_steps: int = 1024
+    """PPO rollout length per env."""
+    normalize_obs: bool = True
+    """VecNormalize on observations (saved with the model)."""
+    eval_freq: int = 10_000
+    """Agent steps between evaluations (over all envs)."""
+    eval_episodes: int = 4
+    """Episodes per evaluation, paper scenario, seeds fixed."""
+    checkpoint_freq: int = 20_000
+    """Agent steps between checkpoints."""
+
+    def __post_init__(self) -> None:
+        if self.algo not in ALGOS:
+            raise ValueError(f"algo={self.algo!r}; choose from {ALGOS}")
+        if self.total_timesteps < 1 or self.n_envs < 1:
+            raise ValueError("total_timesteps and n_envs must be >= 1")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict (YAML/JSON-ready)."""
+        return dataclasses.asdict(self)
+
+
+def load_config(path: Path | None, overrides: dict[str, Any] | None = None) -> TrainConfig:
+    """Defaults, then the YAML file's keys, then ``overrides``; unknown keys raise ``ValueError``."""
+    data: dict[str, Any] = {}
+    if path is not None:
+        loaded = yaml.safe_load(Path(path).read_text()) or {}
+        if not isinstance(loaded, dict):
+            raise ValueError(f"{path}: expected a mapping of TrainConfig fields, got {type(loaded).__name__}")
+        data.update(loaded)
+    data.update(overrides or {})
+    known = {f.name for f in dataclasses.fields(TrainConfig)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"unknown training option(s) {unknown}; known: {sorted(known)}")
+    return TrainConfig(**data)

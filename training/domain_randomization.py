@@ -1,0 +1,57 @@
+"""Domain randomisation: a new scenario for every episode, drawn inside the training ranges.
+
+Ranges (user units) live in :data:`DR_RANGES`; they are disjoint from the ``heldout`` suite's
+conditions (``eval.suites``), which is what makes that suite a test of generalisation.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from eval.suites import TRAINING_BONES, TRAINING_RANGES
+
+DR_RANGES: dict[str, tuple[float, float]] = {
+    **TRAINING_RANGES,
+    "ft_noise_n": (0.0, 0.05),
+    "latency_s": (0.005, 0.05),
+    "tracker_noise_mm": (0.02, 0.1),
+}
+"""Uniform ranges per scenario argument (β in deg, feed in mm/s, stick-out and cortex in mm, noise, latency)."""
+
+
+def sample_scenario(rng: np.random.Generator, ranges: dict[str, tuple[float, float]] = DR_RANGES) -> dict[str, Any]:
+    """One scenario: every ranged argument uniform, the bone one of the training presets.
+
+    β is rounded to 0.5° (the force tables are cached per β) and its sign kept positive.
+    """
+    out: dict[str, Any] = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in ranges.items()}
+    if "beta_deg" in out:
+        out["beta_deg"] = round(out["beta_deg"] * 2.0) / 2.0
+    out["bone"] = str(rng.choice(list(TRAINING_BONES)))
+    return out
+
+
+class DomainRandomization(gym.Wrapper):
+    """At every reset, draw a scenario from the wrapper's own generator and pass it to the env.
+
+    The draws come from a generator seeded by the first ``reset(seed=...)``, so a seeded training run
+    sees the same sequence of scenarios.
+    """
+
+    def __init__(self, env: gym.Env, ranges: dict[str, tuple[float, float]] | None = None):
+        super().__init__(env)
+        self.ranges = dict(DR_RANGES if ranges is None else ranges)
+        self._rng: np.random.Generator | None = None
+        self.current: dict[str, Any] = {}
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Draw a scenario and reset the env with it."""
+        if seed is not None or self._rng is None:
+            self._rng = np.random.default_rng(seed)
+        self.current = sample_scenario(self._rng, self.ranges)
+        opts = {**(options or {}), "scenario": {**self.current, **(options or {}).get("scenario", {})}}
+        obs, info = self.env.reset(seed=seed, options=opts)
+        return obs, {**info, "scenario": dict(self.current)}

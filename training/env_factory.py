@@ -1,0 +1,45 @@
+"""Environments for residual training and evaluation (SB3 vectorised, monitored)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import gymnasium as gym
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
+
+from training.config import TrainConfig
+from training.domain_randomization import DomainRandomization
+from training.residual_wrapper import ResidualWrapper
+
+ENV_ID = "drillgym/UR5BoneDrill-v0"
+
+
+def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | None = None) -> gym.Env:
+    """One drilling env (optionally domain-randomised) under the residual wrapper."""
+    import envs  # noqa: F401  (registers the ids in spawned workers)
+
+    env: gym.Env = gym.make(ENV_ID, **(scenario or {}))
+    if randomize:
+        env = DomainRandomization(env)
+    return ResidualWrapper(env, cfg.base, cfg.residual_scale, cfg.residual_feed)
+
+
+def make_train_vec_env(cfg: TrainConfig) -> VecEnv:
+    """``cfg.n_envs`` randomised envs: SubprocVecEnv (spawned workers) when more than one."""
+    factory: Callable[[], gym.Env] = lambda: residual_env(cfg, cfg.domain_randomization)  # noqa: E731
+    if cfg.n_envs > 1:
+        return make_vec_env(
+            factory,
+            n_envs=cfg.n_envs,
+            seed=cfg.seed,
+            vec_env_cls=SubprocVecEnv,
+            vec_env_kwargs={"start_method": "spawn"},
+        )
+    return make_vec_env(factory, n_envs=1, seed=cfg.seed, vec_env_cls=DummyVecEnv)
+
+
+def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) -> VecEnv:
+    """The paper scenario (or ``scenario``) under the residual wrapper, one env, for evaluations."""
+    return make_vec_env(lambda: residual_env(cfg, False, scenario), n_envs=1, seed=10_000 + cfg.seed)

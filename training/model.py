@@ -1,0 +1,97 @@
+"""SB3 models whose residual starts at exactly zero, so training starts at the base controller."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import torch
+from stable_baselines3 import PPO, SAC, TD3
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.vec_env import VecEnv
+
+from training.config import TrainConfig
+
+ALGO_CLASSES: dict[str, type[BaseAlgorithm]] = {"sac": SAC, "td3": TD3, "ppo": PPO}
+
+
+def build_model(cfg: TrainConfig, env: VecEnv, tensorboard_log: Path | None = None) -> BaseAlgorithm:
+    """A fresh model for ``cfg`` with its action output zero-initialised (see :func:`zero_init_residual`)."""
+    common: dict[str, Any] = {
+        "seed": cfg.seed,
+        "verbose": 0,
+        "tensorboard_log": str(tensorboard_log) if tensorboard_log else None,
+    }
+    if cfg.algo == "sac":
+        target_entropy: float | str = cfg.target_entropy
+        model: BaseAlgorithm = SAC(
+            "MultiInputPolicy",
+            env,
+            learning_rate=cfg.learning_rate,
+            buffer_size=cfg.buffer_size,
+            learning_starts=cfg.learning_starts,
+            batch_size=cfg.batch_size,
+            gamma=cfg.gamma,
+            train_freq=cfg.train_freq,
+            gradient_steps=cfg.gradient_steps,
+            ent_coef=cfg.ent_coef,
+            target_entropy=target_entropy,
+            policy_kwargs={"net_arch": list(cfg.net_arch)},
+            **common,
+        )
+    elif cfg.algo == "td3":
+        model = TD3(
+            "MultiInputPolicy",
+            env,
+            learning_rate=cfg.learning_rate,
+            buffer_size=cfg.buffer_size,
+            learning_starts=cfg.learning_starts,
+            batch_size=cfg.batch_size,
+            gamma=cfg.gamma,
+            train_freq=cfg.train_freq,
+            gradient_steps=cfg.gradient_steps,
+            policy_kwargs={"net_arch": list(cfg.net_arch)},
+            **common,
+        )
+    else:
+        model = PPO(
+            "MultiInputPolicy",
+            env,
+            learning_rate=cfg.learning_rate,
+            n_steps=cfg.n_steps,
+            batch_size=min(cfg.batch_size, cfg.n_steps * cfg.n_envs),
+            gamma=cfg.gamma,
+            policy_kwargs={"net_arch": list(cfg.net_arch), "log_std_init": cfg.log_std_init},
+            **common,
+        )
+    zero_init_residual(model, cfg.log_std_init)
+    return model
+
+
+@torch.no_grad()
+def zero_init_residual(model: BaseAlgorithm, log_std_init: float) -> None:
+    """Zero the layer that outputs the action mean; set the initial exploration noise.
+
+    SAC: ``actor.mu`` (mean, pre-tanh) zero, ``actor.log_std`` bias = ``log_std_init``. TD3: the last
+    Linear of ``actor.mu`` zero (tanh(0) = 0), copied to the target actor. PPO: ``action_net`` zero.
+    The deterministic action is then exactly 0: the residual policy *is* the base controller.
+    """
+    if isinstance(model, SAC):
+        mu, log_std = model.actor.mu, model.actor.log_std
+        assert isinstance(mu, torch.nn.Linear) and isinstance(log_std, torch.nn.Linear)
+        mu.weight.zero_()
+        mu.bias.zero_()
+        log_std.weight.zero_()
+        log_std.bias.fill_(log_std_init)
+    elif isinstance(model, TD3):
+        last = [m for m in model.actor.mu.modules() if isinstance(m, torch.nn.Linear)][-1]
+        last.weight.zero_()
+        last.bias.zero_()
+        model.actor_target.load_state_dict(model.actor.state_dict())
+    elif isinstance(model, PPO):
+        net = model.policy.action_net
+        assert isinstance(net, torch.nn.Linear)
+        net.weight.zero_()
+        net.bias.zero_()
+    else:  # pragma: no cover
+        raise TypeError(f"no residual initialisation for {type(model).__name__}")

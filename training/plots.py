@@ -1,0 +1,30 @@
+"""Training curves: the residual policy against its base controller over training."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+
+def plot_curves(curve: list[dict[str, float]], path: Path) -> None:
+    """Deviation and max lateral force of the policy vs the base, per evaluation (paper scenario)."""
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))
+    if curve:
+        t = [r["timesteps"] for r in curve]
+        a.plot(t, [r["policy_deviation_mean_mm"] for r in curve], "o-", label="residual policy")
+        a.plot(t, [r["base_deviation_mean_mm"] for r in curve], "--", label="base controller")
+        b.plot(t, [r["policy_lateral_force_max_n"] for r in curve], "o-", label="residual policy")
+        b.plot(t, [r["base_lateral_force_max_n"] for r in curve], "--", label="base controller")
+    a.set(xlabel="agent steps", ylabel="mean tip deviation (mm)", title="paper scenario, deterministic evaluation")
+    b.set(xlabel="agent steps", ylabel="max lateral force (N)", title="paper scenario, deterministic evaluation")
+    for ax in (a, b):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        ax.title.set_fontsize(9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -1,0 +1,61 @@
+"""A trained residual policy as a controller: base controller + scaled SB3 residual, SB3 ``predict``.
+
+``make_controller("residual:PATH")`` builds one; it runs wherever the base controller runs (the
+observation holds only real-cell signals), on the simulated and on the real cell alike.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from controllers.base import Controller
+from controllers.registry import make_controller
+from envs.plan import DrillPlan
+from training.policy_bundle import load_bundle
+from training.residual_wrapper import BASE_ACTION_KEY, combine
+
+
+class ResidualPolicyController(Controller):
+    """``clip(base(obs) + scale · π(normalise(obs + base action)))``, π deterministic."""
+
+    name = "residual"
+
+    def __init__(self, path: Path | str) -> None:
+        super().__init__()
+        self.path = Path(path)
+        self.bundle = load_bundle(self.path)
+        self.base = make_controller(self.bundle.config.base)
+        self.config = self.bundle.config
+
+    def set_plan(self, plan: DrillPlan) -> None:
+        """The base controller gets the plan too."""
+        self.base.set_plan(plan)
+        super().set_plan(plan)
+
+    def reset(self) -> None:
+        """Mark an episode start: the base controller resets on its next call."""
+        self._start = True
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """Base action plus the policy's residual."""
+        base_action, _ = self.base.predict(obs, episode_start=np.array([self._start]))
+        self._start = False
+        aug = {**obs, BASE_ACTION_KEY: base_action}
+        if self.bundle.normalizer is not None:
+            aug = self.bundle.normalizer(aug)
+        residual, _ = self.bundle.model.predict(aug, deterministic=True)
+        return combine(base_action, np.asarray(residual).reshape(-1), self.config.residual_scale)
+
+    def describe(self) -> dict[str, Any]:
+        """Name, file and training configuration."""
+        return {"name": "residual", "config": {"path": str(self.path), **self.config.to_dict()}}
+
+
+def load_residual_controller(path: str) -> ResidualPolicyController:
+    """``residual:PATH`` -> controller (used by :func:`controllers.make_controller`)."""
+    if not path:
+        raise ValueError("residual controllers need a path: residual:PATH/TO/policy.zip")
+    return ResidualPolicyController(path)

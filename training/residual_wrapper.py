@@ -1,0 +1,83 @@
+"""Residual RL on top of a classical compensator: ``action = clip(base(obs) + scale · residual)``.
+
+The wrapper owns the base controller (its filters, PID memory and path prediction live here and are
+reset with the env), tells it the plan at every reset, and shows the policy the base's action as an
+extra observation key. With a residual of zero the wrapped env behaves exactly as the base controller
+does: the policy starts from the baseline.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from controllers import Controller, make_controller
+from envs.constants import ACTION_DIM
+
+BASE_ACTION_KEY = "base_action"
+
+
+def residual_dims(residual_feed: bool) -> int:
+    """Size of the residual action: the three correction axes, plus the feed override if enabled."""
+    return ACTION_DIM if residual_feed else 3
+
+
+def combine(base_action: np.ndarray, residual: np.ndarray, scale: float) -> np.ndarray:
+    """``clip(base + scale · residual)`` into the env's action box; a 3-d residual leaves the feed alone."""
+    out = np.asarray(base_action, dtype=np.float64).copy()
+    r = np.clip(np.asarray(residual, dtype=np.float64), -1.0, 1.0)
+    out[: r.shape[-1]] += scale * r
+    return np.clip(out, -1.0, 1.0).astype(np.float32)
+
+
+class ResidualWrapper(gym.Wrapper):
+    """Expose a residual action space over a base controller.
+
+    Args:
+        env: the drilling env (sim or real: only ``env.unwrapped.plan`` and the observation are used).
+        base: the base controller or its spec (default ``"li2023"``, the paper's best setting).
+        scale: residual action ±1 maps to ± ``scale`` of the env's action range (0.5: ±1 mm).
+        residual_feed: let the residual change the feed override too (off: the base's feed is kept).
+    """
+
+    def __init__(
+        self, env: gym.Env, base: Controller | str = "li2023", scale: float = 0.5, residual_feed: bool = False
+    ):
+        super().__init__(env)
+        if not 0.0 < scale <= 2.0:
+            raise ValueError(f"scale={scale} must be in (0, 2]")
+        self.base = make_controller(base) if isinstance(base, str) else base
+        self.scale = float(scale)
+        self.residual_feed = residual_feed
+        self.action_space = spaces.Box(-1.0, 1.0, (residual_dims(residual_feed),), np.float32)
+        obs_space = env.observation_space
+        assert isinstance(obs_space, spaces.Dict)
+        self.observation_space = spaces.Dict(
+            {**obs_space.spaces, BASE_ACTION_KEY: spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)}
+        )
+        self._base_action = np.zeros(ACTION_DIM, dtype=np.float32)
+
+    def _augment(self, obs: dict[str, np.ndarray], episode_start: bool) -> dict[str, np.ndarray]:
+        self._base_action, _ = self.base.predict(obs, episode_start=np.array([episode_start]))
+        return {**obs, BASE_ACTION_KEY: self._base_action.copy()}
+
+    def reset(self, **kwargs: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Reset the env, hand the base controller the new plan, return the augmented observation."""
+        obs, info = self.env.reset(**kwargs)
+        self.base.set_plan(self.env.unwrapped.plan)  # type: ignore[attr-defined]
+        return self._augment(obs, True), info
+
+    def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """Apply ``base + scale · residual``; the info records both parts."""
+        residual = np.asarray(action, dtype=np.float64)
+        if residual.shape != self.action_space.shape:
+            raise ValueError(f"residual action must have shape {self.action_space.shape}, got {residual.shape}")
+        if not np.all(np.isfinite(residual)):
+            raise ValueError(f"residual action {residual.tolist()} contains NaN or inf")
+        total = combine(self._base_action, residual, self.scale)
+        obs, reward, terminated, truncated, info = self.env.step(total)
+        info = {**info, "base_action": self._base_action.copy(), "residual_action": residual.astype(np.float32)}
+        return self._augment(obs, False), float(reward), terminated, truncated, info

@@ -1,0 +1,143 @@
+"""``drillgym train``: residual RL with stable-baselines3 on top of a classical compensator.
+
+SB3 machinery throughout: ``make_vec_env`` (SubprocVecEnv), ``VecNormalize`` (saved with the model),
+``EvalCallback`` (here also scoring the base controller), ``CheckpointCallback`` (with replay buffer
+and normaliser, so a killed run resumes), TensorBoard logs and the progress bar.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import time
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from training.config import load_config
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """CLI arguments."""
+    parser.add_argument("--config", type=Path, default=None, help="YAML overrides of training.config.TrainConfig")
+    parser.add_argument("--out", type=Path, required=True, help="run folder (checkpoints, logs, policy)")
+    parser.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in --out")
+    parser.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
+    parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
+    parser.add_argument("--seed", type=int, default=None, help="override seed")
+    parser.add_argument("--export", type=Path, default=None, help="also copy the best policy bundle here (NAME.zip)")
+
+
+def latest_checkpoint(folder: Path) -> tuple[Path, int] | None:
+    """Newest ``rl_model_<steps>_steps.zip`` in ``folder`` and its step count."""
+    best: tuple[Path, int] | None = None
+    for p in folder.glob("rl_model_*_steps.zip"):
+        m = re.fullmatch(r"rl_model_(\d+)_steps\.zip", p.name)
+        if m and (best is None or int(m.group(1)) > best[1]):
+            best = (p, int(m.group(1)))
+    return best
+
+
+def run(args: argparse.Namespace) -> int:
+    """Train (or resume), export the best policy bundle, plot the curves."""
+    from stable_baselines3.common.callbacks import CheckpointCallback
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from training.callbacks import BaseComparisonEvalCallback
+    from training.env_factory import make_eval_vec_env, make_train_vec_env
+    from training.model import ALGO_CLASSES, build_model
+    from training.plots import plot_curves
+    from training.policy_bundle import save_bundle
+
+    overrides: dict[str, Any] = {
+        k: v
+        for k, v in (("total_timesteps", args.timesteps), ("n_envs", args.n_envs), ("seed", args.seed))
+        if v is not None
+    }
+    out: Path = args.out
+    if args.resume and (out / "config.yaml").exists():
+        cfg = load_config(out / "config.yaml", overrides)
+    else:
+        cfg = load_config(args.config, overrides)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+    ckpt_dir = out / "checkpoints"
+    ckpt = latest_checkpoint(ckpt_dir) if args.resume else None
+    if args.resume and ckpt is None:
+        print(f"--resume: no checkpoint in {ckpt_dir}; starting fresh")
+
+    venv = make_train_vec_env(cfg)
+    if cfg.normalize_obs:
+        if ckpt is not None and (ckpt_dir / f"rl_model_vecnormalize_{ckpt[1]}_steps.pkl").exists():
+            venv = VecNormalize.load(str(ckpt_dir / f"rl_model_vecnormalize_{ckpt[1]}_steps.pkl"), venv)
+        else:
+            venv = VecNormalize(venv, norm_obs=True, norm_reward=False)
+    eval_env = make_eval_vec_env(cfg)
+    if cfg.normalize_obs:
+        eval_env = VecNormalize(eval_env, norm_obs=True, norm_reward=False, training=False)
+
+    if ckpt is not None:
+        model = ALGO_CLASSES[cfg.algo].load(ckpt[0], env=venv, tensorboard_log=str(out / "tb"), device="cpu")
+        buffer = ckpt_dir / f"rl_model_replay_buffer_{ckpt[1]}_steps.pkl"
+        if buffer.exists() and hasattr(model, "load_replay_buffer"):
+            model.load_replay_buffer(buffer)
+        print(f"resuming from {ckpt[0].name} ({model.num_timesteps} steps done)")
+    else:
+        model = build_model(cfg, venv, out / "tb")
+    action_dim = int(venv.action_space.shape[0])  # type: ignore[index]
+    every = max(cfg.n_envs, 1)
+    checkpoint = CheckpointCallback(
+        save_freq=max(cfg.checkpoint_freq // every, 1),
+        save_path=str(ckpt_dir),
+        name_prefix="rl_model",
+        save_replay_buffer=cfg.algo != "ppo",
+        save_vecnormalize=cfg.normalize_obs,
+    )
+    evaluation = BaseComparisonEvalCallback(
+        eval_env,
+        action_dim,
+        n_eval_episodes=cfg.eval_episodes,
+        eval_freq=max(cfg.eval_freq // every, 1),
+        best_model_save_path=str(out / "best"),
+        log_path=str(out / "eval"),
+        deterministic=True,
+    )
+    remaining = max(cfg.total_timesteps - model.num_timesteps, 0)
+    t0 = time.perf_counter()
+    model.learn(
+        total_timesteps=remaining,
+        callback=[checkpoint, evaluation],
+        progress_bar=True,
+        tb_log_name="residual",
+        reset_num_timesteps=ckpt is None,
+    )
+    wall_s = time.perf_counter() - t0
+    model.save(out / "model.zip")
+    if cfg.normalize_obs:
+        venv.save(str(out / "vecnormalize.pkl"))  # type: ignore[attr-defined]
+    best_zip = out / "best" / "best_model.zip"
+    summary = {
+        "timesteps": int(model.num_timesteps),
+        "wall_time_s": wall_s,
+        "base_eval": evaluation.base,
+        "curve": evaluation.curve,
+        "best_policy_reward": float(evaluation.best_mean_reward),
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    plot_curves(evaluation.curve, out / "training_curves.png")
+    source = best_zip if best_zip.exists() else out / "model.zip"
+    save_bundle(source, out / "vecnormalize.pkl", cfg, {"training": summary}, out / "policy.zip")
+    if args.export is not None:
+        save_bundle(source, out / "vecnormalize.pkl", cfg, {"training": summary}, args.export)
+    venv.close()
+    eval_env.close()
+    print(f"trained {model.num_timesteps} steps in {wall_s / 60:.1f} min; policy: {(out / 'policy.zip').resolve()}")
+    if evaluation.curve:
+        last = evaluation.curve[-1]
+        print(
+            f"last evaluation (paper scenario): deviation {last['policy_deviation_mean_mm']:.3f} mm "
+            f"vs base {last['base_deviation_mean_mm']:.3f} mm"
+        )
+    return 0
