@@ -19,9 +19,9 @@ from envs.robot.stiffness_id import (
     identify_joint_stiffness,
     linear_deflection_m,
     point_kinematics,
-    reproduce_li_table1,
     simulate_load_experiments,
 )
+from envs.robot.stiffness_table1 import reproduce_li_table1
 from envs.robot.ur5 import UR5Kinematics
 from eval.cli import main
 

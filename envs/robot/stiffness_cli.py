@@ -23,12 +23,11 @@ from envs.robot.stiffness_id import (
     LI_TABLE1_MEASURED_Z_MM,
     LI_TABLE1_MODEL_Z_MM,
     StiffnessIdentification,
-    Table1Comparison,
     axis_loads_n,
     identify_joint_stiffness,
-    reproduce_li_table1,
     simulate_load_experiments,
 )
+from envs.robot.stiffness_table1 import Table1Comparison, reproduce_li_table1
 from envs.robot.ur5 import TCP_FRAME, UR5Kinematics
 
 
