@@ -27,6 +27,9 @@ from eval.reproduce_experiments import (
 )
 from eval.summary import mean_ci
 
+SHIPPED_POLICY = Path(__file__).resolve().parents[1] / "training" / "policies" / "residual_li2023_sac.zip"
+"""The residual policy shipped with the project (shown beside the paper's controllers when present)."""
+
 PAPER = {
     "dev_none": 0.703,
     "dev_kp1": 0.587,
@@ -113,6 +116,8 @@ def run(args: argparse.Namespace) -> int:
             "layered", {"beta_deg": 0.0, "cortical_thickness_mm": 2.0, "depth_mm": 10.0}, "zhang2005:deformation=false"
         ),
     }
+    if SHIPPED_POLICY.exists():
+        conditions["residual"] = Condition("paper", {}, f"residual:{SHIPPED_POLICY}")
     for kp in kp_values:
         conditions[f"sweep_kp{kp:g}"] = Condition("paper", {}, f"li2023:kp={kp:g}")
     results: dict[str, list] = {}
@@ -168,6 +173,14 @@ def _rows(results: dict[str, list], trends: dict[str, Any], ident: dict[str, Any
         rows.append(Row(label, unit, PAPER[key], v, "prediction", ci, note))
     v, ci = m(kp1, "lateral_force_max_n")
     rows.append(Row("max lateral force, li2023 KP = 1", "N", None, v, "prediction", ci))
+    if "residual" in results:
+        for metric, unit, label in (
+            ("deviation_mean_mm", "mm", "mean tip deviation, residual SAC on li2023"),
+            ("lateral_force_max_n", "N", "max lateral force, residual SAC on li2023"),
+            ("hole_offset_mm", "mm", "entry-hole centre offset, residual SAC on li2023"),
+        ):
+            v, ci = m(results["residual"], metric)
+            rows.append(Row(label, unit, None, v, "learned", ci, "beyond the paper: trained in the sim"))
     rows.append(
         Row("four-stage curve: stage of the peak (model, tip on axis)", "stage", 2, trends["peak_stage"], "check")
     )
