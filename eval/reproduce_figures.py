@@ -90,11 +90,10 @@ def fig13(out: Path, results: dict[str, list]) -> str:
     fig, ax = plt.subplots(figsize=(8, 3.6))
     tr = results["none"][0].trace
     shade_stages(ax, tr["t_s"], tr["stage"])
-    for key, label, colour in (
-        ("none", "no compensation", "C3"),
-        ("kp1", "li2023 KP = 1", "C1"),
-        ("kp4", "li2023 KP = 4", "C0"),
-    ):
+    lines = [("none", "no compensation", "C3"), ("kp1", "li2023 KP = 1", "C1"), ("kp4", "li2023 KP = 4", "C0")]
+    if "residual" in results:
+        lines.append(("residual", "residual SAC on li2023", "C2"))
+    for key, label, colour in lines:
         t = results[key][0].trace
         ax.plot(t["t_s"], _lateral(t), color=colour, label=label)
     ax.set(xlim=(1.5, 14.5), xlabel="time (s)", ylabel="lateral force |Fxy| (N)")
