@@ -72,6 +72,10 @@ def write_report(
     summary = summarize(ok, METRIC_NAMES, groups)
     summary.to_csv(out / "summary.csv", index=False)
     paired = paired_differences(ok, METRIC_NAMES, groups, baseline=controllers[0])
+    if len(scenarios) > 1:  # every scenario together, paired by (scenario, seed)
+        pooled = ok.assign(seed=ok["scenario"] + "#" + ok["seed"].astype(str), scenario="all")
+        pooled_groups = [(suite, "all", c) for c in controllers]
+        paired = pd.concat([paired, paired_differences(pooled, METRIC_NAMES, pooled_groups, controllers[0])])
     paired.to_csv(out / "paired.csv", index=False)
     plots = _plots(out, suite, summary, ok, controllers)
     (out / "summary.md").write_text(_markdown(suite, summary, paired, episodes, controllers, seeds, plots))
@@ -114,7 +118,8 @@ def _markdown(
             "",
             f"## Paired differences vs `{controllers[0]}`",
             "",
-            f"Controller minus `{controllers[0]}` on the same seed (negative = smaller); mean [95% CI].",
+            f"Controller minus `{controllers[0]}` on the same seed (negative = smaller); mean [95% CI]. "
+            "Scenario `all` pools every scenario of the suite (pairs: same scenario, same seed).",
             "",
             markdown_table(paired, MAIN_METRICS, label="Δ "),
         ]
