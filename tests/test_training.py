@@ -19,6 +19,11 @@ SHIPPED = Path(__file__).resolve().parents[1] / "training" / "policies" / "resid
 
 def test_combine_adds_the_scaled_residual_and_clips():
     base = np.array([0.2, -0.9, 0.0, 0.1], np.float32)
+    # lateral residual: task x, y turned into base axes (x_task = +y_base, y_task = +x_base here)
+    from envs.cell_params import R_BASE_TASK
+
+    lat = combine(base, np.array([0.4, -0.2]), 0.5, R_BASE_TASK)
+    np.testing.assert_allclose(lat, [0.1, -0.7, 0.0, 0.1], atol=1e-6)
     out = combine(base, np.array([1.0, -1.0, 0.5]), 0.5)
     np.testing.assert_allclose(out, [0.7, -1.0, 0.25, 0.1], atol=1e-6)  # feed untouched by a 3-d residual
     out4 = combine(base, np.array([0.0, 0.0, 0.0, -1.0]), 0.5)
@@ -39,7 +44,7 @@ def test_zero_residual_reproduces_the_base_controller_exactly():
         a, _ = base.predict(obs_p, episode_start=np.array([start]))
         start = False
         np.testing.assert_array_equal(obs_w[BASE_ACTION_KEY], a)
-        obs_w, rw, *_ = wrapped.step(np.zeros(3, np.float32))
+        obs_w, rw, *_ = wrapped.step(np.zeros(2, np.float32))
         obs_p, rp, *_ = plain.step(a)
         assert rw == rp
     wrapped.close()
@@ -50,9 +55,9 @@ def test_wrapper_rejects_nan_and_wrong_shape_residuals():
     env = ResidualWrapper(gym.make(ENV_ID))
     env.reset(seed=0)
     with pytest.raises(ValueError, match="NaN"):
-        env.step(np.array([np.nan, 0, 0], np.float32))
+        env.step(np.array([np.nan, 0], np.float32))
     with pytest.raises(ValueError, match="shape"):
-        env.step(np.zeros(4, np.float32))
+        env.step(np.zeros(3, np.float32))
     env.close()
 
 

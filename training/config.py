@@ -24,12 +24,16 @@ class TrainConfig:
     """Residual ±1 = ± this share of the env's action range (0.5: ±1 mm of correction)."""
     residual_feed: bool = False
     """Let the residual change the feed (off: compare at the base's feed, as Li does)."""
+    residual_axes: str = "lateral"
+    """``lateral``: the residual moves the tip across the drill only; ``xyz``: along the base axes too."""
     total_timesteps: int = 200_000
     """Agent steps over all environments."""
     n_envs: int = 2
     """Parallel environments (SubprocVecEnv when > 1)."""
     seed: int = 0
     """Seed of the policy, the envs and the scenario draws."""
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    """Extra env arguments for training and evaluation (e.g. reward weights: ``reward_force_weight``)."""
     domain_randomization: bool = True
     """Draw a new scenario every episode inside the training ranges."""
     net_arch: list[int] = field(default_factory=lambda: [64, 64])

@@ -20,10 +20,10 @@ def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | N
     """One drilling env (optionally domain-randomised) under the residual wrapper."""
     import envs  # noqa: F401  (registers the ids in spawned workers)
 
-    env: gym.Env = gym.make(ENV_ID, **(scenario or {}))
+    env: gym.Env = gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})})
     if randomize:
         env = DomainRandomization(env)
-    return ResidualWrapper(env, cfg.base, cfg.residual_scale, cfg.residual_feed)
+    return ResidualWrapper(env, cfg.base, cfg.residual_scale, cfg.residual_feed, cfg.residual_axes)
 
 
 def make_train_vec_env(cfg: TrainConfig) -> VecEnv:

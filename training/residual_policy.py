@@ -47,7 +47,8 @@ class ResidualPolicyController(Controller):
         if self.bundle.normalizer is not None:
             aug = self.bundle.normalizer(aug)
         residual, _ = self.bundle.model.predict(aug, deterministic=True)
-        return combine(base_action, np.asarray(residual).reshape(-1), self.config.residual_scale)
+        R = self.plan.R_base_task if self.config.residual_axes == "lateral" and self.plan is not None else None
+        return combine(base_action, np.asarray(residual).reshape(-1), self.config.residual_scale, R)
 
     def describe(self) -> dict[str, Any]:
         """Name, file and training configuration."""

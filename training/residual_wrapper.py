@@ -20,16 +20,34 @@ from envs.constants import ACTION_DIM
 BASE_ACTION_KEY = "base_action"
 
 
-def residual_dims(residual_feed: bool) -> int:
-    """Size of the residual action: the three correction axes, plus the feed override if enabled."""
-    return ACTION_DIM if residual_feed else 3
+RESIDUAL_AXES = ("lateral", "xyz")
 
 
-def combine(base_action: np.ndarray, residual: np.ndarray, scale: float) -> np.ndarray:
-    """``clip(base + scale · residual)`` into the env's action box; a 3-d residual leaves the feed alone."""
+def residual_dims(residual_feed: bool, axes: str = "lateral") -> int:
+    """Size of the residual: 2 lateral axes (across the drill) or 3 base axes, plus the feed if enabled."""
+    if axes not in RESIDUAL_AXES:
+        raise ValueError(f"residual axes={axes!r}; choose from {RESIDUAL_AXES}")
+    return (2 if axes == "lateral" else 3) + (1 if residual_feed else 0)
+
+
+def combine(
+    base_action: np.ndarray, residual: np.ndarray, scale: float, R_base_task: np.ndarray | None = None
+) -> np.ndarray:
+    """``clip(base + scale · residual)`` into the env's action box.
+
+    With ``R_base_task`` the first two residual entries are task x and y (across the drill) and are
+    turned into base axes; without it the first three are base x, y, z. A last extra entry, if any,
+    is the feed residual; otherwise the feed is the base's.
+    """
     out = np.asarray(base_action, dtype=np.float64).copy()
-    r = np.clip(np.asarray(residual, dtype=np.float64), -1.0, 1.0)
-    out[: r.shape[-1]] += scale * r
+    r = np.clip(np.asarray(residual, dtype=np.float64).reshape(-1), -1.0, 1.0)
+    n_xyz = 2 if R_base_task is not None else 3
+    if R_base_task is not None:
+        out[:3] += scale * (np.asarray(R_base_task)[:, :2] @ r[:2])
+    else:
+        out[:3] += scale * r[:3]
+    if r.size > n_xyz:
+        out[3] += scale * r[n_xyz]
     return np.clip(out, -1.0, 1.0).astype(np.float32)
 
 
@@ -41,10 +59,17 @@ class ResidualWrapper(gym.Wrapper):
         base: the base controller or its spec (default ``"li2023"``, the paper's best setting).
         scale: residual action ±1 maps to ± ``scale`` of the env's action range (0.5: ±1 mm).
         residual_feed: let the residual change the feed override too (off: the base's feed is kept).
+        axes: ``"lateral"`` (default): the residual moves the tip across the drill only (task x, y), as the
+            compensators do; ``"xyz"``: along the three base axes (it can then plunge the drill).
     """
 
     def __init__(
-        self, env: gym.Env, base: Controller | str = "li2023", scale: float = 0.5, residual_feed: bool = False
+        self,
+        env: gym.Env,
+        base: Controller | str = "li2023",
+        scale: float = 0.5,
+        residual_feed: bool = False,
+        axes: str = "lateral",
     ):
         super().__init__(env)
         if not 0.0 < scale <= 2.0:
@@ -52,7 +77,9 @@ class ResidualWrapper(gym.Wrapper):
         self.base = make_controller(base) if isinstance(base, str) else base
         self.scale = float(scale)
         self.residual_feed = residual_feed
-        self.action_space = spaces.Box(-1.0, 1.0, (residual_dims(residual_feed),), np.float32)
+        self.axes = axes
+        self.action_space = spaces.Box(-1.0, 1.0, (residual_dims(residual_feed, axes),), np.float32)
+        self._R: np.ndarray | None = None
         obs_space = env.observation_space
         assert isinstance(obs_space, spaces.Dict)
         self.observation_space = spaces.Dict(
@@ -67,7 +94,9 @@ class ResidualWrapper(gym.Wrapper):
     def reset(self, **kwargs: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Reset the env, hand the base controller the new plan, return the augmented observation."""
         obs, info = self.env.reset(**kwargs)
-        self.base.set_plan(self.env.unwrapped.plan)  # type: ignore[attr-defined]
+        plan = self.env.unwrapped.plan  # type: ignore[attr-defined]
+        self.base.set_plan(plan)
+        self._R = plan.R_base_task if self.axes == "lateral" else None
         return self._augment(obs, True), info
 
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
@@ -77,7 +106,7 @@ class ResidualWrapper(gym.Wrapper):
             raise ValueError(f"residual action must have shape {self.action_space.shape}, got {residual.shape}")
         if not np.all(np.isfinite(residual)):
             raise ValueError(f"residual action {residual.tolist()} contains NaN or inf")
-        total = combine(self._base_action, residual, self.scale)
+        total = combine(self._base_action, residual, self.scale, self._R)
         obs, reward, terminated, truncated, info = self.env.step(total)
         info = {**info, "base_action": self._base_action.copy(), "residual_action": residual.astype(np.float32)}
         return self._augment(obs, False), float(reward), terminated, truncated, info
