@@ -18,4 +18,15 @@ if ENV_IDS[0] not in registry:
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 
-__all__ = ["ENV_IDS", "Scenario"]
+REAL_ENV_IDS = ["drillgym/UR5BoneDrillReal-v0"]
+"""The real-cell backend (needs a robot or the emulator: ``robot_host=...``); not in ``ENV_IDS``."""
+
+if REAL_ENV_IDS[0] not in registry:
+    register(
+        id=REAL_ENV_IDS[0],
+        entry_point="envs.real.real_env:UR5BoneDrillRealEnv",
+        max_episode_steps=MAX_EPISODE_STEPS,
+        disable_env_checker=True,
+    )
+
+__all__ = ["ENV_IDS", "REAL_ENV_IDS", "Scenario"]

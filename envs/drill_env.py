@@ -289,7 +289,19 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     # ------------------------------------------------------------------ helpers
     def _advance_m(self) -> float:
-        return max(self.path.speed_m_s(self.feed_scale), 0.0) * PHYSICS_DT_S
+        """Axial advance of the commanded tip per physics update over this step (m): feed plus correction.
+
+        The drill cuts sideways in proportion to how far it advances, so a correction that plunges the
+        tip along its axis counts as advance too (the lateral cut resistance is per metre of advance).
+        """
+        corr_now = self.correction_base_m
+        corr_end = corr_now
+        for t_apply, corr, _ in self.pending:
+            if t_apply <= self.t_s + CONTROL_DT_S + 1e-12:
+                corr_end = corr
+        dz_corr = float(self.cell.R_base_task[:, 2] @ (corr_end - corr_now))
+        per_step = self.path.speed_m_s(self.feed_scale) * CONTROL_DT_S + dz_corr
+        return max(per_step / SUBSTEPS_PER_STEP, 0.0)
 
     def _chip_m(self) -> float:
         sc = self.scenario

@@ -2,7 +2,8 @@
 
 Every controller runs the same seeds 0..N-1 on every scenario of the suite (a paired comparison; the
 first controller is the baseline). Episodes run in ``--workers`` processes ("spawn": PyBullet and fork
-do not mix); the results do not depend on the number of workers. Outputs in ``--out``: see
+do not mix), or as Ray tasks with ``--ray`` / ``--address`` (:mod:`eval.scale.bench_ray`,
+``docs/scale-out.md``); the results do not depend on either. Outputs in ``--out``: see
 :mod:`eval.bench_report`; one episode log per episode in ``logs/`` (``docs/log_schema.md``).
 """
 
@@ -30,8 +31,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 per scenario and controller (default 5)")
     parser.add_argument("--out", type=Path, default=Path("results/bench"), help="output folder (default results/bench)")
-    parser.add_argument("--workers", type=int, default=1, help="parallel worker processes (default 1: in-process)")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="parallel worker processes (default 1: in-process); with --ray: CPUs of the local Ray",
+    )
     parser.add_argument("--no-logs", action="store_true", help="do not write per-episode Parquet logs")
+    parser.add_argument(
+        "--ray",
+        action="store_true",
+        help="run the episodes as Ray tasks (local Ray unless --address; docs/scale-out.md)",
+    )
+    parser.add_argument(
+        "--address", default=None, help="Ray cluster to run on, e.g. auto or HOST:6379 (implies --ray; default: local)"
+    )
 
 
 def split_controller_specs(text: str) -> list[str]:
@@ -67,6 +81,13 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
         raise ValueError(f"--seeds={args.seeds} must be >= 1")
     if args.workers < 1:
         raise ValueError(f"--workers={args.workers} must be >= 1")
+    if getattr(args, "ray", False) or getattr(args, "address", None):
+        from eval.scale.cluster import require_ray
+
+        try:
+            require_ray()
+        except RuntimeError as e:
+            raise ValueError(str(e)) from e
     specs = split_controller_specs(args.controllers)
     if len(set(specs)) != len(specs):
         raise ValueError(f"--controllers lists a spec twice: {specs}")
@@ -102,7 +123,17 @@ def run(args: argparse.Namespace) -> int:
                 log = None if args.no_logs else out / name
                 jobs.append(EpisodeJob(args.suite, sc.name, sc.kwargs, spec, seed, log, "" if log is None else name))
     (out if args.no_logs else out / "logs").mkdir(parents=True, exist_ok=True)
-    rows = run_jobs(jobs, args.workers, desc=f"bench {args.suite}")
+    if getattr(args, "ray", False) or getattr(args, "address", None):
+        from eval.scale.bench_ray import run_jobs_ray
+
+        cpus = args.workers if args.workers > 1 else None  # a local Ray's CPUs (default: the machine's)
+        try:
+            rows = run_jobs_ray(jobs, out, args.address, desc=f"bench {args.suite}", num_cpus=cpus).rows
+        except ConnectionError as e:
+            print(f"drillgym bench: error: {e}", file=sys.stderr)
+            return 2
+    else:
+        rows = run_jobs(jobs, args.workers, desc=f"bench {args.suite}")
     episodes = write_report(out, rows, args.suite, [s.name for s in scenarios], specs, args.seeds)
     print((out / "summary.md").read_text())
     print(

@@ -28,6 +28,18 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "eval.bench",
         "Benchmark controllers on a scenario suite over seeds: metrics with confidence intervals, paired differences, plots, logs.",
     ),
+    "run": (
+        "eval.run_real",
+        "Drill with a controller on the real UR5 cell (or the emulator); same episode logs as the sim.",
+    ),
+    "emulate": (
+        "envs.real.emulator.cli",
+        "Serve a UR CB3 controller + ATI Net F/T emulator, backed by the simulator, on a loopback address.",
+    ),
+    "bench-rtde": (
+        "eval.bench_rtde",
+        "Timing of the 125 Hz servoL stream through ur_rtde: missed cycles, command-to-state latency.",
+    ),
 }
 
 

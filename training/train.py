@@ -28,6 +28,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
     parser.add_argument("--seed", type=int, default=None, help="override seed")
     parser.add_argument("--export", type=Path, default=None, help="also copy the best policy bundle here (NAME.zip)")
+    parser.add_argument(
+        "--sweep",
+        type=Path,
+        default=None,
+        help="tune hyperparameters on Ray Tune (training/sweeps/*.yaml; implies --ray)",
+    )
+    parser.add_argument("--ray", action="store_true", help="run the --sweep on Ray (local Ray unless --address)")
+    parser.add_argument("--address", default=None, help="Ray cluster for --sweep, e.g. auto or HOST:6379")
 
 
 def latest_checkpoint(folder: Path) -> tuple[Path, int] | None:
@@ -41,7 +49,11 @@ def latest_checkpoint(folder: Path) -> tuple[Path, int] | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Train (or resume), export the best policy bundle, plot the curves."""
+    """Train (or resume), export the best policy bundle, plot the curves; ``--sweep``: see training.sweep."""
+    if getattr(args, "sweep", None) is not None or getattr(args, "ray", False) or getattr(args, "address", None):
+        from training import sweep
+
+        return sweep.run(args)
     from stable_baselines3.common.callbacks import CheckpointCallback
     from stable_baselines3.common.vec_env import VecNormalize
 

@@ -1,0 +1,112 @@
+"""``drillgym emulate``: a UR CB3 controller + ATI Net F/T + marker stream on a loopback address.
+
+Run it in its own process (``ur_rtde``'s constructors hold the GIL, so an in-process emulator deadlocks);
+connect ``ur_rtde`` (or ``drillgym run --robot HOST``) to the printed address. Ends on Ctrl-C / SIGTERM,
+a ``{"cmd": "shutdown"}`` on the control port, or after ``--max-lifetime-s``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import signal
+from typing import Any
+
+from envs.real.emulator.config import (
+    CONTROL_PORT,
+    DASHBOARD_PORT,
+    RTDE_PORT,
+    SCRIPT_PORT,
+    EmulatorConfig,
+    ScheduledFault,
+)
+from envs.real.netft import RDT_PORT
+from envs.real.tracker import TRACKER_PORT
+from envs.scenario import Scenario
+
+
+def parse_scenario(text: str | None) -> Scenario:
+    """A scenario from JSON (``{"beta_deg": 20}``) or ``key=value,key=value`` (user units, as the env takes)."""
+    if not text:
+        return Scenario()
+    if text.lstrip().startswith("{"):
+        return Scenario.from_kwargs(**json.loads(text))
+    types = {f.name: f.type for f in dataclasses.fields(Scenario)}
+    kwargs: dict[str, Any] = {}
+    for item in text.split(","):
+        key, eq, raw = item.partition("=")
+        key = key.strip()
+        if not eq or key not in types:
+            raise ValueError(f"--scenario item {item!r}: expected key=value with key in {sorted(types)}")
+        kind = str(types[key])
+        if kind == "bool":
+            kwargs[key] = raw.strip().lower() in ("1", "true", "yes", "on")
+        elif kind == "str":
+            kwargs[key] = raw.strip()
+        else:
+            kwargs[key] = float(raw)
+    return Scenario.from_kwargs(**kwargs)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``emulate``."""
+    parser.add_argument("--host", default="127.0.0.1", help="loopback address to serve on (127.0.0.0/8)")
+    parser.add_argument("--scenario", default=None, help="physical cell: JSON or key=value,... (env arguments)")
+    parser.add_argument("--seed", type=int, default=0, help="specimen seed (same meaning as the sim's reset seed)")
+    parser.add_argument("--ft-rate-hz", type=float, default=500.0, help="Net F/T record rate (Hz)")
+    parser.add_argument(
+        "--fault",
+        action="append",
+        default=[],
+        metavar="KIND[:VALUE]@SECONDS",
+        help="inject a fault SECONDS after the first servoL: protective_stop, drop_link[:SECONDS], delay:SECONDS, "
+        "freeze_rtde[:SECONDS], stale_ft, stale_tracker (repeatable)",
+    )
+    parser.add_argument("--max-lifetime-s", type=float, default=3600.0, help="exit by itself after this long (s)")
+    parser.add_argument("--parent-pid", type=int, default=None, help="exit when this parent process is gone")
+    for name, port in (
+        ("rtde", RTDE_PORT),
+        ("dashboard", DASHBOARD_PORT),
+        ("script", SCRIPT_PORT),
+        ("control", CONTROL_PORT),
+        ("ft", RDT_PORT),
+        ("tracker", TRACKER_PORT),
+    ):
+        parser.add_argument(f"--{name}-port", type=int, default=port, help=f"{name} port (default {port})")
+
+
+def config_from_args(args: argparse.Namespace) -> EmulatorConfig:
+    """The emulator configuration the options describe."""
+    return EmulatorConfig(
+        host=args.host,
+        scenario=parse_scenario(args.scenario),
+        seed=args.seed,
+        rtde_port=args.rtde_port,
+        dashboard_port=args.dashboard_port,
+        script_port=args.script_port,
+        control_port=args.control_port,
+        ft_port=args.ft_port,
+        tracker_port=args.tracker_port,
+        ft_rate_hz=args.ft_rate_hz,
+        max_lifetime_s=args.max_lifetime_s,
+        parent_pid=args.parent_pid,
+        faults=tuple(ScheduledFault.parse(f) for f in args.fault),
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until told to stop."""
+    from envs.real.emulator.server import Emulator
+
+    emulator = Emulator(config_from_args(args))
+
+    def _stop(_signum: int, _frame: object) -> None:
+        emulator.shutdown = True
+
+    previous = {sig: signal.signal(sig, _stop) for sig in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        return emulator.run()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

@@ -1,0 +1,85 @@
+"""The emulator's JSON control port: one JSON object per line in, one per line out.
+
+Requests (``{"cmd": ...}``): ``status``; ``fault`` with ``kind`` (``protective_stop``, ``drop_link`` and
+``freeze_rtde`` [``value``: seconds, 0 = until cleared], ``delay`` [``value``: seconds], ``stale_ft``,
+``stale_tracker``); ``clear_faults``; ``truth`` (privileged true-tip metrics of the current specimen);
+``events`` (what the control program did); ``contract`` (recipes set up and the uploaded program, for the
+``ur_rtde`` contract test); ``shutdown``. Replies carry ``"ok": true`` or ``"ok": false, "error": ...``.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from envs.real.emulator.server import Emulator
+
+
+def handle_control(emulator: Emulator, line: str) -> tuple[dict[str, Any], bool]:
+    """Reply to one request line, and whether to close the control connection."""
+    try:
+        request = json.loads(line)
+        cmd = request["cmd"]
+    except (ValueError, KeyError, TypeError) as e:
+        return {"ok": False, "error": f"bad request {line!r}: {e}"}, False
+    t = emulator.now()
+    try:
+        if cmd == "status":
+            return {"ok": True, **status(emulator)}, False
+        if cmd == "fault":
+            emulator.faults.apply(emulator, str(request["kind"]), float(request.get("value", 0.0)), t)
+            return {"ok": True}, False
+        if cmd == "clear_faults":
+            emulator.faults.clear(emulator, t)
+            return {"ok": True}, False
+        if cmd == "truth":
+            world = emulator.world
+            centre = world.cell.hole.centre_at(world.scenario.entry_depth_m)
+            metrics = world.truth.metrics(centre)
+            return {"ok": True, "specimen": world.specimen, "hardness_factor": world.hardness_factor, **metrics}, False
+        if cmd == "events":
+            events = [{"t_s": e.t_s, "cmd": e.cmd, "detail": e.detail} for e in emulator.program.events]
+            return {"ok": True, "events": events}, False
+        if cmd == "contract":
+            return {
+                "ok": True,
+                "output_recipes": emulator.output_recipes,
+                "input_recipes": emulator.input_recipes,
+                "script": emulator.program.script_text,
+            }, False
+        if cmd == "shutdown":
+            emulator.shutdown = True
+            return {"ok": True}, True
+    except (KeyError, ValueError, TypeError) as e:
+        return {"ok": False, "error": f"{cmd}: {e}"}, False
+    return {"ok": False, "error": f"unknown cmd {cmd!r}"}, False
+
+
+def status(emulator: Emulator) -> dict[str, Any]:
+    """State of the emulated controller, its program and its streams."""
+    prog, world = emulator.program, emulator.world
+    return {
+        "t_s": emulator.now(),
+        "runtime_state": prog.runtime_state.name,
+        "stop_reason": prog.stop_reason,
+        "protective_stopped": world.halted,
+        "scripts_loaded": prog.scripts_loaded,
+        "command_counts": {str(k): v for k, v in sorted(prog.counts.items())},
+        "unsupported_commands": {str(k): v for k, v in sorted(prog.unsupported.items())},
+        "servo_updates": prog.servo_updates,
+        "servo_ticks_without_update": prog.servo_ticks_without_update,
+        "servo_active": prog.servo_active,
+        "last_servo_pose": prog.last_servo_pose,
+        "watchdog_hz": prog.watchdog_hz,
+        "tcp_pose": world.tcp_pose().tolist(),
+        "rigid_tip_task_m": world.cell.rigid_tip.tolist(),
+        "specimen": world.specimen,
+        "controller_ticks": emulator.controller_ticks,
+        "late_ticks": emulator.late_ticks,
+        "rtde_connections": len(emulator.rtde),
+        "rtde_packages_in": emulator.regs.packages,
+        "ft_records_sent": emulator.sensors.ft_sent,
+        "faults": emulator.faults.describe(),
+        "orientation_warnings": world.orientation_warnings,
+    }

@@ -1,0 +1,65 @@
+"""The dashboard server (TCP 29999) of a CB3: a welcome line, then one reply line per command line."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from envs.real.emulator.script import ControlProgram, RuntimeState
+
+WELCOME = "Connected: Universal Robots Dashboard Server\n"
+POLYSCOPE_VERSION = "URSoftware 3.15.7.106331 (Sep 07 2022)"
+
+
+class Dashboard:
+    """Answers dashboard commands from the emulated controller's state.
+
+    Args:
+        program: the control program (play/stop/pause state).
+        protective_stopped: whether the arm is protective-stopped.
+        unlock: releases a protective stop.
+    """
+
+    def __init__(
+        self, program: ControlProgram, protective_stopped: Callable[[], bool], unlock: Callable[[], None]
+    ) -> None:
+        self.program = program
+        self.protective_stopped = protective_stopped
+        self.unlock = unlock
+        self.commands: list[str] = []
+
+    def reply(self, line: str, t_s: float) -> tuple[str, bool]:
+        """Reply (without newline) to one command line, and whether to close the connection."""
+        cmd = line.strip()
+        self.commands.append(cmd)
+        prog = self.program
+        safety = "PROTECTIVE_STOP" if self.protective_stopped() else "NORMAL"
+        simple = {
+            "polyscopeversion": POLYSCOPE_VERSION,
+            "robotmode": "Robotmode: RUNNING",
+            "safetymode": f"Safetymode: {safety}",
+            "safetystatus": f"Safetystatus: {safety}",
+            "programstate": f"{prog.runtime_state.name} rtde_control",
+            "running": f"Program running: {'true' if prog.running else 'false'}",
+            "close safety popup": "closing safety popup",
+            "is in remote control": "true",
+        }
+        low = cmd.lower()
+        if low in simple:
+            return simple[low], False
+        if low == "stop":
+            prog.stop("dashboard stop", t_s)
+            return "Stopped", False
+        if low == "pause":
+            prog.pause("dashboard pause", t_s)
+            return "Pausing program", False
+        if low == "play":
+            if prog.runtime_state == RuntimeState.PAUSED and not self.protective_stopped():
+                prog.resume(t_s)
+                return "Starting program", False
+            return "Failed to execute: Play", False
+        if low == "unlock protective stop":
+            self.unlock()
+            return "Protective stop releasing", False
+        if low == "quit":
+            return "Disconnected", True
+        return f"Could not understand: '{cmd}'", False

@@ -1,0 +1,168 @@
+"""RTDE wire format (protocol version 2) as a UR controller serves it on TCP 30004.
+
+Every package: ``uint16 size`` (including the 3-byte header), ``uint8 type``, payload; big-endian.
+Types and sizes follow UR's RTDE guide; ``ur_rtde`` decodes data packages with its own table, so the
+types here must be the guide's exactly.
+"""
+
+from __future__ import annotations
+
+import struct
+
+HEADER = struct.Struct(">HB")
+REQUEST_PROTOCOL_VERSION = ord("V")
+GET_URCONTROL_VERSION = ord("v")
+TEXT_MESSAGE = ord("M")
+DATA_PACKAGE = ord("U")
+SETUP_OUTPUTS = ord("O")
+SETUP_INPUTS = ord("I")
+START = ord("S")
+PAUSE = ord("P")
+
+NOT_FOUND = "NOT_FOUND"
+IN_USE = "IN_USE"
+
+TYPE_FORMATS = {
+    "BOOL": "?",
+    "UINT8": "B",
+    "UINT32": "I",
+    "INT32": "i",
+    "UINT64": "Q",
+    "DOUBLE": "d",
+    "VECTOR3D": "3d",
+    "VECTOR6D": "6d",
+    "VECTOR6INT32": "6i",
+    "VECTOR6UINT32": "6I",
+}
+"""RTDE type name -> struct format."""
+TYPE_WIDTHS = {"VECTOR3D": 3, "VECTOR6D": 6, "VECTOR6INT32": 6, "VECTOR6UINT32": 6}
+"""Number of values of the vector types (the others hold one)."""
+
+_V6 = "VECTOR6D"
+OUTPUT_TYPES: dict[str, str] = {
+    "timestamp": "DOUBLE",
+    **{n: _V6 for n in ("target_q", "target_qd", "target_qdd", "target_current", "target_moment")},
+    **{n: _V6 for n in ("actual_q", "actual_qd", "actual_current", "joint_control_output")},
+    **{n: _V6 for n in ("actual_TCP_pose", "actual_TCP_speed", "actual_TCP_force")},
+    **{n: _V6 for n in ("target_TCP_pose", "target_TCP_speed", "joint_temperatures", "actual_joint_voltage")},
+    "actual_digital_input_bits": "UINT64",
+    "actual_execution_time": "DOUBLE",
+    "robot_mode": "INT32",
+    "joint_mode": "VECTOR6INT32",
+    "safety_mode": "INT32",
+    "actual_tool_accelerometer": "VECTOR3D",
+    "speed_scaling": "DOUBLE",
+    "target_speed_fraction": "DOUBLE",
+    "actual_momentum": "DOUBLE",
+    "actual_main_voltage": "DOUBLE",
+    "actual_robot_voltage": "DOUBLE",
+    "actual_robot_current": "DOUBLE",
+    "actual_digital_output_bits": "UINT64",
+    "runtime_state": "UINT32",
+    "elbow_position": "VECTOR3D",
+    "elbow_velocity": "VECTOR3D",
+    "robot_status_bits": "UINT32",
+    "safety_status_bits": "UINT32",
+    "analog_io_types": "UINT32",
+    "standard_analog_input0": "DOUBLE",
+    "standard_analog_input1": "DOUBLE",
+    "standard_analog_output0": "DOUBLE",
+    "standard_analog_output1": "DOUBLE",
+    "io_current": "DOUBLE",
+    "tool_mode": "UINT32",
+    "tool_analog_input_types": "UINT32",
+    "tool_analog_input0": "DOUBLE",
+    "tool_analog_input1": "DOUBLE",
+    "tool_output_voltage": "INT32",
+    "tool_output_current": "DOUBLE",
+    "tool_temperature": "DOUBLE",
+    "tcp_force_scalar": "DOUBLE",
+    "output_bit_registers0_to_31": "UINT32",
+    "output_bit_registers32_to_63": "UINT32",
+    "payload": "DOUBLE",
+    "payload_cog": "VECTOR3D",
+    "payload_inertia": "VECTOR6D",
+    **{f"output_int_register_{i}": "INT32" for i in range(48)},
+    **{f"output_double_register_{i}": "DOUBLE" for i in range(48)},
+    **{f"input_int_register_{i}": "INT32" for i in range(48)},
+    **{f"input_double_register_{i}": "DOUBLE" for i in range(48)},
+}
+"""Outputs a CB3 (PolyScope 3.15) serves. Names only e-Series serve (``ft_raw_wrench``, ...) are NOT_FOUND."""
+
+INPUT_TYPES: dict[str, str] = {
+    **{f"input_int_register_{i}": "INT32" for i in range(48)},
+    **{f"input_double_register_{i}": "DOUBLE" for i in range(48)},
+    "input_bit_registers0_to_31": "UINT32",
+    "input_bit_registers32_to_63": "UINT32",
+    "standard_digital_output_mask": "UINT8",
+    "standard_digital_output": "UINT8",
+    "configurable_digital_output_mask": "UINT8",
+    "configurable_digital_output": "UINT8",
+    "tool_digital_output_mask": "UINT8",
+    "tool_digital_output": "UINT8",
+    "standard_analog_output_mask": "UINT8",
+    "standard_analog_output_type": "UINT8",
+    "standard_analog_output_0": "DOUBLE",
+    "standard_analog_output_1": "DOUBLE",
+    "speed_slider_mask": "UINT32",
+    "speed_slider_fraction": "DOUBLE",
+    "external_force_torque": "VECTOR6D",
+}
+"""Inputs a CB3 accepts."""
+
+
+def pack(kind: int, payload: bytes = b"") -> bytes:
+    """One RTDE package."""
+    return HEADER.pack(HEADER.size + len(payload), kind) + payload
+
+
+def recipe_struct(types: list[str]) -> struct.Struct:
+    """Struct of a data package of a recipe: recipe id byte, then the fields in order."""
+    return struct.Struct(">B" + "".join(TYPE_FORMATS[t] for t in types))
+
+
+def flatten(values: list, types: list[str]) -> list:
+    """Values of a recipe flattened for :func:`recipe_struct` (vectors spread out)."""
+    out: list = []
+    for v, t in zip(values, types, strict=True):
+        if t in TYPE_WIDTHS:
+            out.extend(v)
+        else:
+            out.append(v)
+    return out
+
+
+def unflatten(flat: tuple, types: list[str]) -> list:
+    """Inverse of :func:`flatten`: one value (or tuple for vectors) per field."""
+    out: list = []
+    i = 0
+    for t in types:
+        n = TYPE_WIDTHS.get(t, 0)
+        if n:
+            out.append(tuple(flat[i : i + n]))
+            i += n
+        else:
+            out.append(flat[i])
+            i += 1
+    return out
+
+
+class PackageReader:
+    """Reassembles RTDE packages from a TCP byte stream."""
+
+    def __init__(self) -> None:
+        self.buffer = bytearray()
+
+    def feed(self, data: bytes) -> list[tuple[int, bytes]]:
+        """Append received bytes; return the complete packages ``(type, payload)``."""
+        self.buffer.extend(data)
+        out = []
+        while len(self.buffer) >= HEADER.size:
+            size, kind = HEADER.unpack_from(self.buffer)
+            if size < HEADER.size:
+                raise ValueError(f"RTDE package with impossible size {size}")
+            if len(self.buffer) < size:
+                break
+            out.append((kind, bytes(self.buffer[HEADER.size : size])))
+            del self.buffer[:size]
+        return out

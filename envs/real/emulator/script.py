@@ -1,0 +1,230 @@
+"""The ``rtde_control`` program as the emulated controller runs it: command handshake and motions.
+
+``ur_rtde`` uploads a URScript program that polls ``input_int_register_0`` (+ offset) every controller
+cycle and answers in ``output_int_register_0``: 1 ready, 2 done. Real-time commands (``servoL``, ...) are
+processed and answered "ready" every cycle; other commands run once (until done) and wait for the client to
+clear the register (command 0). This class re-implements that behaviour (not the script) for the commands the
+drilling cell uses; any other command is logged as unsupported and answered "done" so a client never hangs.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import Counter
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+from envs.real.emulator.registers import Registers
+from envs.real.emulator.world import EmulatedCell
+
+
+class RuntimeState(IntEnum):
+    """``runtime_state`` of a UR controller."""
+
+    STOPPING = 0
+    STOPPED = 1
+    PLAYING = 2
+    PAUSING = 3
+    PAUSED = 4
+    RESUMING = 5
+
+
+class Command(IntEnum):
+    """``ur_rtde`` command ids the emulator implements (``ur_rtde/rtde.h``)."""
+
+    NO_CMD = 0
+    MOVEL = 3
+    SPEED_STOP = 15
+    SERVO_STOP = 16
+    SERVOL = 24
+    SET_TCP = 29
+    STOPL = 33
+    SET_WATCHDOG = 35
+    STOP_SCRIPT = 255
+
+
+REALTIME_COMMANDS = frozenset({24, 11, 9, 10, 6, 25, 26, 27, 38, 58, 66, 67, 68, 69, 70, 71})
+"""Commands the program processes every cycle and answers "ready" (the control loop's first branch)."""
+READY = 1
+DONE = 2
+PROGRAM_HEADER = "def rtde_control():"
+INT_OFFSET_RE = re.compile(r"reg_offset_int = # int register offset\n(\d+)")
+
+
+@dataclass
+class CommandEvent:
+    """One command the program started (for tests and the control port)."""
+
+    t_s: float
+    cmd: int
+    detail: str = ""
+
+
+class ControlProgram:
+    """The running ``rtde_control`` program: one :meth:`tick` per controller cycle (8 ms)."""
+
+    def __init__(self, registers: Registers, world: EmulatedCell, max_events: int = 10000) -> None:
+        self.regs = registers
+        self.world = world
+        self.runtime_state = RuntimeState.STOPPED
+        self.offset = 0
+        self.executing = False
+        self.pending: int | None = None
+        self.watchdog_hz = 0.0
+        self.stop_reason = ""
+        self.events: list[CommandEvent] = []
+        self.max_events = max_events
+        self.counts: Counter[int] = Counter()
+        self.unsupported: Counter[int] = Counter()
+        self.servo_updates = 0
+        self.servo_ticks_without_update = 0
+        self.servo_active = False
+        self.last_servo_pose: list[float] | None = None
+        self.last_servo_params: list[float] | None = None
+        self._last_packages = -1
+        self.scripts_loaded = 0
+        self.script_text = ""
+
+    # ------------------------------------------------------------------ lifecycle
+    def load(self, text: str, t_s: float) -> bool:
+        """Start an uploaded program; only ``def rtde_control():`` is understood (returns False otherwise)."""
+        if not text.startswith(PROGRAM_HEADER):
+            self._event(t_s, -1, f"unsupported program {text.splitlines()[0][:60]!r}")
+            return False
+        m = INT_OFFSET_RE.search(text)
+        self.offset = int(m.group(1)) if m else 0
+        self.script_text = text
+        self.scripts_loaded += 1
+        self.runtime_state = RuntimeState.PLAYING
+        self.executing = False
+        self.pending = None
+        self.watchdog_hz = 0.0
+        self.stop_reason = ""
+        self.regs.output_int[self.offset] = READY
+        self.regs.output_int[self.offset + 2] = 0
+        self._event(t_s, -1, f"program rtde_control started (register offset {self.offset})")
+        return True
+
+    def stop(self, reason: str, t_s: float) -> None:
+        """The program ends (stop script, dashboard stop, RTDE watchdog); the arm stops."""
+        if self.runtime_state in (RuntimeState.PLAYING, RuntimeState.PAUSED):
+            self._event(t_s, -1, f"program stopped: {reason}")
+        self.runtime_state = RuntimeState.STOPPED
+        self.stop_reason = reason
+        self.servo_active = False
+        self.world.stop_motion()
+
+    def pause(self, reason: str, t_s: float) -> None:
+        """Protective stop: the program pauses."""
+        if self.runtime_state == RuntimeState.PLAYING:
+            self.runtime_state = RuntimeState.PAUSED
+            self.stop_reason = reason
+            self.servo_active = False
+            self._event(t_s, -1, f"program paused: {reason}")
+
+    def resume(self, t_s: float) -> None:
+        """Play again after a pause."""
+        if self.runtime_state == RuntimeState.PAUSED:
+            self.runtime_state = RuntimeState.PLAYING
+            self._event(t_s, -1, "program resumed")
+
+    @property
+    def running(self) -> bool:
+        """``runtime_state == PLAYING``."""
+        return self.runtime_state == RuntimeState.PLAYING
+
+    # ------------------------------------------------------------------ cycle
+    def tick(self, t_s: float) -> None:
+        """One controller cycle: watchdog, then the command register."""
+        if not self.running:
+            return
+        regs, off = self.regs, self.offset
+        if self.watchdog_hz > 0 and t_s - regs.input_write_t_s[off] > 1.0 / self.watchdog_hz:
+            self.stop(f"RTDE watchdog: no input for {t_s - regs.input_write_t_s[off]:.3f} s", t_s)
+            return
+        cmd = regs.input_int[off]
+        fresh = regs.packages != self._last_packages
+        self._last_packages = regs.packages
+        if cmd in REALTIME_COMMANDS:
+            self._realtime(cmd, t_s, fresh)
+            regs.output_int[off] = READY
+            return
+        if self.servo_active and cmd != Command.NO_CMD:
+            self.servo_active = False
+        if cmd == Command.NO_CMD:
+            self.executing = False
+            self.pending = None
+            regs.output_int[off] = READY
+            return
+        if not self.executing:
+            self.executing = True
+            self._start(cmd, t_s)
+        if self.pending is not None and self._finished(self.pending):
+            self.pending = None
+            regs.output_int[off] = DONE
+
+    def on_input(self, t_s: float) -> None:
+        """Called for every input data package: counts real-time commands as they arrive."""
+        if not self.running:
+            return
+        cmd = self.regs.input_int[self.offset]
+        if cmd not in REALTIME_COMMANDS:
+            return
+        self.counts[cmd] += 1
+        if cmd == Command.SERVOL:
+            self.servo_updates += 1
+            d = self.regs.input_double[self.offset : self.offset + 11]
+            self.last_servo_pose, self.last_servo_params = list(d[:6]), list(d[6:11])
+        else:
+            self.unsupported[cmd] += 1
+            self._event(t_s, cmd, "unsupported real-time command (ignored)")
+
+    def _realtime(self, cmd: int, t_s: float, fresh: bool) -> None:
+        """A real-time command in this cycle: the newest servo target goes to the arm."""
+        if cmd != Command.SERVOL or self.last_servo_pose is None:
+            return
+        if not self.servo_active:
+            self.servo_active = True
+            self._event(t_s, cmd, "servoL stream started")
+        if fresh:
+            self.world.servo_to(np.array(self.last_servo_pose), self.regs.last_package_t_s)
+        else:
+            self.servo_ticks_without_update += 1
+
+    def _start(self, cmd: int, t_s: float) -> None:
+        d = self.regs.input_double[self.offset : self.offset + 8]
+        self.counts[cmd] += 1
+        self.pending = cmd
+        if cmd == Command.MOVEL:
+            if self.regs.input_int[self.offset + 1] == 1:
+                self.unsupported[cmd] += 1
+                self._event(t_s, cmd, "asynchronous moveL is not emulated; ignored")
+                return
+            self.world.move_linear(np.array(d[:6]), d[6], t_s)
+            self._event(t_s, cmd, f"moveL to {np.round(d[:3], 6).tolist()} at {d[6]:.4f} m/s")
+        elif cmd in (Command.SERVO_STOP, Command.STOPL, Command.SPEED_STOP):
+            self.world.stop_motion()
+            self._event(t_s, cmd, f"stop (deceleration {d[0]:.2f} m/s²)")
+        elif cmd == Command.SET_TCP:
+            self.world.set_tcp(np.array(d[:6]))
+            self._event(t_s, cmd, f"TCP set to {np.round(d[:6], 6).tolist()}")
+        elif cmd == Command.SET_WATCHDOG:
+            self.watchdog_hz = float(d[0])
+            self._event(t_s, cmd, f"RTDE watchdog at {d[0]:.1f} Hz")
+        elif cmd == Command.STOP_SCRIPT:
+            self.pending = None
+            self.stop("stop script command", t_s)
+        else:
+            self.unsupported[cmd] += 1
+            self._event(t_s, cmd, "unsupported command; answered done without acting")
+
+    def _finished(self, cmd: int) -> bool:
+        if cmd == Command.MOVEL:
+            return self.world.move_done()
+        return True
+
+    def _event(self, t_s: float, cmd: int, detail: str) -> None:
+        if len(self.events) < self.max_events:
+            self.events.append(CommandEvent(t_s, cmd, detail))

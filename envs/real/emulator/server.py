@@ -1,0 +1,288 @@
+"""The UR controller emulator's event loop: one thread, one ``selectors`` loop, fixed-rate ticks.
+
+Serves RTDE (30004), the dashboard (29999), the script port (30003), the ATI Net F/T RDT stream (UDP
+49152), a marker stream (UDP 49153) and a JSON control port (30100, fault injection and truth) on one
+loopback address. Ticks: physics 100 Hz (the simulator's F/T rate), controller 125 Hz (program cycle and
+RTDE output, as a CB3), F/T records at ``ft_rate_hz``, marker records at ``tracker_rate_hz``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import selectors
+import socket
+import sys
+import time
+from collections.abc import Callable
+
+from envs.constants import PHYSICS_DT_S
+from envs.real.emulator.config import EmulatorConfig
+from envs.real.emulator.control import handle_control
+from envs.real.emulator.dashboard import WELCOME, Dashboard
+from envs.real.emulator.faults import FaultState
+from envs.real.emulator.registers import Registers
+from envs.real.emulator.rtde_server import CB3_RATE_HZ, RtdeConnection
+from envs.real.emulator.script import ControlProgram
+from envs.real.emulator.sensor_streams import SensorStreams
+from envs.real.emulator.state import controller_state
+from envs.real.emulator.world import EmulatedCell
+
+CONTROLLER_DT_S = 1.0 / CB3_RATE_HZ
+ROBOT_PORTS = ("rtde", "dashboard", "script")
+"""Listeners that a dropped link takes down (the control port stays up)."""
+
+
+class Emulator:
+    """One emulated cell on ``config.host``."""
+
+    def __init__(self, config: EmulatorConfig) -> None:
+        self.config = config
+        self.sel = selectors.DefaultSelector()
+        self.regs = Registers()
+        self.world = EmulatedCell(config.scenario, config.seed, ft_rate_hz=config.ft_rate_hz)
+        self.program = ControlProgram(self.regs, self.world)
+        self.faults = FaultState(list(config.faults))
+        self.dashboard = Dashboard(self.program, lambda: self.world.halted, self.unlock_protective_stop)
+        self.sensors = SensorStreams(self.world, config, self._bind_udp)
+        self.listeners: dict[str, socket.socket] = {}
+        self.rtde: list[RtdeConnection] = []
+        self.streams: dict[socket.socket, tuple[str, bytearray]] = {}
+        self.owners: dict[str, int] = {}
+        self.output_recipes: list[list[str]] = []
+        self.input_recipes: list[list[list[str]]] = []
+        self.next_conn_id = 1
+        self.t0 = time.monotonic()
+        self.controller_ticks = 0
+        self.late_ticks = 0
+        self.first_servo_t_s: float | None = None
+        self.shutdown = False
+        self.log_lines = 0
+        self.next_phys = self.next_ctrl = self.next_check = 0.0
+
+    # ------------------------------------------------------------------ utilities
+    def now(self) -> float:
+        """Emulator time (s since start)."""
+        return time.monotonic() - self.t0
+
+    def log(self, line: str) -> None:
+        """One line to stderr (the process's log)."""
+        self.log_lines += 1
+        print(f"[{self.now():9.3f}] {line}", file=sys.stderr, flush=True)
+
+    def _bind_udp(self, port: int, on_read: Callable[[socket.socket], None]) -> socket.socket:
+        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        s.bind((self.config.host, port))
+        s.setblocking(False)
+        self.sel.register(s, selectors.EVENT_READ, on_read)
+        return s
+
+    def _listen(self, name: str, port: int) -> None:
+        s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        s.bind((self.config.host, port))
+        s.listen(8)
+        s.setblocking(False)
+        self.listeners[name] = s
+        self.sel.register(s, selectors.EVENT_READ, lambda sock, n=name: self._accept(n, sock))
+
+    def open_robot_ports(self) -> None:
+        """(Re)open the RTDE, dashboard and script listeners."""
+        cfg = self.config
+        for name, port in zip(ROBOT_PORTS, (cfg.rtde_port, cfg.dashboard_port, cfg.script_port), strict=True):
+            if name not in self.listeners:
+                self._listen(name, port)
+
+    def drop_link(self) -> None:
+        """Cut every robot connection and stop listening (cable pulled); the control port stays up."""
+        for name in ROBOT_PORTS:
+            s = self.listeners.pop(name, None)
+            if s is not None:
+                self.sel.unregister(s)
+                s.close()
+        for conn in list(self.rtde):
+            self._close_rtde(conn)
+        for s in [s for s, (kind, _) in self.streams.items() if kind in ROBOT_PORTS]:
+            self._close_stream(s)
+        self.log("link dropped: robot ports closed")
+
+    def unlock_protective_stop(self) -> None:
+        """Release a protective stop (the program stays paused until played)."""
+        self.world.halted = False
+
+    # ------------------------------------------------------------------ sockets
+    def _accept(self, name: str, listener: socket.socket) -> None:
+        try:
+            sock, _ = listener.accept()
+        except OSError:
+            return
+        sock.setblocking(False)
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        if name == "rtde":
+            conn = RtdeConnection(sock, self.regs, self.owners, self.next_conn_id, self.log, self.program.on_input)
+            self.next_conn_id += 1
+            self.rtde.append(conn)
+            self.input_recipes.append(conn.input_recipe_log)
+            self.sel.register(sock, selectors.EVENT_READ, lambda s, c=conn: self._read_rtde(c))
+            return
+        self.streams[sock] = (name, bytearray())
+        self.sel.register(sock, selectors.EVENT_READ, self._read_stream)
+        if name == "dashboard":
+            self._send_all(sock, WELCOME.encode())
+
+    def _read_rtde(self, conn: RtdeConnection) -> None:
+        try:
+            data = conn.sock.recv(65536)
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if not data:
+            self._close_rtde(conn)
+            return
+        try:
+            conn.receive(data, self.now())
+        except (ValueError, UnicodeDecodeError) as e:
+            self.log(f"rtde#{conn.conn_id}: protocol error {e}; closing")
+            self._close_rtde(conn)
+            return
+        if conn.output_names and conn.output_names not in self.output_recipes:
+            self.output_recipes.append(list(conn.output_names))
+
+    def _close_rtde(self, conn: RtdeConnection) -> None:
+        if conn in self.rtde:
+            self.rtde.remove(conn)
+            self.sel.unregister(conn.sock)
+        conn.release()
+
+    def _read_stream(self, sock: socket.socket) -> None:
+        kind, buf = self.streams[sock]
+        try:
+            data = sock.recv(65536)
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if not data:
+            if kind == "script" and buf:
+                self.log(f"script port: connection closed with {len(buf)} bytes of an incomplete program")
+            self._close_stream(sock)
+            return
+        buf.extend(data)
+        if kind == "script":
+            if buf.startswith(b"def ") and buf.endswith(b"\nend\n"):
+                self.program.load(buf.decode(errors="replace"), self.now())
+                self.log(f"script port: program of {len(buf)} bytes received")
+                buf.clear()
+            return
+        while b"\n" in buf:
+            line, _, rest = bytes(buf).partition(b"\n")
+            buf[:] = rest
+            if kind == "dashboard":
+                reply, close = self.dashboard.reply(line.decode(errors="replace"), self.now())
+                self._send_all(sock, (reply + "\n").encode())
+            else:
+                reply_obj, close = handle_control(self, line.decode(errors="replace"))
+                self._send_all(sock, (json.dumps(reply_obj) + "\n").encode())
+            if close:
+                self._close_stream(sock)
+                return
+
+    def _close_stream(self, sock: socket.socket) -> None:
+        if self.streams.pop(sock, None) is not None:
+            self.sel.unregister(sock)
+        sock.close()
+
+    @staticmethod
+    def _send_all(sock: socket.socket, data: bytes) -> None:
+        sock.setblocking(True)
+        try:
+            sock.sendall(data)
+        except OSError:
+            pass
+        finally:
+            sock.setblocking(False)
+
+    # ------------------------------------------------------------------ ticks
+    def controller_tick(self, t_s: float) -> None:
+        """One 8 ms controller cycle: faults, program, RTDE output."""
+        if self.first_servo_t_s is None and self.program.servo_updates:
+            self.first_servo_t_s = t_s
+        self.faults.fire_scheduled(self, t_s)
+        self.program.tick(t_s)
+        self.controller_ticks += 1
+        state = controller_state(self, t_s)
+        release = t_s + self.faults.delay_s if self.faults.delay_s > 0 else None
+        for conn in list(self.rtde):
+            if conn.started and not self.faults.rtde_frozen(t_s) and self.controller_ticks % conn.divider == 0:
+                conn.send(conn.data_package(state), release)
+                conn.sent_packages += 1
+
+    def run(self) -> int:
+        """Serve until shutdown, SIGTERM, the parent's exit or the lifetime limit. Returns the exit code."""
+        cfg = self.config
+        self.open_robot_ports()
+        self._listen("control", cfg.control_port)
+        self.sensors.open()
+        ports = {
+            "rtde": cfg.rtde_port,
+            "dashboard": cfg.dashboard_port,
+            "script": cfg.script_port,
+            "control": cfg.control_port,
+            "ft": cfg.ft_port,
+            "tracker": cfg.tracker_port,
+        }
+        print("READY " + json.dumps({"host": cfg.host, "ports": ports, "pid": os.getpid()}), flush=True)
+        self.next_phys = self.next_ctrl = self.next_check = self.now()
+        while not self.shutdown:
+            self._loop_once()
+        self.close()
+        return 0
+
+    def _loop_once(self) -> None:
+        """Wait for sockets or the next tick, then run what is due."""
+        cfg = self.config
+        now = self.now()
+        deadline = min(self.next_phys, self.next_ctrl, self.next_check, self.sensors.next_due_s())
+        for key, _ in self.sel.select(max(deadline - now, 0.0)):
+            key.data(key.fileobj)
+        now = self.now()
+        if now >= self.next_phys:
+            self.world.physics_tick(self.next_phys)
+            self.next_phys += PHYSICS_DT_S
+            if now - self.next_phys > 0.2:
+                self.next_phys = now
+        if now >= self.next_ctrl:
+            if now - self.next_ctrl > CONTROLLER_DT_S:
+                self.late_ticks += 1
+            self.controller_tick(self.next_ctrl)
+            self.next_ctrl += CONTROLLER_DT_S
+            if now - self.next_ctrl > 0.2:
+                self.next_ctrl = now
+        self.sensors.tick(now, self.faults)
+        for conn in list(self.rtde):
+            if not conn.flush(now):
+                self.log(f"rtde#{conn.conn_id}: send failed or backlog; closing")
+                self._close_rtde(conn)
+        if now >= self.next_check:
+            self.next_check = now + 0.5
+            self.faults.expire(self, now)
+            if now > cfg.max_lifetime_s:
+                self.log(f"lifetime limit {cfg.max_lifetime_s} s reached; exiting")
+                self.shutdown = True
+            elif cfg.parent_pid is not None and os.getppid() != cfg.parent_pid:
+                self.log(f"parent process {cfg.parent_pid} is gone; exiting")
+                self.shutdown = True
+
+    def close(self) -> None:
+        """Close every socket."""
+        for conn in list(self.rtde):
+            self._close_rtde(conn)
+        for sock in list(self.streams):
+            self._close_stream(sock)
+        for s in self.listeners.values():
+            s.close()
+        self.listeners.clear()
+        self.sensors.close()
+        self.sel.close()

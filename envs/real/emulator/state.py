@@ -1,0 +1,82 @@
+"""The controller state an RTDE output package reports, from the emulated cell and program.
+
+Registers are read live by the connection; everything else is here. Modes and bits follow UR's RTDE guide:
+``robot_mode`` 7 RUNNING; ``safety_mode`` 1 NORMAL, 3 PROTECTIVE_STOP; ``robot_status_bits`` bit 0 power on,
+bit 1 program running; ``safety_status_bits`` bit 0 normal mode, bit 2 protective stopped.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from envs.real.emulator.server import Emulator
+
+ROBOT_MODE_RUNNING = 7
+JOINT_MODE_RUNNING = 253
+SAFETY_MODE_NORMAL = 1
+SAFETY_MODE_PROTECTIVE_STOP = 3
+SAFETY_BIT_NORMAL = 1 << 0
+SAFETY_BIT_PROTECTIVE_STOP = 1 << 2
+STATUS_BIT_POWER_ON = 1 << 0
+STATUS_BIT_PROGRAM_RUNNING = 1 << 1
+
+_ZERO6 = (0.0,) * 6
+_STATIC: dict[str, object] = {
+    **dict.fromkeys(
+        ("target_qd", "target_qdd", "target_current", "target_moment", "actual_qd", "actual_current"), _ZERO6
+    ),
+    **dict.fromkeys(("joint_control_output", "actual_TCP_speed", "target_TCP_speed"), _ZERO6),
+    "actual_digital_input_bits": 0,
+    "actual_digital_output_bits": 0,
+    "joint_temperatures": (30.0,) * 6,
+    "actual_execution_time": 0.4,
+    "robot_mode": ROBOT_MODE_RUNNING,
+    "joint_mode": (JOINT_MODE_RUNNING,) * 6,
+    "actual_tool_accelerometer": (0.0, 0.0, -9.81),
+    "speed_scaling": 1.0,
+    "target_speed_fraction": 1.0,
+    "actual_momentum": 0.0,
+    "actual_main_voltage": 48.0,
+    "actual_robot_voltage": 48.0,
+    "actual_robot_current": 0.8,
+    "actual_joint_voltage": (47.5,) * 6,
+    "elbow_position": (0.0, 0.0, 0.0),
+    "elbow_velocity": (0.0, 0.0, 0.0),
+    "analog_io_types": 0,
+    **dict.fromkeys(("standard_analog_input0", "standard_analog_input1"), 0.0),
+    **dict.fromkeys(("standard_analog_output0", "standard_analog_output1", "io_current"), 0.0),
+    "tool_mode": 0,
+    "tool_analog_input_types": 0,
+    **dict.fromkeys(("tool_analog_input0", "tool_analog_input1", "tool_output_current"), 0.0),
+    "tool_output_voltage": 0,
+    "tool_temperature": 32.0,
+    "tcp_force_scalar": 0.0,
+    "output_bit_registers0_to_31": 0,
+    "output_bit_registers32_to_63": 0,
+    "payload": 1.2,
+    "payload_cog": (0.0, 0.0, 0.06),
+    "payload_inertia": _ZERO6,
+}
+
+
+def controller_state(emulator: Emulator, t_s: float) -> dict[str, object]:
+    """Values of every non-register output at emulator time ``t_s``."""
+    world, program = emulator.world, emulator.program
+    q = tuple(world.cell.q_motor_rad.tolist())
+    tcp = tuple(world.tcp_pose().tolist())
+    halted = world.halted
+    state = dict(_STATIC)
+    state.update(
+        timestamp=t_s,
+        actual_q=q,
+        target_q=q,
+        actual_TCP_pose=tcp,
+        target_TCP_pose=tuple(program.last_servo_pose) if program.servo_active and program.last_servo_pose else tcp,
+        actual_TCP_force=tuple(world.tcp_force_base().tolist()),
+        safety_mode=SAFETY_MODE_PROTECTIVE_STOP if halted else SAFETY_MODE_NORMAL,
+        safety_status_bits=SAFETY_BIT_PROTECTIVE_STOP if halted else SAFETY_BIT_NORMAL,
+        runtime_state=int(program.runtime_state),
+        robot_status_bits=STATUS_BIT_POWER_ON | (STATUS_BIT_PROGRAM_RUNNING if program.running else 0),
+    )
+    return state

@@ -1,0 +1,248 @@
+"""The 125 Hz servo stream of the real cell: nominal path + latest correction, checked, then ``servoL``.
+
+A background thread owns the robot while an episode runs. Every cycle (``initPeriod`` / ``waitPeriod``)
+it advances the nominal path (:class:`envs.task.DrillPath`) by the elapsed time at the commanded feed
+override, adds the latest correction the agent commanded (held between agent steps), rate-limits the
+target, checks every safety condition (:mod:`envs.real.safety`) and streams ``servoL``. On any fault it
+commands ``servoStop`` (and, if the link is lost, tries ``stopScript``) and ends; at the end of the
+path it stops servoing. The agent side reads the fault, the timing statistics and the path history.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from envs.real import safety
+from envs.real.config import SafetyLimits, ServoParams
+from envs.real.netft import NetFTClient
+from envs.real.poses import matrix_to_rotvec
+from envs.real.robot_link import LinkError, RobotLink, RobotState
+from envs.task import DrillPath, Phase
+
+BLIND_FAULTS = ("link_lost", "rtde_stale")
+"""Faults after which no blocking command is tried (see :meth:`ServoLoop._try_stop`)."""
+MAX_CYCLES = 10_000_000
+"""Hard bound on the loop (about 22 h at 125 Hz)."""
+
+
+@dataclass
+class ServoStats:
+    """Timing of the stream (client side)."""
+
+    cycles: int = 0
+    missed_cycles: int = 0
+    """Periods in which no command was sent (a late cycle counts the periods it skipped)."""
+    max_gap_s: float = 0.0
+    """Longest time between two commands (s)."""
+    servo_call_max_s: float = 0.0
+    """Longest ``servoL`` call (s)."""
+    stop_result: str = ""
+    """What the stop at the end returned (``servoStop`` True/False, or the error)."""
+    gaps_s: list[float] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class CellGeometry:
+    """Where the hole is: the frames the stream needs (SI, base frame)."""
+
+    entry_base_m: np.ndarray
+    R_base_task: np.ndarray
+    depth_m: float
+
+    @property
+    def tool_rotvec(self) -> np.ndarray:
+        """TCP orientation along the planned drill axis (rotation vector, rad)."""
+        return matrix_to_rotvec(self.R_base_task)
+
+    def to_task(self, p_base_m: np.ndarray) -> np.ndarray:
+        """A base-frame point in the task frame (m)."""
+        return self.R_base_task.T @ (np.asarray(p_base_m, dtype=float) - self.entry_base_m)
+
+    def to_base(self, p_task_m: np.ndarray) -> np.ndarray:
+        """A task-frame point in the base frame (m)."""
+        return self.entry_base_m + self.R_base_task @ np.asarray(p_task_m, dtype=float)
+
+
+class ServoLoop:
+    """Streams one episode's path; one instance per episode (``start`` once, ``stop`` when done)."""
+
+    def __init__(
+        self,
+        link: RobotLink,
+        ft: NetFTClient,
+        ft_bias: np.ndarray,
+        geometry: CellGeometry,
+        path: DrillPath,
+        limits: SafetyLimits,
+        servo: ServoParams,
+        force_limit_n: float,
+        t0: float,
+    ) -> None:
+        self.link, self.ft, self.ft_bias = link, ft, np.asarray(ft_bias, dtype=float)
+        self.geo, self.path, self.limits, self.servo = geometry, path, limits, servo
+        self.force_limit_n = force_limit_n
+        self.t0 = t0
+        self._lock = threading.Lock()
+        self.correction_base_m = np.zeros(3)
+        self.feed_scale = 1.0
+        self.last_step_t = t0
+        self.history_t: list[float] = []
+        self.history_s: list[float] = []
+        self.history_phase: list[int] = []
+        self.fault: safety.Fault | None = None
+        self.done_t_s: float | None = None
+        self.ended = threading.Event()
+        self.stats = ServoStats()
+        self.state = link.state()
+        self.target_base_m = np.asarray(self.state.tcp_pose[:3], dtype=float)
+        self._stop_requested = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="servo-loop", daemon=True)
+
+    # ------------------------------------------------------------------ agent side
+    def start(self) -> None:
+        """Start streaming."""
+        self._thread.start()
+
+    def command(self, correction_base_m: np.ndarray, feed_scale: float) -> None:
+        """New correction (m, base frame; clipped) and feed override, held until the next call."""
+        corr = safety.clip_correction(correction_base_m, self.limits)
+        with self._lock:
+            self.correction_base_m = corr
+            self.feed_scale = float(feed_scale)
+            self.last_step_t = time.monotonic()
+
+    def current_command(self) -> tuple[np.ndarray, float]:
+        """The correction and feed override being streamed."""
+        with self._lock:
+            return self.correction_base_m.copy(), self.feed_scale
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        """Stop streaming (``servoStop``) and wait for the thread."""
+        self._stop_requested.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=timeout_s)
+
+    # ------------------------------------------------------------------ thread
+    def _run(self) -> None:
+        streaming = False
+        try:
+            last_send: float | None = None
+            last_now = time.monotonic()
+            last_timestamp, last_rtde_change = self.state.timestamp_s, last_now
+            for _ in range(MAX_CYCLES):
+                if self._stop_requested.is_set():
+                    break
+                t_cycle = self.link.init_period()
+                now = time.monotonic()
+                t = now - self.t0
+                if last_send is not None:
+                    self._count_gap(now - last_send)
+                dt = min(now - last_now, 3.0 * self.servo.period_s)
+                last_now = now
+                state = self.link.state()
+                if state.timestamp_s != last_timestamp:
+                    last_timestamp, last_rtde_change = state.timestamp_s, now
+                self.state = state
+                target = self._next_target(dt)
+                fault = self._check(state, target, now, now - last_rtde_change, last_send, t)
+                if fault is not None:
+                    self._fail(fault)
+                    streaming = False
+                    return
+                t_call = time.perf_counter()
+                ok = self.link.servo_l(np.concatenate([target, self.geo.tool_rotvec]))
+                self.stats.servo_call_max_s = max(self.stats.servo_call_max_s, time.perf_counter() - t_call)
+                if not ok:
+                    self._fail(safety.Fault("servo_refused", "the controller refused servoL", t))
+                    streaming = False
+                    return
+                streaming = True
+                self.target_base_m = target
+                last_send = now
+                self.stats.cycles += 1
+                self.history_t.append(t)
+                self.history_s.append(self.path.s_m)
+                self.history_phase.append(int(self.path.phase))
+                if self.path.phase == Phase.DONE:
+                    self.stats.stop_result = f"servoStop {self.link.servo_stop()}"
+                    streaming = False
+                    self.done_t_s = t
+                    return
+                self.link.wait_period(t_cycle)
+        except LinkError as e:
+            self._fail(safety.Fault("link_lost", str(e), time.monotonic() - self.t0))
+            streaming = False
+        except Exception as e:  # never die silently: stop the robot and report
+            self._fail(safety.Fault("internal_error", f"{type(e).__name__}: {e}", time.monotonic() - self.t0))
+            streaming = False
+        finally:
+            if streaming:
+                self.stats.stop_result = self._try_stop()
+            self.ended.set()
+
+    def _count_gap(self, gap_s: float) -> None:
+        period = self.servo.period_s
+        self.stats.max_gap_s = max(self.stats.max_gap_s, gap_s)
+        if gap_s > 1.5 * period:
+            self.stats.missed_cycles += round(gap_s / period) - 1
+        if len(self.stats.gaps_s) < 200_000:
+            self.stats.gaps_s.append(gap_s)
+
+    def _next_target(self, dt_s: float) -> np.ndarray:
+        corr, scale = self.current_command()
+        s = self.path.advance(dt_s, scale)
+        desired = self.geo.to_base(self.geo.R_base_task.T @ corr + np.array([0.0, 0.0, s]))
+        return safety.rate_limit(self.target_base_m, desired, self.limits.max_tcp_speed_m_s * max(dt_s, 1e-4))
+
+    def _check(
+        self, state: RobotState, target: np.ndarray, now: float, rtde_age_s: float, last_send: float | None, t: float
+    ) -> safety.Fault | None:
+        """The first failing safety check of this cycle, root causes first, or None."""
+        lim, geo, dry = self.limits, self.geo, self.link.dry_run
+        if not self.link.connected():
+            return safety.Fault("link_lost", f"RTDE connection to {self.link.host} lost", t)
+        fault = safety.check_safety_bits(state.safety_status_bits, t)
+        if fault is None and last_send is not None and now - last_send > lim.max_cycle_gap_s:
+            fault = safety.Fault("watchdog_cycle", f"{(now - last_send) * 1e3:.0f} ms since the last servo command", t)
+        if fault is None and not dry and state.runtime_state != safety.PROGRAM_PLAYING:
+            msg = f"the control program is not running (runtime_state {state.runtime_state})"
+            fault = safety.Fault("program_stopped", msg, t)
+        fault = fault or safety.check_age("rtde", rtde_age_s, lim.rtde_stale_s, t)
+        fault = fault or safety.check_workspace(geo.to_task(target), geo.depth_m, lim, "servo target", t)
+        fault = fault or safety.check_workspace(geo.to_task(state.tcp_pose[:3]), geo.depth_m, lim, "measured TCP", t)
+        if fault is None and not dry:
+            fault = safety.check_tracking(state.tcp_pose[:3], self.target_base_m, lim, t)
+        rec = self.ft.latest()
+        fault = fault or safety.check_age("ft", None if rec is None else now - rec.t_recv_s, lim.ft_stale_s, t)
+        if fault is None and rec is not None:
+            fault = safety.check_force(rec.wrench - self.ft_bias, self.force_limit_n, t)
+        with self._lock:
+            idle = now - self.last_step_t
+        if fault is None and idle > lim.agent_timeout_s:
+            fault = safety.Fault("agent_timeout", f"no step() for {idle:.2f} s", t)
+        return fault
+
+    def _fail(self, fault: safety.Fault) -> None:
+        """Record the fault and stop the robot as far as the link allows."""
+        self.fault = fault
+        self.stats.stop_result = self._try_stop(blind=fault.reason in BLIND_FAULTS)
+
+    def _try_stop(self, blind: bool = False) -> str:
+        """Command ``servoStop`` where the link allows it; say what happened.
+
+        ``blind``: the robot state is not coming in, so ``ur_rtde`` would wait for a "done" it cannot see; the
+        stream has stopped, and the robot's RTDE watchdog (armed at reset) ends the program.
+        """
+        if blind or not self.link.connected():
+            return (
+                "servoStop not sent: no robot state (link down or stale); streaming stopped, the robot's RTDE "
+                f"watchdog ({self.limits.robot_watchdog_hz:g} Hz) stops the program"
+            )
+        try:
+            return f"servoStop {self.link.servo_stop()}"
+        except LinkError as e:
+            return f"servoStop failed: {e}"

@@ -1,0 +1,163 @@
+"""``drillgym run``: run a controller on the real cell (or the emulator) and log it like a simulated run.
+
+Asks for confirmation before anything moves (unless ``--yes``; ``--dry-run`` moves nothing and sends nothing),
+writes each episode's log incrementally (``<out>/logs/*.parquet``, the sim's schema with ``source: "real"``),
+and prints the metrics a real cell can measure (forces, drilling time, tracker deviation; the true tip
+deviation and the entry-hole offset need the specimen measured).
+Exit codes: 0 done, 1 could not connect or start, 2 bad arguments or not confirmed, 3 an episode ended on a fault.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import envs  # noqa: F401  (registers the ids)
+from envs.real.emulator.cli import parse_scenario
+from envs.real.metrics import OBSERVABLE_METRICS
+from envs.real.netft import NetFTCalibration
+
+ENV_ID = "drillgym/UR5BoneDrillReal-v0"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``run``."""
+    parser.add_argument("--robot", required=True, help="UR controller address")
+    parser.add_argument(
+        "--ft", default=None, help="Net F/T HOST[:PORT] (default: the robot's address, as the emulator)"
+    )
+    parser.add_argument("--tracker", default="none", help="'none' or 'udp:HOST[:PORT]' (the emulator's marker stream)")
+    parser.add_argument("--controller", default="li2023", help="controller spec: li2023[:k=v,...], residual:PATH, ...")
+    parser.add_argument("--scenario", default=None, help="the plan: env arguments as JSON or key=value,...")
+    parser.add_argument("--episodes", type=int, default=1, help="holes to drill, one after the other")
+    parser.add_argument("--seed", type=int, default=0, help="reset seed of the first episode (logged)")
+    parser.add_argument("--counts-per-force", type=float, default=NetFTCalibration.counts_per_force)
+    parser.add_argument("--counts-per-torque", type=float, default=NetFTCalibration.counts_per_torque)
+    parser.add_argument("--dry-run", action="store_true", help="connect and stream nothing: log what would be sent")
+    parser.add_argument("--yes", action="store_true", help="do not ask before moving the robot")
+    parser.add_argument("--out", type=Path, required=True, help="output folder (logs, metrics.json, commands.jsonl)")
+
+
+def _confirm(args: argparse.Namespace, scenario_text: str) -> bool:
+    if args.dry_run or args.yes:
+        return True
+    print(f"About to MOVE the robot at {args.robot}: {args.controller} drilling {scenario_text}.")
+    print("Check: workspace clear, specimen clamped, E-stop at hand, spindle on, F/T and tracker reading.")
+    if not sys.stdin.isatty():
+        print("stdin is not a terminal: cannot ask; pass --yes to confirm", file=sys.stderr)
+        return False
+    return input("Type 'yes' to start: ").strip().lower() == "yes"
+
+
+def _print_metrics(metrics: dict[str, float]) -> None:
+    for name in OBSERVABLE_METRICS:
+        value = metrics.get(name, math.nan)
+        print(f"  {name:28s} {value:9.3f}" if math.isfinite(value) else f"  {name:28s}       n/a")
+    print("  deviation_*_mm, hole_offset_mm: measure the hole on the specimen (no true tip on a real cell)")
+
+
+def run_episode(env: gym.Env, controller: Any, seed: int) -> dict[str, Any]:
+    """One episode with ``controller``; returns the last info (``metrics``, ``failure``, ``error``)."""
+    obs, _ = env.reset(seed=seed)
+    controller.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
+    start = True
+    while True:
+        action, _ = controller.predict(obs, episode_start=np.array([start]), deterministic=True)
+        obs, _, terminated, truncated, info = env.step(action)
+        start = False
+        if terminated or truncated:
+            return dict(info)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Connect, confirm, drill ``--episodes`` holes, print and save the metrics."""
+    from controllers import make_controller
+    from eval.logs import EpisodeLogger, build_header
+
+    try:
+        scenario = parse_scenario(args.scenario).to_dict()
+        controller = make_controller(args.controller)
+        calibration = NetFTCalibration(args.counts_per_force, args.counts_per_torque)
+    except (ValueError, TypeError) as e:
+        print(f"drillgym run: {e}", file=sys.stderr)
+        return 2
+    if not _confirm(args, args.scenario or "the default plan"):
+        print("not confirmed; nothing moved")
+        return 2
+    scenario.pop("tracker", None)
+    args.out.mkdir(parents=True, exist_ok=True)
+    try:
+        env = gym.make(
+            ENV_ID,
+            robot_host=args.robot,
+            ft_sensor=args.ft,
+            tracker=args.tracker,
+            ft_calibration=calibration,
+            dry_run=args.dry_run,
+            command_log_path=str(args.out / "commands.jsonl"),
+            **scenario,
+        )
+    except (RuntimeError, OSError, ValueError) as e:
+        print(f"drillgym run: cannot open the cell: {e}", file=sys.stderr)
+        return 1
+    results, code = [], 0
+    try:
+        for k in range(args.episodes):
+            seed = args.seed + k
+            name = f"real__{args.controller.replace(':', '_').replace('/', '_')}__ep{k}.parquet"
+            extra = {"controller_spec": args.controller, "robot": args.robot, "dry_run": args.dry_run}
+            header = build_header(env, controller.describe(), seed, source="real", extra=extra)
+            logger = EpisodeLogger(env, args.out / "logs" / name, header, overwrite=True)
+            try:
+                info = run_episode(logger, controller, seed)
+            except RuntimeError as e:  # refused to start (safety bits, too far from the start pose, ...)
+                print(f"episode {k}: could not start: {e}", file=sys.stderr)
+                code = 1
+                break
+            finally:
+                logger.close_log()
+            metrics = dict(info.get("metrics") or {})
+            results.append(
+                {
+                    "episode": k,
+                    "seed": seed,
+                    "log": f"logs/{name}",
+                    "failure": info.get("failure"),
+                    "error": info.get("error"),
+                    "metrics": metrics,
+                    "missed_cycles": info.get("missed_cycles"),
+                }
+            )
+            print(f"episode {k} ({args.controller}, log {args.out / 'logs' / name}):")
+            if info.get("failure"):
+                print(f"  ENDED ON A FAULT: {info['failure']}: {info['error']}; stop: {info.get('stop_result')}")
+                code = 3
+            _print_metrics(metrics)
+            if code:
+                break
+    except KeyboardInterrupt:
+        print("interrupted: stopping the robot", file=sys.stderr)
+        code = 3
+    finally:
+        env.close()
+        (args.out / "metrics.json").write_text(json.dumps(_finite(results), indent=2))
+    print(f"results in {args.out.resolve()}")
+    return code
+
+
+def _finite(value: Any) -> Any:
+    """JSON-safe copy: NaN and inf become null."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

@@ -1,0 +1,68 @@
+"""Fixtures for the real-cell tests: emulator processes on loopback, and a real-env episode runner.
+
+Each emulator runs in its own process on a random 127.x.y.z address (so tests run in parallel) and is ended
+by its own pid; teardown checks that it exited and that its ports can be bound again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401
+from envs.real.config import SafetyLimits
+from envs.real.emulator.process import EmulatorProcess, ports_free
+
+REAL_ENV_ID = "drillgym/UR5BoneDrillReal-v0"
+CI_LIMITS = SafetyLimits(max_cycle_gap_s=0.3, rtde_stale_s=0.3, ft_stale_s=0.3)
+"""Timing limits for long episodes on a shared CI machine (the defaults are exercised by the fault tests)."""
+
+
+@pytest.fixture
+def start_emulator() -> Iterator[Callable[..., EmulatorProcess]]:
+    """Factory: ``start_emulator(seed=0, scenario={...}, extra_args=[...])`` -> a running emulator."""
+    started: list[EmulatorProcess] = []
+
+    def _start(**kwargs: Any) -> EmulatorProcess:
+        emu = EmulatorProcess(max_lifetime_s=300.0, **kwargs)
+        started.append(emu)
+        return emu.start()
+
+    yield _start
+    for emu in started:
+        code = emu.stop()
+        assert emu.proc is not None and emu.proc.poll() is not None, f"emulator {emu.host} still running"
+        assert code == 0, f"emulator {emu.host} exited with {code}: {emu.log_tail()}"
+        assert ports_free(emu.host), f"an emulator port is still bound on {emu.host}"
+
+
+def make_real_env(emu: EmulatorProcess, **kwargs: Any) -> gym.Env:
+    """The real env connected to ``emu`` (F/T and marker stream from the same emulator)."""
+    kwargs.setdefault("tracker", f"udp:{emu.host}")
+    return gym.make(REAL_ENV_ID, robot_host=emu.host, **kwargs)
+
+
+def run_steps(
+    env: gym.Env,
+    controller: Any,
+    seed: int = 0,
+    max_steps: int | None = None,
+    on_step: Callable[[int], None] | None = None,
+) -> tuple[int, dict[str, Any], bool]:
+    """Reset and step ``controller`` until the episode ends or ``max_steps``; returns (steps, info, ended)."""
+    obs, info = env.reset(seed=seed)
+    controller.set_plan(env.unwrapped.plan)
+    start, steps = True, 0
+    while max_steps is None or steps < max_steps:
+        if on_step is not None:
+            on_step(steps)
+        action, _ = controller.predict(obs, episode_start=np.array([start]))
+        obs, _, terminated, truncated, info = env.step(action)
+        start, steps = False, steps + 1
+        if terminated or truncated:
+            return steps, info, True
+    return steps, info, False

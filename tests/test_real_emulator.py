@@ -1,0 +1,130 @@
+"""The UR controller emulator against the real, unmodified ur_rtde 1.6.5 client (and the Net F/T client)."""
+
+import socket
+import time
+
+import numpy as np
+import pytest
+import rtde_control
+import rtde_receive
+from real_cell import start_emulator  # noqa: F401  (fixture)
+
+from envs.real.emulator.config import DASHBOARD_PORT
+from envs.real.netft import NetFTCalibration, NetFTClient
+
+
+def test_receive_interface_streams_the_full_default_recipe(start_emulator):  # noqa: F811
+    emu = start_emulator()
+    r = rtde_receive.RTDEReceiveInterface(emu.host)
+    try:
+        t0 = r.getTimestamp()
+        time.sleep(0.1)
+        assert r.getTimestamp() - t0 == pytest.approx(0.1, abs=0.03)  # 125 Hz state, controller clock
+        pose = np.array(r.getActualTCPPose())
+        np.testing.assert_allclose(pose[:3], [-0.45, -0.11, 0.11], atol=1e-9)  # drill tip 10 mm above the entry
+        assert len(r.getActualQ()) == 6 and r.getSafetyStatusBits() == 1 and r.getRobotMode() == 7
+        assert not r.isProtectiveStopped() and len(r.getPayloadCog()) == 3
+    finally:
+        r.disconnect()
+    assert [len(o) for o in emu.control({"cmd": "contract"})["output_recipes"]] == [57]
+
+
+def test_unknown_variable_is_refused_like_a_controller_does(start_emulator):  # noqa: F811
+    emu = start_emulator()
+    with pytest.raises(RuntimeError, match="bogus_var"):
+        rtde_receive.RTDEReceiveInterface(emu.host, 125.0, ["timestamp", "bogus_var"])
+
+
+def test_control_interface_uploads_its_program_and_commands_move(start_emulator):  # noqa: F811
+    emu = start_emulator()
+    r = rtde_receive.RTDEReceiveInterface(emu.host, 125.0, ["timestamp", "actual_TCP_pose", "runtime_state"])
+    c = rtde_control.RTDEControlInterface(emu.host)
+    try:
+        assert c.isProgramRunning()
+        pose = list(r.getActualTCPPose())
+        pose[2] += 0.002
+        assert c.moveL(pose, 0.02, 0.5)
+        np.testing.assert_allclose(r.getActualTCPPose()[:3], pose[:3], atol=2e-6)
+        for _ in range(25):
+            t = c.initPeriod()
+            pose[0] += 2e-5
+            assert c.servoL(pose, 0.25, 1.2, 0.008, 0.1, 300)
+            c.waitPeriod(t)
+        time.sleep(0.15)
+        np.testing.assert_allclose(r.getActualTCPPose()[:3], pose[:3], atol=2e-6)
+        assert c.servoStop()
+        assert c.setTcp([0.0, 0.0, 0.15, 0.0, 0.0, 0.0])
+        np.testing.assert_allclose(r.getActualTCPPose()[2], pose[2] - 0.004, atol=2e-6)  # 4 mm further down the drill
+        c.stopScript()
+        assert not c.isProgramRunning()
+    finally:
+        del c, r
+    st = emu.status()
+    assert st["command_counts"] == {"3": 1, "16": 1, "24": 25, "29": 1, "255": 1}
+    assert st["scripts_loaded"] == 1 and st["runtime_state"] == "STOPPED"
+
+
+def test_protective_stop_refuses_motion_and_the_dashboard_reports_it(start_emulator):  # noqa: F811
+    emu = start_emulator()
+    r = rtde_receive.RTDEReceiveInterface(emu.host)
+    c = rtde_control.RTDEControlInterface(emu.host)
+    try:
+        emu.fault("protective_stop")
+        time.sleep(0.05)
+        assert r.isProtectiveStopped() and r.getSafetyMode() == 3
+        pose = list(r.getActualTCPPose())
+        pose[2] += 0.001
+        assert not c.moveL(pose, 0.02, 0.5)
+        with socket.create_connection((emu.host, DASHBOARD_PORT), timeout=2) as s:
+            f = s.makefile("rw")
+            assert f.readline().startswith("Connected: Universal Robots Dashboard Server")
+            for cmd, reply in (("safetymode", "Safetymode: PROTECTIVE_STOP"), ("PolyscopeVersion", "URSoftware 3.15")):
+                f.write(cmd + "\n")
+                f.flush()
+                assert f.readline().startswith(reply)
+        emu.control({"cmd": "clear_faults"})
+        time.sleep(0.05)
+        assert not r.isProtectiveStopped() and c.isProgramRunning()
+    finally:
+        del c, r
+
+
+def test_rtde_watchdog_stops_the_program_when_commands_stop(start_emulator):  # noqa: F811
+    emu = start_emulator()
+    c = rtde_control.RTDEControlInterface(emu.host)
+    try:
+        assert c.setWatchdog(20.0)
+        time.sleep(0.2)
+        assert not c.isProgramRunning()
+        assert "RTDE watchdog" in emu.status()["stop_reason"]
+    finally:
+        del c
+
+
+def test_netft_stream_counts_calibration_and_bias(start_emulator):  # noqa: F811
+    emu = start_emulator(extra_args=["--ft-rate-hz", "1000"])
+    client = NetFTClient(emu.host, calibration=NetFTCalibration())
+    try:
+        time.sleep(0.3)
+        recs = client.since(time.monotonic() - 0.2)
+        assert 150 <= len(recs) <= 250  # 1 kHz
+        mean = np.mean([r.wrench for r in recs], axis=0)
+        np.testing.assert_allclose(mean[:3], [0.3, -0.2, 2.5], atol=0.02)  # the tool's weight: tare it
+        client.bias()
+        time.sleep(0.1)
+        recs = client.since(time.monotonic() - 0.05)
+        assert np.linalg.norm(np.mean([r.wrench for r in recs], axis=0)[:3]) < 0.05
+        assert client.status_errors == 0 and client.malformed == 0
+    finally:
+        client.close()
+
+
+def test_wrong_calibration_is_visible_in_the_readings(start_emulator):  # noqa: F811
+    emu = start_emulator()
+    client = NetFTClient(emu.host, calibration=NetFTCalibration(counts_per_force=2e6))
+    try:
+        time.sleep(0.2)
+        recs = client.since(time.monotonic() - 0.1)
+        np.testing.assert_allclose(np.mean([r.wrench for r in recs], axis=0)[2], 1.25, atol=0.02)
+    finally:
+        client.close()
