@@ -77,7 +77,29 @@ class SimCell:
         )
         self.C_tool = self.tool.compliance_tool_m_n()
         self._q_start = self._ik_cached(0.0)
+        self.clear_effects()
         self.reset()
+
+    def clear_effects(self) -> None:
+        """Undo what unmodelled effects (:mod:`envs.effects`) changed: nominal tool, bone, geometry.
+
+        The effect state of the cell: ``geometry_offset_task_m`` (the physical tip and the tool sit this
+        far from where the controller's kinematic model puts them, task frame, m; the encoders and the
+        RTDE TCP do not see it), ``marker_offset_base_m`` (the same for the tracker marker, base frame, m),
+        ``sensor_arm_m`` (F/T origin to the real drill tip, m), the drill compliance ``C_tool`` and the
+        tip balance's ``depth_profile`` and ``guidance_hook``.
+        """
+        self.geometry_offset_task_m: np.ndarray | None = None
+        self.marker_offset_base_m: np.ndarray | None = None
+        self.sensor_arm_m = self.tcp_offset_m
+        self.set_tool_compliance(self.tool.compliance_tool_m_n())
+        self.solver.clear_effects()
+
+    def set_tool_compliance(self, compliance_tool_m_n: np.ndarray) -> None:
+        """Replace the drill's tip compliance (3x3, m/N, tool frame) from now on."""
+        self.C_tool = np.asarray(compliance_tool_m_n, dtype=float)
+        if hasattr(self, "C_robot"):
+            self.C_total = self.C_robot + self.C_tool
 
     # ------------------------------------------------------------------ poses
     def tip_pose_base(self, tip_task_m: np.ndarray) -> np.ndarray:
@@ -120,7 +142,10 @@ class SimCell:
         One Newton step of inverse kinematics from the previous angles per agent step (the target
         moves ≤ 0.5 mm per step, so the residual is < 1 nm).
         """
-        target = self.tip_pose_base(np.asarray(self.sample.rigid))
+        rigid = np.asarray(self.sample.rigid)
+        if self.geometry_offset_task_m is not None:
+            rigid = rigid - self.geometry_offset_task_m  # where the controller's model puts the tip
+        target = self.tip_pose_base(rigid)
         err = self.kin.pose_error(self.q_motor_rad, target, TCP_FRAME)
         self.q_motor_rad = self.q_motor_rad + np.linalg.solve(self.J_tcp, err)
         self._update_compliance()
@@ -155,7 +180,7 @@ class SimCell:
         The tip force acts ``tcp_offset`` ahead of the sensor along z: τ = (0, 0, L) × F + M_axis ẑ.
         """
         fx, fy, fz = sample.force
-        arm = self.tcp_offset_m
+        arm = self.sensor_arm_m
         return (fx, fy, fz, -arm * fy, arm * fx, sample.torque_axis)
 
     def joint_deflection_rad(self) -> np.ndarray:
@@ -171,12 +196,16 @@ class SimCell:
 
     def tcp_rtde_base_m(self) -> np.ndarray:
         """TCP position the controller reports (FK of the motor angles, base frame, m)."""
+        if self.geometry_offset_task_m is not None:
+            return self.entry_base_m + self.R_base_task @ (self.rigid_tip - self.geometry_offset_task_m)
         return self.entry_base_m + self.R_base_task @ self.rigid_tip
 
     def marker_base_m(self, q_rad: np.ndarray | None = None) -> np.ndarray:
-        """True tracker-marker position (base frame, m) at the deflected arm."""
-        q = self.q_actual_rad() if q_rad is None else q_rad
-        return self.kin.fk(q, TRACKER_FRAME)[:3, 3]
+        """Tracker-marker position (base frame, m): the true one (deflected arm) or, given ``q_rad``, the model's."""
+        if q_rad is None:
+            p = self.kin.fk(self.q_actual_rad(), TRACKER_FRAME)[:3, 3]
+            return p if self.marker_offset_base_m is None else p + self.marker_offset_base_m
+        return self.kin.fk(q_rad, TRACKER_FRAME)[:3, 3]
 
     def flange_pose_base(self, q_rad: np.ndarray) -> np.ndarray:
         """``T_base_flange`` at ``q_rad``."""

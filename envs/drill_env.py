@@ -22,6 +22,7 @@ from envs.constants import (
     scale_action,
 )
 from envs.drilling.bone import BonePreset
+from envs.effects.base import Effect, EffectStack
 from envs.metrics import EpisodeRecorder, episode_metrics
 from envs.observation import observation_space, pack_observation
 from envs.plan import DrillPlan
@@ -126,7 +127,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     :class:`envs.drilling.BonePreset` replacing the named ``bone``), the reward weights
     ``reward_deviation_weight`` (per mm), ``reward_force_weight`` (per N), ``reward_smooth_weight``,
     and ``render_mode`` (``"rgb_array"``). Invalid values raise ``ValueError`` naming the argument,
-    its value and the allowed range.
+    its value and the allowed range. Unmodelled effects for the sim-to-real diagnosis
+    (:mod:`envs.effects`) are switched on with ``env.unwrapped.set_effects([...])`` or
+    ``reset(options={"effects": [...]})``; none are on by default.
 
     ## Version History
 
@@ -160,6 +163,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.observation_space = observation_space()  # type: ignore[assignment]
         self.recorder = EpisodeRecorder()
         self.world: PyBulletWorld | None = PyBulletWorld(visual_meshes=render_mode is not None)
+        self.effects: EffectStack | None = None
+        self._effects_attached = False
         self._build(self.scenario)
         self._reset_state()
 
@@ -180,8 +185,12 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
         ``options={"scenario": {...}}`` changes scenario arguments from this episode on (validated like
         the constructor's; the others keep their values): domain randomisation and log replay use it.
+        ``options={"effects": [...]}`` switches unmodelled effects on from this episode on (see
+        :meth:`set_effects`).
         """
         super().reset(seed=seed)
+        if options and "effects" in options:
+            self.set_effects(options["effects"])
         if options and "scenario" in options:
             changes = dict(options["scenario"])
             if changes:
@@ -195,7 +204,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         rng = self.np_random
         # This specimen's hardness: bone varies from sample to sample (std ``bone_variability``).
         factor = 1.0 + self.scenario.bone_variability * float(rng.standard_normal())
-        self.cell.solver.force_scale = min(max(factor, 0.5), 1.5)
+        self.specimen_hardness = min(max(factor, 0.5), 1.5)
+        self.cell.solver.force_scale = self.specimen_hardness
         self.ft = ForceTorqueSensor(self.scenario.ft_noise_n, rng)
         self.tracker = PositionTracker(self.scenario.tracker_noise_m, rng)
         self.t_s = 0.0
@@ -216,6 +226,15 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.rtde_tcp_base = self.cell.tcp_rtde_base_m()
         self.step_terms: dict[str, float] = {}
         self.servo_gain = 1.0 - math.exp(-PHYSICS_DT_S / self.scenario.servo_time_constant_s)
+        if self.effects is not None or self._effects_attached:
+            self.cell.clear_effects()
+            self._effects_attached = self.effects is not None
+            if self.effects is not None:
+                self.effects.attach(self)
+
+    def set_effects(self, effects: list[Effect] | tuple[Effect, ...] | None) -> None:
+        """Switch unmodelled effects (:mod:`envs.effects`) on from the next ``reset``; None or [] switches them off."""
+        self.effects = EffectStack(effects) if effects else None
 
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Apply one correction + feed override for 50 ms (5 physics updates / F/T samples)."""
@@ -228,15 +247,18 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             raise RuntimeError("step() called after the episode ended; call reset()")
         a = np.clip(a, -1.0, 1.0)
         corr, scale = scale_action(a)
-        self.pending.append((self.t_s + self.scenario.latency_s, corr, scale))
+        fx = self.effects
+        delay_s = self.scenario.latency_s if fx is None else fx.command_delay_s(self, self.scenario.latency_s)
+        self.pending.append((self.t_s + delay_s, corr, scale))  # unmodelled effects (envs.effects) may delay it
         sc = self.scenario
         rt = self.cell.R_base_task.T
         rtde_time = latest_sample_time_s(self.t_s + CONTROL_DT_S, RTDE_RATE_HZ)
         wrenches = np.empty((SUBSTEPS_PER_STEP, 6))
         samples = []
         rec = self.recorder
+        offset, hook = (None, None) if fx is None else self._effects_begin_step(fx)
         self.cell.begin_step(self._chip_m(), self._advance_m())
-        cx, cy, cz = (rt @ self.correction_base_m).tolist()
+        cx, cy, cz = self._servo_xyz(rt, offset)
         update = self.cell.update
         for k in range(SUBSTEPS_PER_STEP):
             t_next = self.t_s + PHYSICS_DT_S
@@ -245,12 +267,12 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
                 if scale != self.feed_scale:
                     self.feed_scale = scale
                     self.cell.begin_step(self._chip_m(), self._advance_m())
-                cx, cy, cz = (rt @ self.correction_base_m).tolist()
+                cx, cy, cz = self._servo_xyz(rt, offset)
             phase = self.path.phase
             s = self.path.advance(PHYSICS_DT_S, self.feed_scale)
             if self.t_s <= rtde_time < t_next:
                 self.rtde_tcp_base = self.cell.tcp_rtde_base_m()
-            smp = update((cx, cy, cz + s), self.servo_gain)
+            smp = update((cx, cy, cz + s) if hook is None else hook(t_next, (cx, cy, cz + s)), self.servo_gain)
             samples.append(smp)
             self.t_s = t_next
             wrenches[k] = self.cell.sensor_wrench(smp)
@@ -260,6 +282,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             rec.depth_cmd_m.append(s)
             rec.deviation_m.append(math.hypot(smp.tip[0], smp.tip[1]))
             rec.tip_task_m.append(smp.tip)  # for episode logs (eval/logs)
+        if fx is not None:
+            wrenches = fx.sensor_wrenches(self, wrenches, np.asarray(rec.t_s[-SUBSTEPS_PER_STEP:]))
         readings = self.ft.sample_block(wrenches)
         rec.ft_force_n.extend(readings[:, :3])
         rec.ft_torque_nm.extend(readings[:, 3:])  # for episode logs (eval/logs)
@@ -288,6 +312,18 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return self._observation(), float(sum(terms.values())), terminated, truncated, self._info()
 
     # ------------------------------------------------------------------ helpers
+    def _effects_begin_step(self, fx: EffectStack) -> tuple[tuple[float, float, float] | None, Any]:
+        """Run the effects' step-start hooks; their servo/geometry offset (m, task frame) and target hook."""
+        fx.begin_step(self)
+        return fx.target_offset_task_m(self.cell.geometry_offset_task_m), fx.target_hook
+
+    def _servo_xyz(self, rt: np.ndarray, offset: tuple[float, float, float] | None) -> list[float]:
+        """Commanded correction in the task frame (m), plus the effects' servo/geometry offset if any."""
+        xyz = (rt @ self.correction_base_m).tolist()
+        if offset is not None:
+            xyz = [xyz[0] + offset[0], xyz[1] + offset[1], xyz[2] + offset[2]]
+        return xyz
+
     def _advance_m(self) -> float:
         """Axial advance of the commanded tip per physics update over this step (m): feed plus correction.
 

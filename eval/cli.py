@@ -40,6 +40,22 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "eval.bench_rtde",
         "Timing of the 125 Hz servoL stream through ur_rtde: missed cycles, command-to-state latency.",
     ),
+    "diagnose": (
+        "eval.diagnosis.cli_diagnose",
+        "Sim-to-real gap diagnosis of real episode logs: where, which unmodelled effect, how far it shrinks.",
+    ),
+    "make-reality": (
+        "eval.diagnosis.reality.cli",
+        "Write real-schema episode logs from the simulator with unmodelled effects switched on.",
+    ),
+    "bench-diagnosis": (
+        "eval.diagnosis.bench_cli",
+        "Withheld-effect benchmark of the diagnosis: identification, shrink, false alarms, out-of-library effect.",
+    ),
+    "import-rtde": (
+        "eval.diagnosis.rtde_cli",
+        "Import ur_rtde file recordings joined with F/T and tracker CSVs into episode logs.",
+    ),
 }
 
 

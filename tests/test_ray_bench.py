@@ -128,3 +128,9 @@ def test_the_sink_appends_rows_and_logs_as_they_arrive(tmp_path):
     assert list(pd.read_csv(out / "episodes.csv")["seed"]) == [0, 1]
     summary = pd.read_csv(out / "summary.csv")
     assert (summary["n"] == 2).any()
+
+
+def test_an_unreachable_cluster_is_a_clear_error(tmp_path, capsys):
+    pytest.importorskip("ray")
+    assert main(["bench", "--seeds", "1", "--out", str(tmp_path / "b"), "--address", "127.0.0.1:1"]) == 2
+    assert "cannot connect to the Ray cluster" in capsys.readouterr().err

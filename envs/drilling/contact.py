@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,7 +73,26 @@ class TipContactSolver:
         self._key: tuple[float, float] = (math.nan, math.nan)
         self.force_scale = 1.0
         """Per-specimen multiplier on every cutting force (bone variability), set before an episode."""
+        self.clear_effects()
         self.reset((0.0, 0.0, -3e-3))
+
+    def clear_effects(self) -> None:
+        """No depth profile, nominal side guidance (see :meth:`set_depth_profile`, ``guidance_hook``)."""
+        self.depth_profile: np.ndarray | None = None
+        self.guidance_hook: Callable[[float, float], float] | None = None
+        """Unmodelled effects: ``(engaged share, nominal guidance) -> guidance`` of the tip by the bone."""
+        self._key = (math.nan, math.nan)
+
+    def set_depth_profile(self, factor: np.ndarray | None) -> None:
+        """Multiply the cutting forces by ``factor`` at each depth of the table grid (``table.depth_m``)."""
+        if factor is not None:
+            factor = np.asarray(factor, dtype=float)
+            if factor.shape != self.table.depth_m.shape:
+                raise ValueError(
+                    f"depth profile has shape {factor.shape}; the table grid has {self.table.depth_m.shape}"
+                )
+        self.depth_profile = factor
+        self._key = (math.nan, math.nan)
 
     def reset(self, start: tuple[float, float, float]) -> None:
         """Uncut bone; rigid and true tip at ``start``."""
@@ -92,11 +112,15 @@ class TipContactSolver:
         if (chip_m, self.force_scale) != self._key:
             self._key = (chip_m, self.force_scale)
             rows = self.force_scale * (self.table.edge + chip_m * self.table.per_chip)
+            if self.depth_profile is not None:
+                rows = rows * self.depth_profile[:, None]
             self._rows = rows
             self._fx, self._fy, self._fz, self._mz = (rows[:, i].tolist() for i in range(4))
         self._c = np.asarray(compliance_m_n, dtype=float)
         share = float(np.interp(self.depth_local, self.table.depth_m, self.table.engaged_fraction))
         self._g = share**self.guidance_exponent
+        if self.guidance_hook is not None:
+            self._g = self.guidance_hook(share, self._g)
         self._k_cut = self.k_lat_n / max(advance_per_update_m, 1e-7)
         self._variants: dict[int, tuple] = {}
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import logging
 import os
+import socket
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -40,6 +41,17 @@ class RaySession:
         return f"{where}: {self.nodes} node(s), {self.cpus} CPUs, started/connected in {self.startup_s:.1f} s"
 
 
+def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """Fail fast on a ``HOST:PORT`` nobody listens on (Ray itself retries for minutes)."""
+    host, sep, port = address.rpartition(":")
+    if not sep or "://" in address or not port.isdigit():
+        return  # "auto", "ray://...": left to Ray
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as e:
+        raise ConnectionError(f"cannot connect to the Ray cluster at {address!r}: {e}") from e
+
+
 @contextmanager
 def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iterator[RaySession]:
     """Connect to Ray for the duration of a ``with`` block.
@@ -71,6 +83,7 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
                 logging_level=logging.WARNING,
             )
         else:
+            _check_reachable(address)
             try:
                 ray.init(address=address, logging_level=logging.WARNING)
             except (ConnectionError, RuntimeError) as e:

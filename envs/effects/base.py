@@ -1,0 +1,197 @@
+"""The hook interface between the simulated cell and an unmodelled effect.
+
+An :class:`Effect` is a small extension of the simulator with named physical parameters (SI units, a
+documented range, a default that switches it off). The env calls its hooks at a few fixed points of
+an agent step; every hook defaults to "no change", and an env without effects never calls any, so
+the default simulation is untouched (bit for bit) and pays nothing for the hooks.
+
+Hook points, in the order of one agent step (50 ms, 5 F/T samples):
+
+* ``attach(env)``: at ``reset``, after the cell and sensors are reset (change the tool, the bone
+  profile, the side guidance of the tip balance; see :meth:`envs.cell.SimCell.clear_effects`).
+* ``command_delay_s(env, delay_s)``: when a command is queued; returns its latency (s).
+* ``begin_step(env)``: before the samples of the step (set the specimen's force scale, servo offsets).
+* ``servo_offset_task_m``: an attribute (3,) or None read after ``begin_step``: a shift of the
+  servo-held tip that the encoders see (the motor lags its target), task frame (m).
+* ``delay_target(t_s, target)``: per sample, the servo target (task frame, m) the servo really gets.
+* ``sensor_wrenches(env, wrenches, t_s)``: the true wrenches of the step's samples (5, 6) (N, N·m,
+  sensor frame) before the F/T noise and resolution.
+
+Offsets the encoders do *not* see (the tool or the arm is not where the controller's model puts it)
+go on the cell: :attr:`envs.cell.SimCell.geometry_offset_task_m` and ``marker_offset_base_m``.
+
+A sensor-only effect (``sensor_only = True``) changes readings, not physics; it also implements
+:meth:`Effect.apply_to_trace`, the same change applied to a recorded trace, which lets a fit skip
+the re-simulation.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+CHANNEL_GROUPS = ("force", "torque", "tracker", "q", "tcp")
+"""What an effect can change: F/T force, F/T torque, tracker marker, RTDE joint angles, RTDE TCP."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """One physical parameter of an effect."""
+
+    name: str
+    """Name with its unit (``_s``, ``_m``, ``_n_s``, ``_rad``, ``_per_m``; no suffix: dimensionless)."""
+    low: float
+    """Lowest physically plausible value."""
+    high: float
+    """Highest physically plausible value."""
+    default: float = 0.0
+    """The value that switches the effect off."""
+    description: str = ""
+
+
+@dataclass
+class TraceView:
+    """A recorded episode as a sensor-only effect sees it (arrays are per F/T sample, modified in place).
+
+    Attributes:
+        t_s: sample times since reset (s), (n,).
+        force_n: F/T force readings (N, sensor frame), (n, 3).
+        torque_nm: F/T torque readings (N·m, sensor frame, about the sensor origin), (n, 3).
+        engaged_share: share of the lips' length in bone, in [0, 1], (n,).
+        sensor_arm_m: F/T sensor origin to drill tip along the tool axis (m).
+        spindle_rpm: spindle speed (rpm).
+    """
+
+    t_s: np.ndarray
+    force_n: np.ndarray
+    torque_nm: np.ndarray
+    engaged_share: np.ndarray
+    sensor_arm_m: float
+    spindle_rpm: float
+
+
+class Effect:
+    """Base class of an unmodelled effect: parameters, validation and no-op hooks."""
+
+    name: ClassVar[str] = ""
+    summary: ClassVar[str] = ""
+    """One line: what is physically going on."""
+    params: ClassVar[tuple[Param, ...]] = ()
+    channels: ClassVar[frozenset[str]] = frozenset()
+    """Channel groups (:data:`CHANNEL_GROUPS`) the physics says this effect changes; the others stay put."""
+    sensor_only: ClassVar[bool] = False
+    servo_offset_task_m: np.ndarray | None = None
+
+    def __init__(self, **values: float) -> None:
+        """Set parameters by name (unset ones keep their default, i.e. off); out-of-range values raise."""
+        known = {p.name: p for p in self.params}
+        unknown = sorted(set(values) - set(known))
+        if unknown:
+            raise ValueError(f"{self.name}: unknown parameter(s) {unknown}; parameters: {sorted(known)}")
+        self.values: dict[str, float] = {}
+        for p in self.params:
+            v = float(values.get(p.name, p.default))
+            if not math.isfinite(v) or not p.low <= v <= p.high:
+                raise ValueError(f"{self.name}: {p.name}={v!r} is outside [{p.low:g}, {p.high:g}]")
+            self.values[p.name] = v
+        self.servo_offset_task_m = None
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v:.4g}" for k, v in self.values.items())
+        return f"{type(self).__name__}({args})"
+
+    # ------------------------------------------------------------------ hooks (no-ops)
+    def attach(self, env: Any) -> None:
+        """At reset, after the cell and the sensors are reset."""
+
+    def command_delay_s(self, env: Any, delay_s: float) -> float:
+        """Latency (s) of the command being queued; ``delay_s`` is the cell's nominal one."""
+        return delay_s
+
+    def begin_step(self, env: Any) -> None:
+        """Before the samples of an agent step."""
+
+    def delay_target(self, t_s: float, target: tuple[float, float, float]) -> tuple[float, float, float]:
+        """The servo target (m, task frame) the servo really follows at sample time ``t_s`` (s)."""
+        return target
+
+    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """True wrenches (5, 6) (N, N·m, sensor frame) at the sample times ``t_s`` (s), before noise."""
+        return wrenches
+
+    def apply_to_trace(self, trace: TraceView) -> None:
+        """Sensor-only effects: the same change on a recorded trace (in place)."""
+        raise NotImplementedError(f"{self.name} changes physics; it must be simulated")
+
+    @classmethod
+    def initial_guess(cls, evidence: dict[str, Any]) -> dict[str, float] | None:
+        """Parameters read directly off the data, where the physics allows (a starting point for a fit).
+
+        ``evidence`` holds ``tracker_offset_task_m`` (mean real-minus-sim tracker position before contact,
+        m, task frame) and ``R_base_task`` (3x3). None: no direct reading.
+        """
+        return None
+
+
+def _overrides(effect: Effect, method: str) -> bool:
+    return getattr(type(effect), method) is not getattr(Effect, method)
+
+
+class EffectStack:
+    """Several effects acting together; the env talks to this, one call per hook point."""
+
+    def __init__(self, effects: Sequence[Effect]) -> None:
+        self.effects = list(effects)
+        for e in self.effects:
+            if not isinstance(e, Effect):
+                raise TypeError(f"{e!r} is not an envs.effects.Effect")
+        self._delay = [e for e in self.effects if _overrides(e, "command_delay_s")]
+        self._begin = [e for e in self.effects if _overrides(e, "begin_step")]
+        self._target = [e for e in self.effects if _overrides(e, "delay_target")]
+        self._sensor = [e for e in self.effects if _overrides(e, "sensor_wrenches")]
+        self.target_hook: Callable[[float, tuple[float, float, float]], tuple[float, float, float]] | None = (
+            self._delay_target if self._target else None
+        )
+
+    def attach(self, env: Any) -> None:
+        """Attach every effect (the cell has just been cleared)."""
+        for e in self.effects:
+            e.servo_offset_task_m = None
+            e.attach(env)
+
+    def command_delay_s(self, env: Any, delay_s: float) -> float:
+        """Latency of a command after every effect."""
+        for e in self._delay:
+            delay_s = e.command_delay_s(env, delay_s)
+        return delay_s
+
+    def begin_step(self, env: Any) -> None:
+        """Run the effects' step-start hooks."""
+        for e in self._begin:
+            e.begin_step(env)
+
+    def target_offset_task_m(self, geometry_offset_task_m: np.ndarray | None) -> tuple[float, float, float] | None:
+        """Sum of the servo offsets and the cell's geometry offset (m, task frame), or None if none."""
+        total = None if geometry_offset_task_m is None else np.asarray(geometry_offset_task_m, dtype=float)
+        for e in self.effects:
+            if e.servo_offset_task_m is not None:
+                total = e.servo_offset_task_m if total is None else total + e.servo_offset_task_m
+        if total is None:
+            return None
+        x, y, z = (float(v) for v in total)
+        return x, y, z
+
+    def _delay_target(self, t_s: float, target: tuple[float, float, float]) -> tuple[float, float, float]:
+        for e in self._target:
+            target = e.delay_target(t_s, target)
+        return target
+
+    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """True wrenches after every sensor-side effect."""
+        for e in self._sensor:
+            wrenches = e.sensor_wrenches(env, wrenches, t_s)
+        return wrenches

@@ -1,0 +1,101 @@
+"""Bone candidate effects: a density gradient, thermal softening and friction of the entering drill."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from envs.effects.base import Effect, Param
+
+MIN_HARDNESS = 0.05
+"""Floor of any hardness factor (the bone never vanishes)."""
+
+
+class DensityGradient(Effect):
+    """Bone density varying linearly with depth: every cutting force scales by ``1 + a + g · d``.
+
+    d is the tip's depth below the local surface (m, along the axis), a the hardness offset at the
+    surface (a specimen harder or softer than its preset), g the gradient (per m). Cortical bone's
+    mineral density varies by 10–30 % across a cortex a few mm thick.
+    """
+
+    name = "density_gradient"
+    summary = "bone hardness linear in depth: offset at the surface plus a gradient"
+    params = (
+        Param("offset", -0.5, 0.5, 0.0, "hardness change at the surface (fraction)"),
+        Param("gradient_per_m", -150.0, 150.0, 0.0, "hardness change per metre of depth (1/m; 100 = 10 %/mm)"),
+    )
+    channels = frozenset({"force", "torque", "tracker"})
+
+    def attach(self, env: Any) -> None:
+        """Multiply the force table by the profile."""
+        a, g = self.values["offset"], self.values["gradient_per_m"]
+        if a == 0.0 and g == 0.0:
+            return
+        solver = env.cell.solver
+        d = solver.table.depth_m
+        profile = np.maximum(1.0 + a + g * np.maximum(d, 0.0), MIN_HARDNESS)
+        if solver.depth_profile is not None:
+            profile = profile * solver.depth_profile
+        solver.set_depth_profile(profile)
+
+
+class ThermalSoftening(Effect):
+    """Thermal softening: the bone around the drill heats up and cuts more easily as drilling goes on.
+
+    Forces scale by ``1 − a (1 − exp(−t_c / τ))``, t_c the time since first contact (s): a saturating
+    loss a with time constant τ. Drilling heats cortical bone by 10–50 K within seconds; its strength
+    falls by ~0.5–1 % per K.
+    """
+
+    name = "thermal_softening"
+    summary = "forces fall with time in contact (saturating exponential)"
+    params = (
+        Param("softening", 0.0, 0.8, 0.0, "asymptotic fractional loss of hardness"),
+        Param("tau_s", 0.5, 60.0, 10.0, "time constant of the loss (s)"),
+    )
+    channels = frozenset({"force", "torque", "tracker"})
+
+    def attach(self, env: Any) -> None:
+        """No contact yet."""
+        self.t_contact_s: float | None = None
+
+    def begin_step(self, env: Any) -> None:
+        """Scale the specimen's forces by the softening reached so far."""
+        a = self.values["softening"]
+        if a == 0.0:
+            return
+        if self.t_contact_s is None:
+            if env.cell.sample.stage == 0:
+                return
+            self.t_contact_s = env.t_s
+        tc = env.t_s - self.t_contact_s
+        factor = 1.0 - a * (1.0 - math.exp(-tc / self.values["tau_s"]))
+        env.cell.solver.force_scale = env.specimen_hardness * max(factor, MIN_HARDNESS)
+
+
+class SkidFriction(Effect):
+    """Friction of the entering drill on the inclined surface: it holds the tip against the skid.
+
+    The side guidance of the tip balance (``s²`` of the engaged share s, see ``docs/physics.md`` §4) gains
+    ``μ (1 − s)`` while the drill enters: the chisel and the lips rub on the surface before the hole
+    exists, so the tip skids less downhill, and the hole (and the deviation locked into it) is smaller.
+    """
+
+    name = "skid_friction"
+    summary = "friction at entry adds side guidance while the lips are partly engaged"
+    params = (Param("mu", 0.0, 3.0, 0.0, "extra side guidance at first touch (share of full guidance)"),)
+    channels = frozenset({"force", "torque", "tracker"})
+
+    def attach(self, env: Any) -> None:
+        """Install the guidance hook."""
+        mu = self.values["mu"]
+        if mu == 0.0:
+            return
+
+        def guidance(share: float, nominal: float) -> float:
+            return nominal + mu * (1.0 - share) if share < 1.0 else nominal
+
+        env.cell.solver.guidance_hook = guidance

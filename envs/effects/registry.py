@@ -1,0 +1,62 @@
+"""The candidate library by name, and effect specs: ``NAME[:PARAM=VALUE,...][+NAME...]``."""
+
+from __future__ import annotations
+
+from envs.effects.base import Effect
+from envs.effects.bone import DensityGradient, SkidFriction, ThermalSoftening
+from envs.effects.joints import JointFriction, KinematicOffset
+from envs.effects.sensor import FTDrift, ToolRunout
+from envs.effects.timing import Latency
+from envs.effects.tool import ToolLength
+
+EFFECTS: dict[str, type[Effect]] = {
+    cls.name: cls
+    for cls in (
+        FTDrift,
+        Latency,
+        JointFriction,
+        KinematicOffset,
+        ToolLength,
+        DensityGradient,
+        ThermalSoftening,
+        SkidFriction,
+        ToolRunout,
+    )
+}
+"""The candidate unmodelled effects the diagnosis tries, by name."""
+
+
+def parse_effect_spec(spec: str) -> list[tuple[str, dict[str, float]]]:
+    """Split ``"a:x=1,y=2+b"`` into ``[("a", {"x": 1.0, "y": 2.0}), ("b", {})]``.
+
+    Raises:
+        ValueError: an empty name or a malformed ``PARAM=VALUE``.
+    """
+    out: list[tuple[str, dict[str, float]]] = []
+    for part in spec.split("+"):
+        name, _, rest = part.strip().partition(":")
+        if not name:
+            raise ValueError(f"effect spec {spec!r}: empty effect name")
+        values: dict[str, float] = {}
+        if rest.strip():
+            for item in rest.split(","):
+                key, eq, raw = item.partition("=")
+                if not eq or not key.strip():
+                    raise ValueError(f"effect spec {spec!r}: expected PARAM=VALUE, got {item!r}")
+                try:
+                    values[key.strip()] = float(raw)
+                except ValueError as e:
+                    raise ValueError(f"effect spec {spec!r}: {key.strip()}={raw!r} is not a number") from e
+        out.append((name, values))
+    return out
+
+
+def build_effects(spec: str, library: dict[str, type[Effect]] | None = None) -> list[Effect]:
+    """Effects from a spec, looked up in ``library`` (default: the candidate library :data:`EFFECTS`)."""
+    lib = EFFECTS if library is None else library
+    effects = []
+    for name, values in parse_effect_spec(spec):
+        if name not in lib:
+            raise ValueError(f"unknown effect {name!r}; choose from {sorted(lib)}")
+        effects.append(lib[name](**values))
+    return effects

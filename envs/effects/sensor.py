@@ -1,0 +1,97 @@
+"""Sensor-side candidate effects: they change what the F/T sensor reads, not the physics.
+
+Both act on the true wrench before the sensor's noise and resolution, and on a recorded trace
+(:meth:`~envs.effects.base.Effect.apply_to_trace`) for a fit that need not re-simulate.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from envs.effects.base import Effect, Param, TraceView
+
+
+class FTDrift(Effect):
+    """F/T force drift: the strain gauges warm up and the tared zero walks away linearly in time.
+
+    ``F_read = F + r · t`` per force axis, t the time since the tare at reset (s), r in N/s. Torques
+    are left alone (their drift is a separate calibration). An ATI Mini40 drifts by ~0.1–1 % of its
+    range (40–120 N) over minutes after power-up: up to a few 0.01 N/s.
+    """
+
+    name = "ft_drift"
+    summary = "F/T force zero drifting linearly in time after the tare"
+    params = (
+        Param("fx_rate_n_s", -0.05, 0.05, 0.0, "drift rate of Fx (N/s, sensor frame)"),
+        Param("fy_rate_n_s", -0.05, 0.05, 0.0, "drift rate of Fy (N/s, sensor frame)"),
+        Param("fz_rate_n_s", -0.05, 0.05, 0.0, "drift rate of Fz (N/s, sensor frame)"),
+    )
+    channels = frozenset({"force"})
+    sensor_only = True
+
+    def _rates(self) -> np.ndarray:
+        v = self.values
+        return np.array([v["fx_rate_n_s"], v["fy_rate_n_s"], v["fz_rate_n_s"]])
+
+    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Add the drift to the force axes."""
+        out = np.array(wrenches, dtype=float)
+        out[:, :3] += self._rates()[None, :] * np.asarray(t_s)[:, None]
+        return out
+
+    def apply_to_trace(self, trace: TraceView) -> None:
+        """Add the drift to the recorded forces."""
+        trace.force_n += self._rates()[None, :] * trace.t_s[:, None]
+
+
+RUNOUT_STIFFNESS_N_M = 5.0e3
+"""Radial force per metre of runout (N/m): the hole wall forces the orbiting tip back toward the axis
+through the drill's and the lips' lateral stiffness in series (drill 1.65 N/mm, lips ~10 N/mm)."""
+
+
+class ToolRunout(Effect):
+    """Tool runout: the drill tip orbits the spindle axis at radius e, so one lip cuts more.
+
+    The chip imbalance makes a radial force of amplitude ``k · e · s`` (k
+    :data:`RUNOUT_STIFFNESS_N_M`, s the engaged share of the lips) that turns with the spindle:
+    ``F = A (cos ωt, sin ωt, 0)`` at the tip (ω the spindle speed in rad/s). The F/T samples it at
+    100 Hz, so it appears aliased (333 Hz → 33 Hz at 20,000 rpm) in Fx, Fy and, through the arm L to the
+    tip, in Tx = −L Fy and Ty = L Fx. The cycle-averaged physics is unchanged. Typical runout of a
+    surgical chuck: 10–50 µm.
+    """
+
+    name = "tool_runout"
+    summary = "drill runout: a once-per-revolution radial force, aliased into the F/T samples"
+    params = (Param("runout_m", 0.0, 60e-6, 0.0, "radius of the tip's orbit about the spindle axis (m)"),)
+    channels = frozenset({"force", "torque"})
+    sensor_only = True
+
+    def _rotating(self, t_s: np.ndarray, share: np.ndarray, rpm: float) -> np.ndarray:
+        amp = RUNOUT_STIFFNESS_N_M * self.values["runout_m"] * np.clip(share, 0.0, 1.0)
+        angle = 2.0 * math.pi * rpm / 60.0 * np.asarray(t_s)
+        return np.stack([amp * np.cos(angle), amp * np.sin(angle)], axis=1)
+
+    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Add the rotating force (and its moment about the sensor) to the step's samples."""
+        cell = env.cell
+        tips = np.asarray(env.recorder.tip_task_m[-len(t_s) :], dtype=float)
+        depth = tips[:, 2] + tips[:, 0] * cell.solver.tan_beta
+        share = np.interp(depth, cell.table.depth_m, cell.table.engaged_fraction)
+        f = self._rotating(t_s, share, env.scenario.spindle_rpm)
+        out = np.array(wrenches, dtype=float)
+        arm = cell.sensor_arm_m
+        out[:, 0] += f[:, 0]
+        out[:, 1] += f[:, 1]
+        out[:, 3] += -arm * f[:, 1]
+        out[:, 4] += arm * f[:, 0]
+        return out
+
+    def apply_to_trace(self, trace: TraceView) -> None:
+        """Add the rotating force to the recorded forces and torques."""
+        f = self._rotating(trace.t_s, trace.engaged_share, trace.spindle_rpm)
+        trace.force_n[:, :2] += f
+        trace.torque_nm[:, 0] += -trace.sensor_arm_m * f[:, 1]
+        trace.torque_nm[:, 1] += trace.sensor_arm_m * f[:, 0]

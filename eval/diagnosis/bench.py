@@ -1,0 +1,219 @@
+"""``drillgym bench-diagnosis``: generate each case's reality, diagnose it blind, tabulate how it did.
+
+Per case (:mod:`eval.diagnosis.bench_cases`): write the reality's logs, diagnose them with the candidate
+library (the true effect is never in the diagnosing simulator: the library holds other models of the
+same physics, and none of the outside effect), and compare with the truth. Cases run in parallel (one
+process each); each diagnosis runs in its process.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+import statistics
+import sys
+import tempfile
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from eval.diagnosis.bench_cases import Case
+
+ACCEPTANCE = {
+    "top1_accuracy_single": 0.90,
+    "median_shrink_true_effect": 0.60,
+    "clean_no_effect_named": 0.95,
+    "pair_both_named": 0.70,
+    "outside_unexplained_and_located": 1.0,
+}
+"""The issue's acceptance figures."""
+
+
+def run_case(job: tuple[Case, int, tuple[str, ...], Path | None]) -> dict[str, Any]:
+    """Generate, diagnose and score one case (in a worker); a case that raises is scored as failed."""
+    case = job[0]
+    try:
+        return _run_case(job)
+    except Exception as e:  # one broken case must not stop the benchmark
+        return {
+            "case": case.name,
+            "kind": case.kind,
+            "spec": case.spec,
+            "truth": case.truth,
+            "verdict": "error",
+            "named": [],
+            "top_single": None,
+            "location": None,
+            "true_effect_shrink": None,
+            "correct": False,
+            "top1_ranked": False,
+            "located": False,
+            "diagnose_s": 0.0,
+            "error": f"{type(e).__name__}: {e}\n{traceback.format_exc()}",
+        }
+
+
+def _run_case(job: tuple[Case, int, tuple[str, ...], Path | None]) -> dict[str, Any]:
+    case, episodes, candidates, keep = job
+    from eval.diagnosis.diagnose import DiagnoseOptions, run_diagnosis
+    from eval.diagnosis.episodes import load_episodes
+    from eval.diagnosis.reality.generate import make_reality
+
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="drillgym-reality-") as tmp:
+        make_reality(case.spec, episodes, case.seed, Path(tmp) / "logs")
+        eps, skipped = load_episodes(Path(tmp) / "logs")
+    gen_s = time.perf_counter() - t0
+    diag = run_diagnosis(eps, DiagnoseOptions(workers=1, candidates=candidates, seed=case.seed, progress=False))
+    res = diag.result
+    if keep is not None:
+        d = keep / case.name
+        d.mkdir(parents=True, exist_ok=True)
+        (d / "diagnosis.json").write_text(json.dumps(_clean_json(res), indent=2))
+    return score_case(case, res, gen_s, skipped)
+
+
+def score_case(case: Case, res: dict[str, Any], gen_s: float = 0.0, skipped: list[str] | None = None) -> dict[str, Any]:
+    """Compare one diagnosis with its case's truth."""
+    truth = case.truth
+    named = res["named"]
+    singles = [e for e in res["effects"] if len(e["effects"]) == 1]
+    top_single = singles[0]["name"] if singles else None
+    true_shrink = next((e["shrink"] for e in singles if truth and e["name"] == truth[0]), None)
+    row: dict[str, Any] = {
+        "case": case.name,
+        "kind": case.kind,
+        "spec": case.spec,
+        "truth": truth,
+        "verdict": res["verdict"],
+        "named": named,
+        "top_single": top_single,
+        "location": res["location"],
+        "true_effect_shrink": true_shrink if len(truth) == 1 else None,
+        "gap": res["significance"]["gap"],
+        "null": res["significance"]["null"],
+        "diagnose_s": res["timing"]["total_s"],
+        "generate_s": gen_s,
+        "skipped_logs": list(skipped or []),
+    }
+    if case.kind == "single":
+        row["correct"] = res["verdict"] == "explained" and named == truth
+        row["top1_ranked"] = top_single == truth[0]
+    elif case.kind == "pair":
+        row["correct"] = res["verdict"] == "explained" and set(truth) <= set(named)
+    elif case.kind == "clean":
+        row["correct"] = not named
+    else:
+        loc = case.expected_location
+        where = res["location"]
+        located = where is not None and loc is not None and where["channel"] in loc[0] and where["stage"] in loc[1]
+        row["located"] = located
+        row["correct"] = res["verdict"] == "unexplained" and located
+    return row
+
+
+def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Benchmark figures from the case rows."""
+
+    def rate(kind: str, key: str = "correct") -> float | None:
+        sel = [r[key] for r in rows if r["kind"] == kind]
+        return sum(bool(x) for x in sel) / len(sel) if sel else None
+
+    shrinks = [r["true_effect_shrink"] for r in rows if r["kind"] == "single" and r["true_effect_shrink"] is not None]
+    wrong_named = [r for r in rows if r["kind"] in ("single", "pair") and set(r["named"]) - set(r["truth"])]
+    figures = {
+        "top1_accuracy_single": rate("single"),
+        "top1_ranked_single": rate("single", "top1_ranked"),
+        "median_shrink_true_effect": statistics.median(shrinks) if shrinks else None,
+        "clean_no_effect_named": rate("clean"),
+        "false_alarm_rate_clean": None if rate("clean") is None else 1.0 - (rate("clean") or 0.0),
+        "wrong_effect_named_rate": len(wrong_named) / max(1, sum(r["kind"] in ("single", "pair") for r in rows)),
+        "pair_both_named": rate("pair"),
+        "outside_unexplained_and_located": rate("outside"),
+        "outside_unexplained": _outside_unexplained(rows),
+    }
+    passed = {k: float(figures[k] or 0.0) >= v for k, v in ACCEPTANCE.items() if figures.get(k) is not None}
+    return {"figures": figures, "acceptance": ACCEPTANCE, "passed": passed, "cases": len(rows)}
+
+
+def _outside_unexplained(rows: list[dict[str, Any]]) -> float | None:
+    sel = [r for r in rows if r["kind"] == "outside"]
+    return sum(r["verdict"] == "unexplained" for r in sel) / len(sel) if sel else None
+
+
+def run_bench(
+    cases: list[Case], episodes: int, candidates: tuple[str, ...], out: Path, workers: int, progress: bool = True
+) -> dict[str, Any]:
+    """Run every case (``workers`` in parallel) and write ``bench.json`` and ``bench.md`` into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    keep = out / "cases"
+    jobs = [(c, episodes, candidates, keep) for c in cases]
+    t0 = time.perf_counter()
+    rows: list[dict[str, Any]] = []
+    bar = tqdm(total=len(jobs), desc="bench-diagnosis", file=sys.stderr, disable=not progress)
+    if workers <= 1:
+        for job in jobs:
+            rows.append(run_case(job))
+            bar.update()
+    else:
+        with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
+            for row in pool.imap_unordered(run_case, jobs):
+                rows.append(row)
+                bar.set_postfix_str(f"{row['case']}: {row['verdict']}")
+                bar.update()
+    bar.close()
+    order = {c.name: k for k, c in enumerate(cases)}
+    rows.sort(key=lambda r: order[r["case"]])
+    summary = summarise(rows)
+    summary.update(
+        wall_s=time.perf_counter() - t0, workers=workers, episodes_per_case=episodes, candidates=list(candidates)
+    )
+    result = {"summary": summary, "rows": rows}
+    (out / "bench.json").write_text(json.dumps(_clean_json(result), indent=2))
+    (out / "bench.md").write_text(markdown(result))
+    return result
+
+
+def markdown(result: dict[str, Any]) -> str:
+    """The benchmark as Markdown."""
+    s = result["summary"]
+    fmt = lambda v: "–" if v is None else (f"{100 * v:.0f} %" if isinstance(v, float) else str(v))  # noqa: E731
+    lines = [
+        "# Withheld-effect benchmark of the sim-to-real diagnosis",
+        "",
+        f"{s['cases']} cases, {s['episodes_per_case']} episodes each, {s['workers']} worker(s), {s['wall_s']:.0f} s.",
+        "",
+        "| figure | value | acceptance | passed |",
+        "|---|---|---|---|",
+    ]
+    for k, v in s["figures"].items():
+        acc = s["acceptance"].get(k)
+        lines.append(f"| {k} | {fmt(v)} | {'' if acc is None else '≥ ' + fmt(acc)} | {s['passed'].get(k, '')} |")
+    lines += [
+        "",
+        "| case | kind | truth | verdict | named | top single | true-effect shrink | location | correct | s |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in result["rows"]:
+        loc = "" if not r["location"] else f"{r['location']['channel']}, {r['location']['stage']}"
+        lines.append(
+            f"| {r['case']} | {r['kind']} | {'+'.join(r['truth']) or '–'} | {r['verdict']} | {'+'.join(r['named']) or '–'} | "
+            f"{r['top_single']} | {fmt(r['true_effect_shrink'])} | {loc} | {r['correct']} | {r['diagnose_s']:.0f} |"
+        )
+    lines.append("")
+    return "\n".join(lines)
+
+
+def _clean_json(v: Any) -> Any:
+    import math
+
+    if isinstance(v, dict):
+        return {str(k): _clean_json(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_clean_json(x) for x in v]
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v

@@ -1,0 +1,97 @@
+"""The withheld-effect benchmark's cases.
+
+Every reality effect at two magnitudes, pairs, clean data and an effect outside the candidate library.
+
+Each case is a reality spec (:mod:`eval.diagnosis.reality`); the diagnosis never sees it, only the
+logs, and its candidate library (:mod:`envs.effects`) holds separately written models of the same
+physics (and none of the out-of-library effect).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from eval.diagnosis.reality.generate import build_reality
+
+
+@dataclass(frozen=True)
+class Case:
+    """One benchmark case."""
+
+    name: str
+    kind: str
+    """``single``, ``pair``, ``clean`` or ``outside`` (the effect is not in the library)."""
+    spec: str
+    """Reality spec (``"none"`` for clean data)."""
+    seed: int
+
+    @property
+    def truth(self) -> list[str]:
+        """The candidate names that model the switched-on effects (empty for clean / outside)."""
+        return [e.explains for e in build_reality(self.spec) if e.explains]
+
+    @property
+    def expected_location(self) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
+        """Channels and stages where an outside effect's gap should be found."""
+        for e in build_reality(self.spec):
+            if e.location is not None:
+                return e.location
+        return None
+
+
+SINGLES: dict[str, tuple[str, str]] = {
+    "ft_warmup": ("ft_warmup:fz_n=2.5,fx_n=1.2", "ft_warmup:fz_n=5.0,fx_n=-2.5,fy_n=1.5"),
+    "jittered_latency": ("jittered_latency:mean_s=0.03,jitter_s=0.01", "jittered_latency:mean_s=0.08,jitter_s=0.02"),
+    "stribeck_friction": (
+        "stribeck_friction:static_rad=2e-4,coulomb_rad=1.5e-4",
+        "stribeck_friction:static_rad=5e-4,coulomb_rad=3e-4,viscous_s=0.01",
+    ),
+    "joint_offsets": ("joint_offsets:dq1_rad=5e-4", "joint_offsets:dq0_rad=1e-3,dq2_rad=-1e-3"),
+    "chuck_tool_length": (
+        "chuck_tool_length:dl_m=0.002,chuck_rad_per_nm=0.02",
+        "chuck_tool_length:dl_m=-0.004,chuck_rad_per_nm=0.05",
+    ),
+    "density_layer": ("density_layer:hardening=0.2", "density_layer:hardening=0.5,depth_m=0.002"),
+    "heat_softening": ("heat_softening:softening_per_k=0.002", "heat_softening:softening_per_k=0.005"),
+    "entry_friction": ("entry_friction:mu=0.2", "entry_friction:mu=0.6"),
+    "wobbly_runout": ("wobbly_runout:runout_m=2e-5", "wobbly_runout:runout_m=4e-5"),
+}
+"""Reality effect -> (moderate, strong) spec."""
+
+PAIRS: tuple[str, ...] = (
+    "ft_warmup:fz_n=2.0,fx_n=1.0+density_layer:hardening=0.3",
+    "jittered_latency:mean_s=0.05+chuck_tool_length:dl_m=0.003,chuck_rad_per_nm=0.02",
+    "joint_offsets:dq1_rad=7e-4+heat_softening:softening_per_k=0.003",
+    "stribeck_friction:static_rad=3e-4,coulomb_rad=2e-4+wobbly_runout:runout_m=3e-5",
+    "entry_friction:mu=0.3+ft_warmup:fz_n=2.0,fy_n=1.0",
+)
+OUTSIDE: tuple[str, ...] = ("bone_void:length_m=0.001", "bone_void:length_m=0.0015,depth_m=0.003,residual=0.2")
+CLEAN_TRIALS = 6
+
+
+def full_cases() -> list[Case]:
+    """Every case of the full benchmark."""
+    cases: list[Case] = []
+    for name, specs in SINGLES.items():
+        for k, spec in enumerate(specs):
+            cases.append(Case(f"{name}-{('moderate', 'strong')[k]}", "single", spec, 100 + len(cases)))
+    for k, spec in enumerate(PAIRS):
+        cases.append(Case(f"pair-{k}", "pair", spec, 200 + k))
+    for k in range(CLEAN_TRIALS):
+        cases.append(Case(f"clean-{k}", "clean", "none", 300 + k))
+    for k, spec in enumerate(OUTSIDE):
+        cases.append(Case(f"outside-{k}", "outside", spec, 400 + k))
+    return cases
+
+
+QUICK_CANDIDATES = ("ft_drift", "tool_runout", "latency")
+"""Candidates of ``--quick`` (test-sized): the cheap sensor-side ones and one replayed."""
+
+
+def quick_cases() -> list[Case]:
+    """A test-sized benchmark: one effect, clean data, the outside effect."""
+    return [
+        Case("ft_warmup-strong", "single", SINGLES["ft_warmup"][1], 101),
+        Case("clean-0", "clean", "none", 300),
+        Case("outside-0", "outside", OUTSIDE[0], 400),
+    ]

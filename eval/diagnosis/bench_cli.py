@@ -1,0 +1,38 @@
+"""``drillgym bench-diagnosis [--quick] --out DIR``: the withheld-effect benchmark of the diagnosis."""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """CLI arguments."""
+    parser.add_argument("--out", required=True, type=Path, help="output folder: bench.json, bench.md, cases/")
+    parser.add_argument("--quick", action="store_true", help="test-sized: 3 cases, 6 episodes, 3 candidates")
+    parser.add_argument("--episodes", type=int, default=None, help="episodes per case (default 12; quick 6)")
+    parser.add_argument(
+        "--workers", type=int, default=os.cpu_count() or 1, help="cases run in parallel (default: all cores)"
+    )
+    parser.add_argument("--only", default="", help="comma-separated case names to run (default: all)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the benchmark and print its figures."""
+    from envs.effects.registry import EFFECTS
+    from eval.diagnosis.bench import run_bench
+    from eval.diagnosis.bench_cases import QUICK_CANDIDATES, full_cases, quick_cases
+
+    cases = quick_cases() if args.quick else full_cases()
+    if args.only:
+        wanted = {c.strip() for c in args.only.split(",")}
+        cases = [c for c in cases if c.name in wanted]
+    episodes = args.episodes or (6 if args.quick else 12)
+    candidates = QUICK_CANDIDATES if args.quick else tuple(EFFECTS)
+    result = run_bench(cases, episodes, candidates, args.out, args.workers, progress=not args.no_progress)
+    for k, v in result["summary"]["figures"].items():
+        print(f"{k}: {v}")
+    print(f"wrote {args.out / 'bench.json'} and {args.out / 'bench.md'}")
+    return 0

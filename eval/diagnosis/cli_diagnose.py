@@ -1,0 +1,53 @@
+"""``drillgym diagnose --real DIR --out OUT``: diagnose the sim-to-real gap of a folder of episode logs."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+from envs.effects.registry import EFFECTS
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """CLI arguments."""
+    parser.add_argument(
+        "--real", required=True, type=Path, help="folder of real episode logs (*.parquet, ur_rtde sessions)"
+    )
+    parser.add_argument("--out", required=True, type=Path, help="output folder: diagnosis.json, report.md, figures")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+    parser.add_argument(
+        "--candidates",
+        default=",".join(EFFECTS),
+        help=f"comma-separated candidate effects (default: all of {', '.join(EFFECTS)})",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the calibration/held-out split and the bootstrap")
+    parser.add_argument("--strict", action="store_true", help="fail on the first bad log instead of skipping it")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--no-figures", action="store_true", help="skip the figures")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Load, diagnose, write."""
+    from eval.diagnosis.diagnose import DiagnoseOptions, run_diagnosis
+    from eval.diagnosis.episodes import load_episodes
+    from eval.diagnosis.report import write_outputs
+
+    candidates = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
+    unknown = sorted(set(candidates) - set(EFFECTS))
+    if unknown:
+        print(f"unknown candidate effect(s) {unknown}; choose from {sorted(EFFECTS)}", file=sys.stderr)
+        return 2
+    episodes, skipped = load_episodes(args.real, strict=args.strict)
+    for s in skipped:
+        print(f"skipped {s}", file=sys.stderr)
+    if len(episodes) < 4:
+        print(f"{args.real}: {len(episodes)} usable episode(s); the diagnosis needs at least 4", file=sys.stderr)
+        return 1
+    opts = DiagnoseOptions(workers=args.workers, candidates=candidates, seed=args.seed, progress=not args.no_progress)
+    diag = run_diagnosis(episodes, opts)
+    paths = write_outputs(diag, args.out, skipped, figures=not args.no_figures)
+    print(diag.result["summary"])
+    print(f"wrote {paths['json']} and {paths['report']}")
+    return 0

@@ -1,0 +1,190 @@
+"""The diagnosis: where the sim-to-real gap lies, which unmodelled effect explains it, how far it shrinks.
+
+:func:`diagnose` takes checked real episodes and returns the ``diagnosis.json`` dict. Steps: split the
+episodes into calibration and held-out halves; replay every episode nominally and with the sim's own
+scatter (null model); test whether there is a gap at all; fit every candidate effect on the
+calibration half and score it on the held-out half; fit pairs of the best candidates when one is not
+enough; name what is surely worth naming (:mod:`eval.diagnosis.rank`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from tqdm import tqdm
+
+from envs.effects.registry import EFFECTS
+from eval.diagnosis.context import DiagnosisData, split_episodes
+from eval.diagnosis.episodes import EpisodeData
+from eval.diagnosis.fit import FitResult
+from eval.diagnosis.pool import Runner
+from eval.diagnosis.rank import (
+    PAIR_TRY_RESIDUAL,
+    ModelScore,
+    baseline_score,
+    gap_map,
+    gap_significance,
+    locate,
+    nameable,
+    pair_beats,
+    pooled,
+    score_models,
+)
+
+MIN_EPISODES = 4
+"""At least two calibration and two held-out episodes."""
+
+
+@dataclass
+class DiagnoseOptions:
+    """How to run a diagnosis."""
+
+    workers: int = os.cpu_count() or 1
+    """Processes (each runs its own simulator)."""
+    candidates: tuple[str, ...] = tuple(EFFECTS)
+    """Candidate effects to try (default: the whole library)."""
+    pair_pool: int = 3
+    """Pairs are formed of the best single and each of the next best (this many singles in all)."""
+    seed: int = 0
+    """Seed of the split and the bootstrap."""
+    progress: bool = True
+    """Show a progress bar (stderr)."""
+
+
+@dataclass
+class Diagnosis:
+    """A diagnosis: the ``diagnosis.json`` dict and the state behind it (for the report's figures)."""
+
+    result: dict[str, Any]
+    data: DiagnosisData
+    scores: list[ModelScore]
+
+
+def diagnose(episodes: list[EpisodeData], options: DiagnoseOptions | None = None) -> dict[str, Any]:
+    """Diagnose the gap between ``episodes`` (real) and the simulator; see the module docstring."""
+    return run_diagnosis(episodes, options).result
+
+
+def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None = None) -> Diagnosis:
+    """:func:`diagnose`, keeping the episodes' replays and the model scores."""
+    opt = options or DiagnoseOptions()
+    if len(episodes) < MIN_EPISODES:
+        raise ValueError(f"{len(episodes)} usable episode(s); the diagnosis needs at least {MIN_EPISODES}")
+    t0 = time.perf_counter()
+    cal, ho = split_episodes(episodes, opt.seed)
+    data = DiagnosisData.from_episodes(episodes, cal, ho)
+    runner = Runner(opt.workers)
+    bar = tqdm(total=len(episodes) + len(opt.candidates), desc="diagnose", file=sys.stderr, disable=not opt.progress)
+    timings: dict[str, float] = {}
+    bar.set_postfix_str("replaying (nominal + null)")
+    results: list[Any] = [None] * len(episodes)
+    for i, r in runner.baselines(data):
+        results[i] = r
+        bar.update()
+    data.add_baseline(results)
+    timings["baseline_s"] = time.perf_counter() - t0
+    significance = gap_significance(data.baseline_terms, data.null_terms, opt.seed)
+    before = [data.baseline_terms[i] for i in ho]
+    null = [data.null_terms[i] for i in ho]
+
+    bar.set_postfix_str("fitting single effects")
+    singles = _run_fits(runner, data, [((n,), None) for n in opt.candidates], bar)
+    scores = score_models(singles, before, null, opt.seed)
+    timings["singles_s"] = time.perf_counter() - t0 - timings["baseline_s"]
+    pairs: list[FitResult] = []
+    g_null = pooled(null)
+    if significance["significant"] and scores and scores[0].after >= PAIR_TRY_RESIDUAL * g_null:
+        s0 = baseline_score(before)
+        pool = [s for s in scores if s.score < s0][: opt.pair_pool]
+        jobs = [((pool[0].fit.names[0], b.fit.names[0]), [pool[0].fit.params[0], b.fit.params[0]]) for b in pool[1:]]
+        if jobs:
+            bar.total += len(jobs)
+            bar.set_postfix_str("fitting pairs")
+            pairs = _run_fits(runner, data, jobs, bar)
+            scores = score_models(singles + pairs, before, null, opt.seed)
+    timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
+    bar.close()
+    verdict, named, location = _verdict(significance, scores, before, data, null)
+    timings["total_s"] = time.perf_counter() - t0
+    result = {
+        "verdict": verdict,
+        "named": named,
+        "summary": _summary(verdict, named, scores, location),
+        "effects": [s.to_json() for s in scores],
+        "where": {
+            "all_episodes": gap_map(data.baseline_terms, data.null_terms),
+            "heldout_after": _after_map(scores, named, null),
+            "largest_excess": locate(data.baseline_terms, data.null_terms),
+            "frequency": data.spectrum,
+        },
+        "location": location,
+        "significance": significance,
+        "episodes": {
+            "n": len(episodes),
+            "calibration": [episodes[i].name for i in cal],
+            "heldout": [episodes[i].name for i in ho],
+            "repairs": {ep.name: ep.repairs for ep in episodes if ep.repairs},
+            "specimen_hardness_sigma": {ep.name: data.baseline_terms[i].hardness for i, ep in enumerate(episodes)},
+        },
+        "timing": {**timings, "workers": runner.workers, "candidates": len(opt.candidates), "pairs": len(pairs)},
+    }
+    return Diagnosis(result, data, scores)
+
+
+def _run_fits(runner: Runner, data: DiagnosisData, jobs: list[Any], bar: tqdm) -> list[FitResult]:
+    out: list[Any] = [None] * len(jobs)
+    for k, r in runner.fits(data, jobs):
+        out[k] = r
+        bar.update()
+    return out
+
+
+def _verdict(
+    significance: dict[str, Any], scores: list[ModelScore], before: list[Any], data: DiagnosisData, null: list[Any]
+) -> tuple[str, list[str], dict[str, Any] | None]:
+    if not significance["significant"]:
+        return "no_gap", [], None
+    s0 = baseline_score(before)
+    singles = [s for s in scores if len(s.fit.names) == 1]
+    best_single = singles[0] if singles else None
+    chosen: ModelScore | None = None
+    if best_single is not None and nameable(best_single, s0):
+        chosen = best_single
+    by_name = {s.fit.names[0]: s for s in singles}
+    for p in (s for s in scores if len(s.fit.names) == 2):
+        if best_single is None or best_single.fit.names[0] not in p.fit.names:
+            continue  # a pair is named only on top of the best single
+        other = by_name.get(next(n for n in p.fit.names if n != best_single.fit.names[0]))
+        if nameable(p, s0) and pair_beats(p, best_single, other, pooled(null)):
+            if chosen is None or chosen is best_single or p.score < chosen.score:
+                chosen = p
+    if chosen is None:
+        top = locate(data.baseline_terms, data.null_terms, top=1)[0]
+        return "unexplained", [], {"channel": top["channel"], "stage": top["stage"], "share": top["share"]}
+    chosen.named = True
+    return "explained", list(chosen.fit.names), None
+
+
+def _after_map(scores: list[ModelScore], named: list[str], null: list[Any]) -> dict[str, Any] | None:
+    for s in scores:
+        if s.named:
+            return gap_map(s.fit.ho_terms, null)
+    return None
+
+
+def _summary(verdict: str, named: list[str], scores: list[ModelScore], location: dict[str, Any] | None) -> str:
+    if verdict == "no_gap":
+        return "no significant gap: the simulator explains these episodes within its own noise and specimen scatter"
+    if verdict == "unexplained" and location is not None:
+        return f"unexplained — located at {location['channel']}, {location['stage']}"
+    s = next(x for x in scores if x.named)
+    pct = lambda v: "nan" if not math.isfinite(v) else f"{100 * v:.0f} %"  # noqa: E731
+    return f"explained by {' + '.join(named)}: held-out gap shrinks by {pct(s.shrink)} ({pct(s.ci_low)} to {pct(s.ci_high)})"
+
+
+__all__ = ["DiagnoseOptions", "Diagnosis", "diagnose", "pooled", "run_diagnosis"]

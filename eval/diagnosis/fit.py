@@ -1,0 +1,249 @@
+"""Fit an effect's (or a pair's) parameters on the calibration episodes, score them on the held-out.
+
+Parameters are searched in a unit box (each one mapped from its physical range): a coarse grid first
+(one parameter at a time, at fractions of its range from the "off" value, then the best levels
+combined, plus a reading straight off the data where an effect offers one), then a bounded compass
+search from the best one or two starting points, with a budget of evaluations. Every evaluation replays the calibration episodes (sensor-only
+effects are applied to the cached nominal replays instead). The objective is the mean gap term of
+:mod:`eval.diagnosis.gap`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from envs.effects.base import Param
+from envs.effects.registry import EFFECTS
+from eval.diagnosis.context import Evaluator, Spec
+from eval.diagnosis.gap import Terms
+
+GRID_FRACTIONS = (1 / 16, 1 / 4, 1.0)
+"""Grid levels of a one-sided parameter, as fractions of its span from the off value."""
+GRID_FRACTIONS_TWO_SIDED = (1 / 8, 1 / 2)
+"""Grid levels on each side of a two-sided parameter."""
+EVALS_PER_PARAM = 14
+"""Local-search budget per parameter (evaluations)."""
+EVALS_PER_PARAM_PAIR = 8
+"""... for a pair, which starts from its singles' fits."""
+INITIAL_STEP = 1 / 16
+"""First step of the local search (fraction of each parameter's range)."""
+MIN_STEP = 1 / 1024
+"""The local search stops below this step (fraction of the range)."""
+REFINE_MIN_GAIN = 0.02
+"""An effect whose best grid point removes less than this share of the calibration excess gap is left
+at that point (no local search): it explains nothing here."""
+
+
+@dataclass
+class FitResult:
+    """One fitted model (a single effect or a pair) and its terms on every episode.
+
+    Attributes:
+        names: the effects.
+        params: fitted parameters of each effect (physical units).
+        n_params: number of fitted parameters.
+        cal_objective: mean gap term on the calibration episodes at the fit.
+        ho_terms: gap terms of each held-out episode at the fit (in ``data.ho`` order).
+        evaluations: objective evaluations; replays: simulator replays run.
+        wall_s: time the fit took (s).
+        error: why the fit failed ("" if it did not).
+    """
+
+    names: tuple[str, ...]
+    params: list[dict[str, float]]
+    n_params: int
+    cal_objective: float = math.nan
+    ho_terms: list[Terms] = field(default_factory=list)
+    evaluations: int = 0
+    replays: int = 0
+    wall_s: float = 0.0
+    error: str = ""
+
+
+class ParamBox:
+    """The parameters of a set of effects as one vector in the unit box."""
+
+    def __init__(self, names: Sequence[str]) -> None:
+        self.names = tuple(names)
+        self.entries: list[tuple[int, Param]] = [(k, p) for k, n in enumerate(names) for p in EFFECTS[n].params]
+
+    @property
+    def size(self) -> int:
+        """Number of parameters."""
+        return len(self.entries)
+
+    def to_unit(self, params: Sequence[dict[str, float]]) -> np.ndarray:
+        """Unit-box vector of parameter dicts (missing ones at their default)."""
+        return np.array(
+            [(params[k].get(p.name, p.default) - p.low) / (p.high - p.low) for k, p in self.entries], dtype=float
+        )
+
+    def from_unit(self, u: np.ndarray) -> list[dict[str, float]]:
+        """Parameter dicts (physical units) of a unit-box vector."""
+        out: list[dict[str, float]] = [{} for _ in self.names]
+        for (k, p), x in zip(self.entries, np.clip(u, 0.0, 1.0), strict=True):
+            out[k][p.name] = float(p.low + x * (p.high - p.low))
+        return out
+
+    def spec(self, u: np.ndarray) -> Spec:
+        """Hashable spec of a unit-box vector (values rounded to 1e-5 of their range)."""
+        uq = np.round(np.clip(u, 0.0, 1.0), 5)
+        return tuple((n, tuple(sorted(p.items()))) for n, p in zip(self.names, self.from_unit(uq), strict=True))
+
+    def grid(self) -> list[np.ndarray]:
+        """The off point, then one parameter at a time at its grid levels."""
+        off = self.to_unit([{} for _ in self.names])
+        points = [off]
+        for i, (_, p) in enumerate(self.entries):
+            span_hi, span_lo = p.high - p.default, p.default - p.low
+            levels = []
+            if span_lo > 0 and span_hi > 0:
+                levels = [p.default + f * s for f in GRID_FRACTIONS_TWO_SIDED for s in (span_hi, -span_lo)]
+            elif span_hi > 0:
+                levels = [p.default + f * span_hi for f in GRID_FRACTIONS]
+            elif span_lo > 0:
+                levels = [p.default - f * span_lo for f in GRID_FRACTIONS]
+            for v in levels:
+                u = off.copy()
+                u[i] = (v - p.low) / (p.high - p.low)
+                points.append(u)
+        return points
+
+
+def fit_model(
+    ev: Evaluator, names: Sequence[str], start: Sequence[dict[str, float]] | None = None, budget: int | None = None
+) -> FitResult:
+    """Fit ``names`` jointly on ``ev.data.cal`` and compute the held-out terms.
+
+    Args:
+        ev: the evaluator (data + replayer).
+        names: effect names.
+        start: a starting point (e.g. single-effect fits for a pair): skips the coarse grid.
+        budget: local-search evaluations (default :data:`EVALS_PER_PARAM` per parameter).
+    """
+    t0 = time.perf_counter()
+    box = ParamBox(names)
+    cal = ev.data.cal
+    memo: dict[Spec, float] = {}
+    replays0 = ev.replays
+
+    def objective(u: np.ndarray) -> float:
+        spec = box.spec(np.asarray(u, dtype=float))
+        if spec not in memo:
+            try:
+                memo[spec] = ev.mean_term(spec, cal)
+            except (RuntimeError, ValueError, np.linalg.LinAlgError):
+                memo[spec] = 1e12  # the replay failed (e.g. IK out of reach): not a candidate
+        return memo[spec]
+
+    result = FitResult(names=tuple(names), params=box.from_unit(box.to_unit([{}] * len(names))), n_params=box.size)
+    try:
+        if start is None:
+            points = box.grid()
+            guess = _guess(ev, names)
+            if guess is not None:
+                points.append(box.to_unit(guess))
+            values = [objective(u) for u in points]
+            combined = points[0].copy()
+            for i in range(box.size):  # best level of each parameter, combined
+                axis = [(v, u[i]) for u, v in zip(points, values, strict=True) if u[i] != points[0][i]]
+                combined[i] = min([(values[0], points[0][i]), *axis])[1]
+            if box.size > 1:
+                points.append(combined)
+                values.append(objective(combined))
+            order = np.argsort(values)
+            starts = [points[int(order[0])]]
+            if not _worth_refining(values[0], values[int(order[0])], ev.data):
+                starts = []
+            # A second start in another direction when one is nearly as good (curved valleys, e.g. an
+            # uphill vs a deeper tool offset, which both make the drill touch earlier).
+            if box.size > 1 and len(order) > 1 and values[int(order[1])] < 2.0 * values[int(order[0])]:
+                starts.append(points[int(order[1])])
+        else:
+            starts = [box.to_unit(start)]
+        total = budget or (EVALS_PER_PARAM if start is None else EVALS_PER_PARAM_PAIR) * box.size
+        ends = [_local_search(objective, u0, total // len(starts)) for u0 in starts]
+        u_best = min(ends, key=objective) if ends else points[int(np.argmin(values))]
+        spec = box.spec(u_best)
+        result.params = [dict(p) for _, p in spec]
+        result.cal_objective = objective(u_best)
+        result.ho_terms = ev.terms(spec, ev.data.ho)
+    except Exception as e:  # a fit must not stop the diagnosis
+        result.error = f"{type(e).__name__}: {e}"
+    result.evaluations = len(memo)
+    result.replays = ev.replays - replays0
+    result.wall_s = time.perf_counter() - t0
+    return result
+
+
+def _local_search(objective: Callable[[np.ndarray], float], u0: np.ndarray, budget: int) -> np.ndarray:
+    """Bounded compass search in the unit box.
+
+    Try ± a step on each parameter, move on improvement (then try the same move again, a pattern step),
+    halve the step when nothing improves.
+
+    Robust to the small steps a replay's objective has (contacts happen on whole samples) and
+    predictable in cost: at most ``budget`` new evaluations.
+    """
+    u = np.clip(np.asarray(u0, dtype=float), 0.0, 1.0)
+    f = objective(u)
+    step, evals = INITIAL_STEP, 0
+    while evals < budget and step >= MIN_STEP:
+        improved = False
+        for i in range(u.size):
+            for sign in (1.0, -1.0):
+                v = u.copy()
+                v[i] = min(max(u[i] + sign * step, 0.0), 1.0)
+                if v[i] == u[i] or evals >= budget:
+                    continue
+                fv = objective(v)
+                evals += 1
+                while fv < f:  # keep going while it pays
+                    u, f, improved = v, fv, True
+                    v = u.copy()
+                    v[i] = min(max(u[i] + sign * step, 0.0), 1.0)
+                    if v[i] == u[i] or evals >= budget:
+                        break
+                    fv = objective(v)
+                    evals += 1
+                if improved:
+                    break
+        if not improved:
+            step /= 2.0
+    return u
+
+
+def _guess(ev: Evaluator, names: Sequence[str]) -> list[dict[str, float]] | None:
+    """Starting point read off the data (only single effects that offer one)."""
+    if len(names) != 1:
+        return None
+    d = ev.data
+    offsets = []
+    for i in d.cal:
+        rows = d.blocks[i].stage == 0
+        r = d.real[i].lf[rows, 6:9] - d.nominal_features[i].lf[rows, 6:9]
+        if np.isfinite(r).any():
+            offsets.append(np.nanmean(r, axis=0))
+    if not offsets:
+        return None
+    evidence = {"tracker_offset_task_m": np.mean(offsets, axis=0), "R_base_task": d.episodes[d.cal[0]].r_base_task}
+    guess = EFFECTS[names[0]].initial_guess(evidence)
+    return None if guess is None else [guess]
+
+
+def _worth_refining(f_off: float, f_best: float, data: Any) -> bool:
+    """Is the best grid point worth a local search?
+
+    Only if it removes at least :data:`REFINE_MIN_GAIN` of the calibration excess (an effect that does
+    nothing on the grid explains nothing here).
+    """
+    from eval.diagnosis.rank import pooled
+
+    excess = f_off - pooled([data.null_terms[i] for i in data.cal])
+    return excess > 0 and f_off - f_best >= REFINE_MIN_GAIN * excess

@@ -1,0 +1,59 @@
+"""Run diagnosis jobs on every core: a ``spawn`` process pool, each worker with its own simulator.
+
+Workers receive the shared :class:`~eval.diagnosis.context.DiagnosisData` once (pool initializer) and
+keep one env (:class:`~eval.diagnosis.replay.Replayer`). With one worker everything runs in this process.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
+
+from eval.diagnosis.context import DiagnosisData, Evaluator, baseline_job
+from eval.diagnosis.fit import FitResult, fit_model
+from eval.diagnosis.replay import Replayer
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init(data: DiagnosisData) -> None:
+    replayer = _WORKER.get("replayer") or Replayer()
+    _WORKER.update(data=data, replayer=replayer, evaluator=Evaluator(data, replayer) if data.nulls else None)
+
+
+def _baseline(i: int) -> tuple[int, Any]:
+    return i, baseline_job(_WORKER["replayer"], _WORKER["data"].episodes[i])
+
+
+def _fit(job: tuple[int, tuple[str, ...], list[dict[str, float]] | None]) -> tuple[int, FitResult]:
+    k, names, start = job
+    return k, fit_model(_WORKER["evaluator"], names, start)
+
+
+class Runner:
+    """Maps jobs over a pool (or in process), yielding ``(index, result)`` as they finish."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = max(1, int(workers))
+
+    def _map(
+        self, data: DiagnosisData, fn: Callable[[Any], tuple[int, Any]], jobs: list[Any]
+    ) -> Iterator[tuple[int, Any]]:
+        if self.workers == 1 or len(jobs) <= 1:
+            _init(data)
+            yield from map(fn, jobs)
+            return
+        ctx = mp.get_context("spawn")
+        with ctx.Pool(min(self.workers, len(jobs)), initializer=_init, initargs=(data,)) as pool:
+            yield from pool.imap_unordered(fn, jobs)
+
+    def baselines(self, data: DiagnosisData) -> Iterable[tuple[int, Any]]:
+        """Nominal and null replays of every episode."""
+        return self._map(data, _baseline, list(range(len(data.episodes))))
+
+    def fits(
+        self, data: DiagnosisData, models: list[tuple[tuple[str, ...], list[dict[str, float]] | None]]
+    ) -> Iterable[tuple[int, FitResult]]:
+        """Fit each ``(names, start)``."""
+        return self._map(data, _fit, [(k, names, start) for k, (names, start) in enumerate(models)])

@@ -1,0 +1,238 @@
+"""Held-out scores, bootstrap intervals, the parameter penalty, and the verdict.
+
+Gap of a set of episodes: ``G = Σ J / Σ N``, the mean normalised term (:mod:`eval.diagnosis.gap`);
+the simulator's own level ``G₀`` comes from null replays (noise and a drawn specimen on). For a model
+(one effect or a pair, fitted on the calibration episodes) on the held-out episodes:
+
+* ``shrink = (G_before − G_after) / (G_before − G₀)``: the share of the excess gap the model removes;
+* ``score = Σ J_after + k ln Σ N``: a BIC-like penalised misfit (k fitted parameters; lower is better);
+* bootstrap over held-out episodes (:data:`BOOTSTRAP`): a 95 % interval of the shrink and the
+  probability that each model has the best score.
+
+Verdict: ``no_gap`` unless the gap is significant (:func:`gap_significance`); ``explained`` when the
+best-scoring model removes at least :data:`NAME_SHRINK_MIN` of the excess (interval above
+:data:`NAME_CI_LOW_MIN`) and beats "no effect" on the penalised score; a pair is named over its best
+single only when it scores better in :data:`PAIR_P_MIN` of the resamples and removes at least
+:data:`PAIR_RESIDUAL_SHRINK_MIN` of the excess the single leaves, its second effect doing on its own at
+least :data:`PAIR_ALONE_MIN` of that; otherwise ``unexplained``, located at the channel and stage with
+the largest excess gap.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from eval.diagnosis.channels import ALL_CHANNELS, STAGES
+from eval.diagnosis.fit import FitResult
+from eval.diagnosis.gap import Terms
+
+BOOTSTRAP = 1000
+"""Bootstrap resamples of the held-out episodes."""
+GAP_RATIO_MIN = 1.1
+"""The median episode's gap must exceed the simulator's own level by this factor to count."""
+NAME_SHRINK_MIN = 0.5
+"""A model is named only if it removes at least this share of the held-out excess gap."""
+NAME_CI_LOW_MIN = 0.2
+"""... and the lower end of its 95 % interval is above this."""
+PAIR_P_MIN = 0.95
+"""A pair beats its best single in at least this share of the bootstrap resamples."""
+PAIR_RESIDUAL_SHRINK_MIN = 0.5
+"""... and removes at least this share of the excess gap the single leaves (so a second effect much
+smaller than the first can still be named, and a second effect that only patches a misfit cannot)."""
+PAIR_ALONE_MIN = 0.3
+"""... and its second effect alone removes at least this share of what it adds in the pair."""
+PAIR_TRY_RESIDUAL = 2.0
+"""Pairs are tried when the best single leaves a held-out gap of at least this many times ``G₀``."""
+
+
+def pooled(terms: list[Terms]) -> float:
+    """Σ J / Σ N."""
+    j = sum(t.j for t in terms)
+    n = sum(t.n for t in terms)
+    return j / n if n > 0 else math.nan
+
+
+def gap_significance(real: list[Terms], null: list[Terms], seed: int = 0) -> dict[str, Any]:
+    """Is the gap beyond the simulator's own scatter? (all episodes, bootstrap over episodes)."""
+    g_null = pooled(null)
+    ratios = np.array([(t.j / t.n) / g_null for t in real])
+    dj = np.array([r.j - n.j for r, n in zip(real, null, strict=True)])
+    nn = np.array([r.n for r in real])
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, len(real), size=(BOOTSTRAP, len(real)))
+    excess = dj[idx].sum(axis=1) / nn[idx].sum(axis=1)
+    low = float(np.quantile(excess, 0.025))
+    median_ratio = float(np.median(ratios))
+    return {
+        "gap": pooled(real),
+        "null": g_null,
+        "median_episode_ratio": median_ratio,
+        "excess_ci_low": low,
+        "significant": bool(low > 0.0 and median_ratio >= GAP_RATIO_MIN),
+    }
+
+
+@dataclass
+class ModelScore:
+    """A fitted model's held-out numbers."""
+
+    fit: FitResult
+    before: float
+    after: float
+    shrink: float
+    ci_low: float
+    ci_high: float
+    score: float
+    p_best: float = 0.0
+    named: bool = False
+    shrink_draws: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    score_draws: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+
+    @property
+    def name(self) -> str:
+        """``"a"`` or ``"a+b"``."""
+        return "+".join(self.fit.names)
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON entry of the ``effects`` list."""
+        return {
+            "name": self.name,
+            "effects": list(self.fit.names),
+            "params": {n: p for n, p in zip(self.fit.names, self.fit.params, strict=True)},
+            "n_params": self.fit.n_params,
+            "heldout_gap_before": self.before,
+            "heldout_gap_after": self.after,
+            "shrink": self.shrink,
+            "ci_low": self.ci_low,
+            "ci_high": self.ci_high,
+            "score": self.score,
+            "p_best": self.p_best,
+            "named": self.named,
+            "fit": {
+                "calibration_gap": self.fit.cal_objective,
+                "evaluations": self.fit.evaluations,
+                "replays": self.fit.replays,
+                "wall_s": self.fit.wall_s,
+                "error": self.fit.error,
+            },
+        }
+
+
+def score_models(fits: list[FitResult], before: list[Terms], null: list[Terms], seed: int = 0) -> list[ModelScore]:
+    """Held-out scores with bootstrap intervals, sorted by penalised score (best first)."""
+    rng = np.random.default_rng(seed)
+    m = len(before)
+    idx = rng.integers(0, m, size=(BOOTSTRAP, m))
+    jb = np.array([t.j for t in before])
+    nb = np.array([t.n for t in before])
+    jn = np.array([t.j for t in null])
+    nn = np.array([t.n for t in null])
+    g_before, g_null = jb.sum() / nb.sum(), jn.sum() / nn.sum()
+    b_before = jb[idx].sum(1) / nb[idx].sum(1)
+    b_null = jn[idx].sum(1) / nn[idx].sum(1)
+    out = []
+    for f in fits:
+        if f.error or len(f.ho_terms) != m:
+            continue
+        ja = np.array([t.j for t in f.ho_terms])
+        na = np.array([t.n for t in f.ho_terms])
+        g_after = ja.sum() / na.sum()
+        shrink = _shrink(g_before, g_after, g_null)
+        b_shrink = _shrink(b_before, ja[idx].sum(1) / na[idx].sum(1), b_null)
+        penalty = f.n_params * math.log(max(na.sum(), 2.0))
+        score = float(ja.sum() + penalty)
+        lo, hi = np.nanquantile(b_shrink, [0.025, 0.975]) if np.isfinite(b_shrink).any() else (math.nan, math.nan)
+        out.append(
+            ModelScore(
+                fit=f,
+                before=float(g_before),
+                after=float(g_after),
+                shrink=float(shrink),
+                ci_low=float(lo),
+                ci_high=float(hi),
+                score=score,
+                shrink_draws=b_shrink,
+                score_draws=ja[idx].sum(1) + penalty,
+            )
+        )
+    if out:
+        draws = np.stack([s.score_draws for s in out])
+        best = np.bincount(np.argmin(draws, axis=0), minlength=len(out)) / draws.shape[1]
+        for s, p in zip(out, best, strict=True):
+            s.p_best = float(p)
+    return sorted(out, key=lambda s: s.score)
+
+
+def _shrink(before: Any, after: Any, null: Any) -> Any:
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(np.asarray(before) > np.asarray(null), (before - after) / (before - null), np.nan)
+
+
+def baseline_score(before: list[Terms]) -> float:
+    """Penalised score of "no effect" (no parameters)."""
+    return float(sum(t.j for t in before))
+
+
+def nameable(s: ModelScore, s0: float) -> bool:
+    """Does a model remove enough of the gap, surely enough, and beat no effect at all?"""
+    return s.shrink >= NAME_SHRINK_MIN and s.ci_low >= NAME_CI_LOW_MIN and s.score < s0
+
+
+def pair_beats(pair: ModelScore, single: ModelScore, other: ModelScore | None, null_gap: float) -> bool:
+    """Is the pair (``single``'s effect plus ``other``'s) surely better than ``single`` alone?
+
+    It must score better in :data:`PAIR_P_MIN` of the resamples, its second effect must remove at least
+    :data:`PAIR_RESIDUAL_SHRINK_MIN` of what the single leaves, and that effect alone must do at least
+    :data:`PAIR_ALONE_MIN` of what it adds in the pair: two real effects add up, while an effect that
+    only helps alongside another is patching the other's misfit (a different form), not a second effect.
+    """
+    p = float(np.mean(pair.score_draws < single.score_draws))
+    left = single.after - null_gap
+    if p < PAIR_P_MIN or left <= 0 or (single.after - pair.after) / left < PAIR_RESIDUAL_SHRINK_MIN:
+        return False
+    added = single.after - pair.after
+    alone = 0.0 if other is None else other.before - other.after
+    return alone >= PAIR_ALONE_MIN * added
+
+
+def gap_map(terms: list[Terms], null: list[Terms]) -> dict[str, Any]:
+    """Gap by channel and stage: normalised (≈ 1 where the sim explains the data), raw RMS, excess."""
+    tot = sum(terms, Terms.zeros())
+    nul = sum(null, Terms.zeros())
+    with np.errstate(invalid="ignore", divide="ignore"):
+        norm = tot.cell_sum / tot.cell_n
+        rms = np.sqrt(tot.rms_sum / tot.cell_n)
+        null_norm = np.where(nul.cell_n > 0, nul.cell_sum / nul.cell_n, 0.0)
+    excess = tot.cell_sum - tot.cell_n * null_norm
+    return {
+        "channels": list(ALL_CHANNELS),
+        "stages": list(STAGES),
+        "normalised": _nested(norm.T),
+        "null": _nested(np.where(nul.cell_n > 0, null_norm, np.nan).T),
+        "rms": _nested(rms.T),
+        "excess": _nested(excess.T),
+    }
+
+
+def locate(terms: list[Terms], null: list[Terms], top: int = 3) -> list[dict[str, Any]]:
+    """The cells holding the most excess gap (channel, stage, share of the total excess)."""
+    tot = sum(terms, Terms.zeros())
+    nul = sum(null, Terms.zeros())
+    with np.errstate(invalid="ignore", divide="ignore"):
+        null_norm = np.where(nul.cell_n > 0, nul.cell_sum / nul.cell_n, 0.0)
+    excess = np.clip(tot.cell_sum - tot.cell_n * null_norm, 0.0, None)
+    total = float(excess.sum()) or 1.0
+    order = np.argsort(excess, axis=None)[::-1][:top]
+    out = []
+    for k in order:
+        s, c = np.unravel_index(k, excess.shape)
+        out.append({"channel": ALL_CHANNELS[c], "stage": STAGES[s], "share": float(excess[s, c] / total)})
+    return out
+
+
+def _nested(a: np.ndarray) -> list[list[float | None]]:
+    return [[None if not np.isfinite(v) else float(v) for v in row] for row in a]

@@ -1,0 +1,56 @@
+"""Base of the reality generator's effects: the env's hook interface plus a per-episode random stream.
+
+These effects are written apart from the candidate library (:mod:`envs.effects`) and, where physics
+allows, in another form (Stribeck friction vs Coulomb + viscous, a sigmoid layer vs a linear gradient,
+jittered vs fixed latency, heat balance vs an exponential in time, ...), so that a diagnosis naming
+the matching candidate has earned it. ``explains`` names the candidate that models the same physics
+(None: deliberately outside the library); ``location`` is where its gap should show, for the benchmark.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import numpy as np
+
+from envs.effects.base import Effect
+
+
+class RealityEffect(Effect):
+    """An effect of the reality generator."""
+
+    explains: ClassVar[str | None] = None
+    """The candidate effect (:data:`envs.effects.EFFECTS`) that models this physics; None if none does."""
+    location: ClassVar[tuple[tuple[str, ...], tuple[str, ...]] | None] = None
+    """For an effect outside the library: (channels, stages) where its gap is expected."""
+
+    def __init__(self, **values: float) -> None:
+        super().__init__(**values)
+        self.rng = np.random.default_rng(0)
+
+    def seed(self, rng: np.random.Generator) -> None:
+        """Random stream of this episode (jitter, phases, states): set before the env's reset."""
+        self.rng = rng
+
+
+def shift_tool(env: Any, offset_task_m: np.ndarray, marker_base_m: np.ndarray | None, at_attach: bool) -> None:
+    """Set where the physical tool (task frame, m) and the marker (base frame, m) sit off the model.
+
+    At attach the tip balance's starting state moves there too (the tool starts where it really is);
+    later the servo carries the tool to the new offset.
+    """
+    cell = env.cell
+    new = np.asarray(offset_task_m, dtype=float)
+    if at_attach:
+        old = np.zeros(3) if cell.geometry_offset_task_m is None else cell.geometry_offset_task_m
+        delta = (new - old).tolist()
+        s = cell.solver
+        s.rigid = [a + b for a, b in zip(s.rigid, delta, strict=True)]
+        s.tip = [a + b for a, b in zip(s.tip, delta, strict=True)]
+        s.depth_local = s.tip[2] + s.tip[0] * s.tan_beta
+        cell.sample = dataclasses.replace(
+            cell.sample, tip=tuple(s.tip), rigid=tuple(s.rigid), depth_local=s.depth_local
+        )
+    cell.geometry_offset_task_m = new
+    cell.marker_offset_base_m = None if marker_base_m is None else np.asarray(marker_base_m, dtype=float)

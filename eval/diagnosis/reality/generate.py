@@ -1,0 +1,111 @@
+"""Reality generator: episodes of the simulator with effects switched on, logged as a real cell would.
+
+Each episode draws a scenario from a spread (interaction angle, feed, depth) and takes the next of
+the controllers (``none``, ``li2023``, ``zhang2005``), so calibration and held-out halves see the same
+variety; the sensor noise and the specimen's hardness come from a per-episode seed. The logs carry
+``source: "real"``, no ``sim_*`` columns, no seed, and the *nominal* scenario (the effects are not
+in it): nothing the diagnosis could use that a real cell would not give it. What was switched on is
+returned (and written by the CLI next to, not inside, the log folder).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from envs.effects.registry import parse_effect_spec
+from eval.diagnosis.reality.base import RealityEffect
+from eval.diagnosis.reality.bone import ForceScaleReset
+from eval.diagnosis.reality.library import REALITY_EFFECTS
+
+BETAS_DEG = (15.0, 20.0, 25.0, 30.0, 35.0)
+FEEDS_MM_S = (0.4, 0.6, 0.8, 1.0)
+DEPTHS_MM = (4.0, 5.0, 6.0)
+CONTROLLERS = ("none", "li2023", "zhang2005")
+
+
+def build_reality(spec: str) -> list[RealityEffect]:
+    """Reality effects of a spec ``NAME[:P=V,...][+NAME...]`` (``""`` or ``"none"``: clean)."""
+    if spec.strip() in ("", "none", "clean"):
+        return []
+    out: list[RealityEffect] = []
+    for name, values in parse_effect_spec(spec):
+        if name not in REALITY_EFFECTS:
+            raise ValueError(f"unknown reality effect {name!r}; choose from {sorted(REALITY_EFFECTS)}")
+        out.append(REALITY_EFFECTS[name](**values))
+    return out
+
+
+def episode_plan(index: int, rng: np.random.Generator) -> dict[str, Any]:
+    """Scenario, controller and seed of episode ``index``."""
+    return {
+        "scenario": {
+            "beta_deg": float(rng.choice(BETAS_DEG)),
+            "feed_mm_s": float(rng.choice(FEEDS_MM_S)),
+            "depth_mm": float(rng.choice(DEPTHS_MM)),
+        },
+        "controller": CONTROLLERS[index % len(CONTROLLERS)],
+        "seed": int(rng.integers(2**31 - 1)),
+    }
+
+
+def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite: bool = False) -> dict[str, Any]:
+    """Write ``episodes`` real-schema logs ``out/episode_NNN.parquet`` of a reality with ``spec`` on.
+
+    Returns:
+        The truth: the spec, each effect's parameters and the episodes' scenarios/controllers.
+    """
+    import gymnasium as gym
+
+    import envs  # noqa: F401  (registers the ids)
+    from controllers import make_controller
+    from eval.logs import EpisodeLogger, build_header
+
+    if episodes < 1:
+        raise ValueError(f"episodes={episodes} must be >= 1")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    build_reality(spec)  # validate before running anything
+    rng = np.random.default_rng(seed)
+    plans = [episode_plan(i, rng) for i in range(episodes)]
+    env = gym.make("drillgym/UR5BoneDrill-v0")
+    try:
+        for i, plan in enumerate(plans):
+            controller = make_controller(plan["controller"])
+            effects = build_reality(spec)
+            ep_rng = np.random.default_rng([seed, i, 7])
+            for e in effects:
+                e.seed(ep_rng)
+            stack = [ForceScaleReset(), *effects] if effects else None
+            env.unwrapped.set_effects(stack)  # type: ignore[attr-defined]
+            env.reset(seed=plan["seed"], options={"scenario": plan["scenario"]})
+            header = build_header(env, controller.describe(), seed=None, source="real")
+            logger = EpisodeLogger(env, out / f"episode_{i:03d}.parquet", header, overwrite=overwrite)
+            obs, _ = logger.reset()  # no seed: continues the stream seeded above; the header keeps seed null
+            controller.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
+            start = True
+            while True:
+                action, _ = controller.predict(obs, episode_start=np.array([start]))
+                obs, _, terminated, truncated, _ = logger.step(action)
+                start = False
+                if terminated or truncated:
+                    break
+            logger.close_log()
+    finally:
+        env.close()
+    return {
+        "spec": spec,
+        "effects": [{"name": e.name, "explains": e.explains, "params": e.values} for e in build_reality(spec)],
+        "episodes": plans,
+        "seed": seed,
+    }
+
+
+def write_truth(truth: dict[str, Any], path: str | Path) -> Path:
+    """Write the truth JSON."""
+    p = Path(path)
+    p.write_text(json.dumps(truth, indent=2))
+    return p

@@ -1,0 +1,25 @@
+"""The reality generator's effects by name, and the candidate each one corresponds to."""
+
+from __future__ import annotations
+
+from eval.diagnosis.reality.arm import ChuckToolLength, JitteredLatency, JointZeroOffsets, StribeckFriction
+from eval.diagnosis.reality.base import RealityEffect
+from eval.diagnosis.reality.bone import BoneVoid, DensityLayer, EntryFriction, HeatSoftening
+from eval.diagnosis.reality.sensor import FTWarmup, WobblyRunout
+
+REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
+    cls.name: cls
+    for cls in (
+        FTWarmup,
+        JitteredLatency,
+        StribeckFriction,
+        JointZeroOffsets,
+        ChuckToolLength,
+        DensityLayer,
+        HeatSoftening,
+        EntryFriction,
+        WobblyRunout,
+        BoneVoid,
+    )
+}
+"""Every effect ``make-reality`` can switch on."""

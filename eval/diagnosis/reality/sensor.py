@@ -1,0 +1,93 @@
+"""Reality: F/T warm-up drift and a wobbling runout.
+
+Forms unlike the candidates' linear drift and clean once-per-revolution force.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from envs.effects.base import Param
+from eval.diagnosis.reality.base import RealityEffect
+
+
+class FTWarmup(RealityEffect):
+    """F/T warm-up: the zero settles exponentially after power-up.
+
+    Drift ``A (e^{−t₀/τ} − e^{−(t₀+t)/τ})`` since the tare, t₀ the (random, 0–60 s) time the sensor had been
+    on at the tare (τ a few minutes: nearly, not exactly, linear over an episode); torques drift by 2 %
+    of the forces' amount times 5 mm.
+    """
+
+    name = "ft_warmup"
+    summary = "F/T zero settling exponentially after power-up"
+    explains = "ft_drift"
+    params = (
+        Param("fx_n", -10.0, 10.0, 0.0, "asymptotic drift of Fx (N)"),
+        Param("fy_n", -10.0, 10.0, 0.0, "asymptotic drift of Fy (N)"),
+        Param("fz_n", -10.0, 10.0, 0.0, "asymptotic drift of Fz (N)"),
+        Param("tau_s", 5.0, 900.0, 300.0, "settling time constant (s)"),
+    )
+    channels = frozenset({"force", "torque"})
+
+    def attach(self, env: Any) -> None:
+        """Draw how long the sensor had been on."""
+        self.on_s = float(self.rng.uniform(0.0, 60.0))
+
+    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Add the settling drift."""
+        v = self.values
+        amp = np.array([v["fx_n"], v["fy_n"], v["fz_n"]])
+        tau = v["tau_s"]
+        shape = math.exp(-self.on_s / tau) - np.exp(-(self.on_s + np.asarray(t_s)) / tau)
+        out = np.array(wrenches, dtype=float)
+        out[:, :3] += shape[:, None] * amp[None, :]
+        out[:, 3:] += 0.02 * 0.005 * shape[:, None] * amp[None, :]
+        return out
+
+
+class WobblyRunout(RealityEffect):
+    """A tilted drill's runout with a spindle whose speed ripples.
+
+    The once-per-revolution force has a random phase, a wandering frequency and grows with the engaged
+    share to the power 1.5.
+    """
+
+    name = "wobbly_runout"
+    summary = "runout force with random phase, speed ripple and a nonlinear engagement law"
+    explains = "tool_runout"
+    params = (
+        Param("runout_m", 0.0, 60e-6, 0.0, "tip orbit radius (m)"),
+        Param("stiffness_n_m", 1e3, 2e4, 6e3, "radial force per metre of runout (N/m)"),
+        Param("speed_ripple", 0.0, 0.05, 0.01, "spindle speed ripple (fraction, 0.7 Hz)"),
+    )
+    channels = frozenset({"force", "torque"})
+
+    def attach(self, env: Any) -> None:
+        """Random phase of the orbit."""
+        self.phase0 = float(self.rng.uniform(0.0, 2 * math.pi))
+
+    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Add the orbiting force and its moment."""
+        v = self.values
+        cell = env.cell
+        t = np.asarray(t_s)
+        omega = 2 * math.pi * env.scenario.spindle_rpm / 60.0
+        ripple = v["speed_ripple"] * omega / (2 * math.pi * 0.7) * (1 - np.cos(2 * math.pi * 0.7 * t))
+        angle = self.phase0 + omega * t + ripple
+        tips = np.asarray(env.recorder.tip_task_m[-t.size :], dtype=float)
+        share = np.interp(
+            tips[:, 2] + tips[:, 0] * cell.solver.tan_beta, cell.table.depth_m, cell.table.engaged_fraction
+        )
+        amp = v["stiffness_n_m"] * v["runout_m"] * np.clip(share, 0.0, 1.0) ** 1.5
+        fx, fy = amp * np.cos(angle), amp * np.sin(angle)
+        out = np.array(wrenches, dtype=float)
+        arm = cell.sensor_arm_m
+        out[:, 0] += fx
+        out[:, 1] += fy
+        out[:, 3] -= arm * fy
+        out[:, 4] += arm * fx
+        return out

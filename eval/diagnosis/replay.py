@@ -1,0 +1,152 @@
+"""Replay a real episode's commands in the simulator: the sim's answer to the same commands.
+
+The scenario comes from the log's header; every agent step sends the logged command (correction and
+feed override) open loop. By default the replay is *nominal*: no sensor noise and no specimen
+variability (the sim's expectation); the null model switches them on (drawn from ``seed``) or sets the
+specimen's hardness. Effects (:mod:`envs.effects`) can be switched on for the replay.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs.drill_env import UR5BoneDrillEnv
+from envs.effects.base import Effect, TraceView
+from eval.diagnosis.channels import LF_CHANNELS
+from eval.diagnosis.episodes import EpisodeData
+
+
+@dataclass
+class SimTrace:
+    """The simulated channels of one replay, row-aligned with the real episode.
+
+    Attributes:
+        lf: the channels of :data:`~eval.diagnosis.channels.LF_CHANNELS` per sample, (n, 15); NaN on rows
+            the replay did not reach (it ended earlier than the log).
+        t_s: sample times (s), (n,).
+        engaged_share: share of the lips in bone per sample (the replay's own state), (n,).
+        sensor_arm_m: F/T origin to the drill tip (m).
+        spindle_rpm: spindle speed (rpm).
+    """
+
+    lf: np.ndarray
+    t_s: np.ndarray
+    engaged_share: np.ndarray
+    sensor_arm_m: float
+    spindle_rpm: float
+
+    def copy(self) -> SimTrace:
+        """A deep copy (sensor-only effects modify traces in place)."""
+        return SimTrace(self.lf.copy(), self.t_s, self.engaged_share, self.sensor_arm_m, self.spindle_rpm)
+
+    def with_sensor_effects(self, effects: Sequence[Effect]) -> SimTrace:
+        """A copy with sensor-only effects applied to its F/T channels."""
+        out = self.copy()
+        if effects:
+            view = TraceView(
+                t_s=self.t_s,
+                force_n=out.lf[:, 0:3],
+                torque_nm=out.lf[:, 3:6],
+                engaged_share=self.engaged_share,
+                sensor_arm_m=self.sensor_arm_m,
+                spindle_rpm=self.spindle_rpm,
+            )
+            for e in effects:
+                e.apply_to_trace(view)
+            out.lf[:, 0:3] = view.force_n
+            out.lf[:, 3:6] = view.torque_nm
+        return out
+
+
+class Replayer:
+    """Runs replays in one process, keeping one env (rebuilt only when the scenario changes)."""
+
+    def __init__(self) -> None:
+        self.env: UR5BoneDrillEnv | None = None
+        self._key = ""
+
+    def run(
+        self,
+        ep: EpisodeData,
+        effects: Sequence[Effect] = (),
+        seed: int = 0,
+        noise: bool = False,
+        variability: bool = False,
+        hardness: float = 1.0,
+    ) -> SimTrace:
+        """Replay ``ep``'s commands with ``effects`` on.
+
+        Args:
+            ep: the real episode.
+            effects: effects switched on for the replay.
+            seed: reset seed (draws the noise and the specimen when they are on).
+            noise: sensor noise as in the episode's scenario (else none).
+            variability: specimen hardness drawn as in the scenario (else the preset's).
+            hardness: a fixed specimen hardness factor (multiplies the scenario's ``density_scale``).
+        """
+        scenario = dict(ep.scenario)
+        if not noise:
+            scenario.update(ft_noise_n=0.0, tracker_noise_mm=0.0)
+        if not variability:
+            scenario["bone_variability"] = 0.0
+        if hardness != 1.0:
+            scenario["density_scale"] = scenario.get("density_scale", 1.0) * hardness
+        key = json.dumps(scenario, sort_keys=True)
+        if self.env is None:
+            self.env = UR5BoneDrillEnv(**scenario)
+            self._key = key
+        env = self.env
+        env.set_effects(list(effects) or None)
+        env.reset(seed=seed, options={"scenario": scenario} if key != self._key else None)
+        self._key = key
+        n_steps = len(ep.actions)
+        q = np.full((n_steps, 6), np.nan)
+        tracker = np.full((n_steps, 3), np.nan)
+        done = 0
+        for i in range(n_steps):
+            _, _, terminated, truncated, _ = env.step(ep.actions[i])
+            q[i] = env.cell.q_motor_rad
+            tracker[i] = env.tracker_reading
+            done = i + 1
+            if terminated or truncated:
+                break
+        rec = env.recorder
+        m = min(len(rec.t_s), ep.n)
+        reps = np.diff(np.concatenate([[0], np.arange(1, done + 1) * 5]))  # 5 samples per step
+        q_rows = np.repeat(q[:done], reps, axis=0)[:m]
+        cell = env.cell
+        tr_rows = np.repeat(tracker[:done], reps, axis=0)[:m]
+        tr_task = (tr_rows - cell.entry_base_m) @ cell.R_base_task
+        if not env.scenario.tracker:
+            tr_task[:] = np.nan
+        lf = np.full((ep.n, len(LF_CHANNELS)), np.nan)
+        lf[:m, 0:3] = np.asarray(rec.ft_force_n[:m])
+        lf[:m, 3:6] = np.asarray(rec.ft_torque_nm[:m])
+        lf[:m, 6:9] = tr_task
+        lf[:m, 9:15] = q_rows
+        tips = np.asarray(rec.tip_task_m[:m], dtype=float).reshape(m, 3)
+        share = np.zeros(ep.n)
+        depth = tips[:, 2] + tips[:, 0] * cell.solver.tan_beta
+        share[:m] = np.interp(depth, cell.table.depth_m, cell.table.engaged_fraction)
+        t = ep.t_s.copy()
+        t[:m] = np.asarray(rec.t_s[:m])
+        return SimTrace(lf, t, share, float(cell.sensor_arm_m), float(env.scenario.spindle_rpm))
+
+    def close(self) -> None:
+        """Release the env."""
+        if self.env is not None:
+            self.env.close()
+            self.env = None
+
+
+def seed_for(name: str, draw: int) -> int:
+    """A reproducible seed for null draw ``draw`` of episode ``name``."""
+    h = 0
+    for ch in f"{name}#{draw}":
+        h = (h * 131 + ord(ch)) % 2**31
+    return int(h) if math.isfinite(h) else 0

@@ -1,0 +1,145 @@
+"""Write a diagnosis: ``diagnosis.json``, ``report.md`` and its figures."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from eval.diagnosis.channels import STAGES
+from eval.diagnosis.context import build, make_spec
+from eval.diagnosis.diagnose import Diagnosis
+from eval.diagnosis.figures import plot_gap_map, plot_overlays, plot_ranking, plot_spectra
+from eval.diagnosis.replay import Replayer, seed_for
+
+OVERLAY_CHANNELS = ["fz_n", "fx_n", "tracker_x_task_m", "q1_rad"]
+
+
+def write_outputs(
+    diag: Diagnosis, out: Path, skipped: list[str] | None = None, figures: bool = True
+) -> dict[str, Path]:
+    """Write ``diagnosis.json``, ``report.md`` and (optionally) figures into ``out``; return their paths."""
+    out.mkdir(parents=True, exist_ok=True)
+    res = dict(diag.result)
+    res["skipped_logs"] = list(skipped or [])
+    paths = {"json": out / "diagnosis.json", "report": out / "report.md"}
+    paths["json"].write_text(json.dumps(_clean(res), indent=2))
+    figs: dict[str, Path] = {}
+    if figures:
+        figs = _figures(diag, out)
+    paths["report"].write_text(_markdown(res, figs))
+    return {**paths, **figs}
+
+
+def _figures(diag: Diagnosis, out: Path) -> dict[str, Path]:
+    res, data = diag.result, diag.data
+    figs = {
+        "gap_map": plot_gap_map(res["where"]["all_episodes"], res["where"]["heldout_after"], out / "gap_map.png"),
+    }
+    if res["effects"]:
+        figs["ranking"] = plot_ranking(res["effects"], out / "ranking.png")
+    ho = data.ho or list(range(len(data.episodes)))
+    i = max(ho, key=lambda k: data.baseline_terms[k].j)
+    ep = data.episodes[i]
+    rp = Replayer()
+    try:
+        traces = {"real": ep.lf, "sim (nominal)": data.nominal[i].lf}
+        named = next((s for s in diag.scores if s.named), None)
+        if named is not None:
+            spec = make_spec(named.fit.names, named.fit.params)
+            effects = build(spec)
+            physics = [e for e in effects if not e.sensor_only]
+            trace = rp.run(ep, physics) if physics else data.nominal[i]
+            traces[f"sim + {named.name}"] = trace.with_sensor_effects([e for e in effects if e.sensor_only]).lf
+        figs["overlays"] = plot_overlays(ep.name, ep.t_s, ep.stage, traces, out / "overlays.png", OVERLAY_CHANNELS)
+        null = rp.run(ep, seed=seed_for(ep.name, 99), noise=True, variability=True)
+        residuals = {
+            "real − sim": ep.lf[:, :3] - data.nominal[i].lf[:, :3],
+            "sim's own (null) − sim": null.lf[:, :3] - data.nominal[i].lf[:, :3],
+        }
+        figs["spectra"] = plot_spectra(residuals, out / "spectra.png")
+    finally:
+        rp.close()
+    return figs
+
+
+def _pct(v: Any) -> str:
+    return "–" if v is None or not math.isfinite(v) else f"{100 * v:.0f} %"
+
+
+def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
+    sig = res["significance"]
+    lines = [
+        "# Sim-to-real gap diagnosis",
+        "",
+        f"**Verdict: `{res['verdict']}`** — {res['summary']}.",
+        "",
+        f"{res['episodes']['n']} episodes ({len(res['episodes']['calibration'])} calibration, "
+        f"{len(res['episodes']['heldout'])} held-out). Gap over all episodes: {sig['gap']:.3g} "
+        f"(the simulator's own scatter: {sig['null']:.3g}; median episode {sig['median_episode_ratio']:.3g}× that; "
+        f"significant: {sig['significant']}). Gaps are mean squared block-mean differences in units of the "
+        "simulator's noise after profiling out each specimen's hardness (see docs/diagnosis.md).",
+        "",
+        "## Which effect",
+        "",
+        "| rank | model | parameters | held-out gap before | after | shrink (95 % CI) | P(best) | named |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for k, e in enumerate(res["effects"][:12], 1):
+        params = "; ".join(", ".join(f"{p}={v:.3g}" for p, v in vals.items()) for vals in e["params"].values())
+        lines.append(
+            f"| {k} | {e['name']} | {params} | {e['heldout_gap_before']:.3g} | {e['heldout_gap_after']:.3g} | "
+            f"{_pct(e['shrink'])} ({_pct(e['ci_low'])} to {_pct(e['ci_high'])}) | {e['p_best']:.2f} | "
+            f"{'**yes**' if e['named'] else ''} |"
+        )
+    lines += ["", "## Where", ""]
+    for cell in res["where"]["largest_excess"]:
+        lines.append(f"* {cell['channel']} in stage {cell['stage']}: {_pct(cell['share'])} of the excess gap")
+    lines += ["", f"Stages (estimated from the commanded depth): {', '.join(STAGES)}.", ""]
+    fr = res["where"].get("frequency") or {}
+    if fr:
+        bands = [f"{lo:g}–{hi:g} Hz" for lo, hi in fr["bands_hz"]]
+        lines += ["Force residual power, real over the simulator's own (per band):", ""]
+        lines += ["| channel | " + " | ".join(bands) + " |", "|---|" + "---|" * len(bands)]
+        for ch, row in zip(fr["channels"], fr["ratio"], strict=True):
+            cells = " | ".join("–" if v is None or not math.isfinite(v) else f"{v:.3g}×" for v in row)
+            lines.append(f"| {ch} | {cells} |")
+        lines.append("")
+    for key, title in (
+        ("gap_map", "Gap map"),
+        ("ranking", "Ranking"),
+        ("overlays", "Overlays (held-out episode with the largest gap)"),
+        ("spectra", "Force residual spectra"),
+    ):
+        if key in figs:
+            lines += [f"### {title}", "", f"![{title}]({figs[key].name})", ""]
+    reps = res["episodes"]["repairs"]
+    if reps or res.get("skipped_logs"):
+        lines += ["## Data", ""]
+        lines += [f"* repaired {name}: {'; '.join(r)}" for name, r in reps.items()]
+        lines += [f"* skipped {s}" for s in res.get("skipped_logs", [])]
+        lines.append("")
+    t = res["timing"]
+    lines += [
+        "## Run",
+        "",
+        f"{t['total_s']:.0f} s on {t['workers']} worker(s): replays {t['baseline_s']:.0f} s, single fits "
+        f"{t['singles_s']:.0f} s, pairs {t['pairs_s']:.0f} s ({t['candidates']} candidates, {t['pairs']} pairs).",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def _clean(v: Any) -> Any:
+    if isinstance(v, dict):
+        return {str(k): _clean(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_clean(x) for x in v]
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v

@@ -1,0 +1,160 @@
+"""Candidate effects: each changes the channels its physics says, and only those; off means untouched."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401
+from envs.effects import CHANNEL_GROUPS, EFFECTS, TraceView, build_effects, parse_effect_spec
+
+QUIET = {
+    "ft_noise_n": 0.0,
+    "tracker_noise_mm": 0.0,
+    "bone_variability": 0.0,
+    "depth_mm": 3.0,
+    "feed_mm_s": 1.0,
+    "beta_deg": 25.0,
+}
+TOL = {"force": 1e-3, "torque": 1e-5, "tracker": 1e-6, "q": 1e-6, "tcp": 1e-6}
+
+# A moderate value of each effect, chosen so its physics is visible in a 3 mm hole.
+SETTINGS = {
+    "ft_drift": "ft_drift:fz_rate_n_s=0.02,fx_rate_n_s=-0.01",
+    "latency": "latency:extra_latency_s=0.05",
+    "joint_friction": "joint_friction:coulomb_rad=2e-4,viscous_s=0.02",
+    "kinematic_offset": "kinematic_offset:dy_base_m=5e-4,dz_base_m=-2e-4",
+    "tool_length": "tool_length:dl_m=0.003",
+    "density_gradient": "density_gradient:offset=0.1,gradient_per_m=60",
+    "thermal_softening": "thermal_softening:softening=0.3,tau_s=2",
+    "skid_friction": "skid_friction:mu=0.2",
+    "tool_runout": "tool_runout:runout_m=3e-5",
+}
+
+
+def scripted_action(k: int) -> np.ndarray:
+    """Open-loop commands (the same whatever the effect does): a slow lateral wave and a feed change."""
+    a = np.zeros(4, dtype=np.float32)
+    a[0] = 0.15 * np.sin(0.2 * k)
+    a[1] = 0.1 * np.cos(0.15 * k)
+    a[3] = 0.25 if 30 <= k < 60 else 0.0
+    return a
+
+
+def run_open_loop(spec: str | None) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Channels of a scripted episode, and the replay's engaged share per sample."""
+    env = gym.make("drillgym/UR5BoneDrill-v0", **QUIET)
+    env.unwrapped.set_effects(build_effects(spec) if spec else None)
+    env.reset(seed=1)
+    u = env.unwrapped
+    q, tracker, tcp, k = [], [], [], 0
+    while True:
+        _, _, te, tr, _ = env.step(scripted_action(k))
+        k += 1
+        q.append(u.cell.q_motor_rad.copy())
+        tracker.append(u.tracker_reading.copy())
+        tcp.append(u.rtde_tcp_base.copy())
+        if te or tr:
+            break
+    out = {
+        "force": np.asarray(u.recorder.ft_force_n),
+        "torque": np.asarray(u.recorder.ft_torque_nm),
+        "tracker": np.array(tracker),
+        "q": np.array(q),
+        "tcp": np.array(tcp),
+    }
+    tips = np.asarray(u.recorder.tip_task_m)
+    share = np.interp(
+        tips[:, 2] + tips[:, 0] * u.cell.solver.tan_beta, u.cell.table.depth_m, u.cell.table.engaged_fraction
+    )
+    env.close()
+    return out, share
+
+
+def channels(spec: str | None) -> dict[str, np.ndarray]:
+    return run_open_loop(spec)[0]
+
+
+@pytest.fixture(scope="module")
+def baseline():
+    return channels(None)
+
+
+def max_diff(a: np.ndarray, b: np.ndarray) -> float:
+    n = min(len(a), len(b))
+    return float(np.max(np.abs(a[:n] - b[:n]))) if n else 0.0
+
+
+def test_every_candidate_has_a_setting_and_documented_parameters():
+    assert len(EFFECTS) >= 8
+    assert set(SETTINGS) == set(EFFECTS)
+    for cls in EFFECTS.values():
+        assert cls.__doc__ and cls.summary and cls.params
+        assert cls.channels <= set(CHANNEL_GROUPS)
+        for p in cls.params:
+            assert p.low <= p.default <= p.high and p.description
+
+
+@pytest.mark.parametrize("name", sorted(SETTINGS))
+def test_effect_changes_exactly_its_channels(baseline, name):
+    on = channels(SETTINGS[name])
+    changed = {g for g in CHANNEL_GROUPS if max_diff(on[g], baseline[g]) > TOL[g]}
+    untouched = {g for g in CHANNEL_GROUPS if max_diff(on[g], baseline[g]) <= 1e-12}  # float round-off at most
+    expected = set(EFFECTS[name].channels)
+    assert changed == expected, f"{name}: changed {sorted(changed)}, physics says {sorted(expected)}"
+    assert untouched == set(CHANNEL_GROUPS) - expected, (
+        f"{name}: {sorted(set(CHANNEL_GROUPS) - expected - untouched)} moved a little"
+    )
+
+
+def test_runout_moves_the_lateral_force_and_its_moment_only(baseline):
+    on = channels(SETTINGS["tool_runout"])
+    assert max_diff(on["force"][:, :2], baseline["force"][:, :2]) > 0.05
+    assert max_diff(on["force"][:, 2], baseline["force"][:, 2]) == 0.0
+    assert max_diff(on["torque"][:, 2], baseline["torque"][:, 2]) == 0.0
+
+
+def test_effects_at_their_defaults_leave_the_episode_bit_identical(baseline):
+    off = channels("+".join(EFFECTS))
+    for g in CHANNEL_GROUPS:
+        assert max_diff(off[g], baseline[g]) == 0.0, g
+
+
+def test_switching_effects_off_again_restores_the_default_cell(baseline):
+    env = gym.make("drillgym/UR5BoneDrill-v0", **QUIET)
+    env.reset(seed=1, options={"effects": build_effects(SETTINGS["tool_length"] + "+" + SETTINGS["kinematic_offset"])})
+    env.reset(seed=1, options={"effects": None})
+    cell = env.unwrapped.cell
+    assert cell.geometry_offset_task_m is None and cell.marker_offset_base_m is None
+    assert cell.sensor_arm_m == cell.tcp_offset_m
+    np.testing.assert_array_equal(cell.C_tool, cell.tool.compliance_tool_m_n())
+    env.close()
+
+
+@pytest.mark.parametrize("name", [n for n, c in EFFECTS.items() if c.sensor_only])
+def test_sensor_only_effect_on_a_trace_matches_the_simulated_one(name):
+    # The fast path the diagnosis fits with: the effect applied to recorded readings. The simulated one
+    # acts before the sensor's resolution (0.01-0.02 N), so the two agree to it.
+    base, share = run_open_loop(None)
+    sim = channels(SETTINGS[name])
+    n = len(base["force"])
+    arm = 0.11 + QUIET.get("stickout_mm", 36.0) * 1e-3
+    view = TraceView((np.arange(n) + 1) * 0.01, base["force"].copy(), base["torque"].copy(), share, arm, 20000.0)
+    EFFECTS[name](**parse_effect_spec(SETTINGS[name])[0][1]).apply_to_trace(view)
+    assert np.all(
+        np.max(np.abs(view.force_n - sim["force"]), axis=0) <= [0.0101, 0.0101, 0.0201]
+    )  # one resolution step
+    assert np.max(np.abs(view.torque_nm - sim["torque"])) <= 2e-4
+
+
+def test_effect_specs_and_parameters_are_validated():
+    assert parse_effect_spec("a:x=1,y=2e-3+b") == [("a", {"x": 1.0, "y": 0.002}), ("b", {})]
+    with pytest.raises(ValueError, match="unknown effect"):
+        build_effects("warp_drive")
+    with pytest.raises(ValueError, match="unknown parameter"):
+        build_effects("latency:delay=0.1")
+    with pytest.raises(ValueError, match="outside"):
+        build_effects("latency:extra_latency_s=5")
+    with pytest.raises(ValueError, match="PARAM=VALUE"):
+        parse_effect_spec("latency:0.1")

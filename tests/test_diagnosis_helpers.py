@@ -1,0 +1,128 @@
+"""Helpers of the diagnosis tests: a simulated episode log, and the same episode as a real cell's
+recording session in ``ur_rtde``'s file-recording format plus F/T, tracker and command CSVs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pandas as pd
+
+import envs  # noqa: F401
+from controllers import make_controller
+from eval.logs import EpisodeLogger, build_header, read_episode_log
+
+RTDE_T0 = 5321.25
+"""Controller time (s since its start) at the episode's t = 0."""
+
+
+def sim_log(path: Path, controller: str = "li2023", seed: int = 0, **scenario) -> tuple[dict, pd.DataFrame]:
+    """Run one episode and log it (sim schema); return ``read_episode_log``'s answer."""
+    kw = {"depth_mm": 3.0, "feed_mm_s": 1.0, **scenario}
+    env = gym.make("drillgym/UR5BoneDrill-v0", **kw)
+    ctrl = make_controller(controller)
+    logger = EpisodeLogger(env, path, build_header(env, ctrl.describe(), seed), overwrite=True)
+    obs, _ = logger.reset(seed=seed)
+    ctrl.set_plan(env.unwrapped.plan)
+    start = True
+    while True:
+        a, _ = ctrl.predict(obs, episode_start=np.array([start]))
+        obs, _, te, tr, _ = logger.step(a)
+        start = False
+        if te or tr:
+            break
+    logger.close()
+    return read_episode_log(path)
+
+
+def _fixed6(x: float) -> str:
+    return f"{x:.6f}"
+
+
+def write_rtde_recording(path: Path, t_s: np.ndarray, variables: dict[str, np.ndarray]) -> None:
+    """Write a CSV exactly as ``RTDEReceiveInterface::startFileRecording`` does.
+
+    The header line names each variable, a vector expanded as ``name_0,...,name_{n-1}``, comma-separated
+    with no trailing comma; each row holds the values in fixed notation with 6 decimals (``std::fixed``,
+    ``std::setprecision(6)``), integers as integers.
+    """
+    names, columns = ["timestamp"], [t_s]
+    for name, v in variables.items():
+        v = np.asarray(v)
+        if v.ndim == 1:
+            names.append(name)
+            columns.append(v)
+        else:
+            for j in range(v.shape[1]):
+                names.append(f"{name}_{j}")
+                columns.append(v[:, j])
+    lines = [",".join(names)]
+    for row in zip(*columns, strict=True):
+        lines.append(",".join(str(int(x)) if isinstance(x, np.integer) else _fixed6(float(x)) for x in row))
+    path.write_text("\n".join(lines) + "\n")
+
+
+def write_session(d: Path, header: dict, df: pd.DataFrame, host_t0: float = 100.0) -> Path:
+    """A recording session of a logged episode: what a real cell's recorders would have written."""
+    d.mkdir(parents=True, exist_ok=True)
+    first = np.flatnonzero(np.diff(np.concatenate([[-1], df["step"].to_numpy()])) != 0)
+    n_steps = first.size
+    t_cmd = np.arange(n_steps) * 0.05
+    step_vals = df.iloc[first]
+    # RTDE at 125 Hz; the state at time t is the step's end-of-step reading for the step it falls in.
+    t_rtde = np.arange(1, int(n_steps * 0.05 * 125) + 1) / 125.0
+    k = np.clip(np.ceil(t_rtde / 0.05 - 1e-9).astype(int) - 1, 0, n_steps - 1)
+    q = step_vals[[f"q{i}_rad" for i in range(6)]].to_numpy()[k]
+    tcp = step_vals[["tcp_x_base_m", "tcp_y_base_m", "tcp_z_base_m"]].to_numpy()[k]
+    pose = np.column_stack([tcp, np.tile([2.2, -2.2, 0.0], (k.size, 1))])
+    write_rtde_recording(
+        d / "rtde.csv",
+        RTDE_T0 + t_rtde,
+        {
+            "target_q": q,
+            "actual_q": q,
+            "actual_qd": np.zeros_like(q),
+            "actual_TCP_pose": pose,
+            "robot_mode": np.full(k.size, 7),
+        },
+    )
+    ft = pd.DataFrame(
+        {
+            "t_s": host_t0 + df["t_s"],
+            "fx_n": df["ft_fx_n"],
+            "fy_n": df["ft_fy_n"],
+            "fz_n": df["ft_fz_n"],
+            "tx_nm": df["ft_tx_nm"],
+            "ty_nm": df["ft_ty_nm"],
+            "tz_nm": df["ft_tz_nm"],
+        }
+    )
+    ft.to_csv(d / "ft.csv", index=False, float_format="%.6f")
+    tr_t = np.arange(1, int(n_steps * 0.05 * 60) + 1) / 60.0
+    kt = np.clip(np.ceil(tr_t / 0.05 - 1e-9).astype(int) - 1, 0, n_steps - 1)
+    trk = step_vals[["tracker_x_base_m", "tracker_y_base_m", "tracker_z_base_m"]].to_numpy()[kt]
+    pd.DataFrame({"t_s": host_t0 + tr_t, "x_m": trk[:, 0], "y_m": trk[:, 1], "z_m": trk[:, 2], "valid": 1}).to_csv(
+        d / "tracker.csv", index=False, float_format="%.7f"
+    )
+    cmd = pd.DataFrame(
+        {
+            "t_s": host_t0 + t_cmd,
+            "phase": df["phase"].to_numpy()[first],
+            "depth_cmd_m": df["depth_cmd_m"].to_numpy()[first],
+            "cmd_dx_base_m": step_vals["cmd_dx_base_m"].to_numpy(),
+            "cmd_dy_base_m": step_vals["cmd_dy_base_m"].to_numpy(),
+            "cmd_dz_base_m": step_vals["cmd_dz_base_m"].to_numpy(),
+            "cmd_feed_scale": step_vals["cmd_feed_scale"].to_numpy(),
+        }
+    )
+    cmd.to_csv(d / "commands.csv", index=False, float_format="%.9g")
+    meta = {
+        "scenario": header["scenario"],
+        "controller": header["controller"],
+        "plan": header["plan"],
+        "clock": {"rtde_timestamp_at_t0_s": RTDE_T0, "host_t0_s": host_t0},
+    }
+    (d / "header.json").write_text(json.dumps(meta))
+    return d

@@ -1,0 +1,132 @@
+"""The diagnosis end to end on small generated realities: names what it should, stays quiet on clean data."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from eval.diagnosis.bench import score_case, summarise
+from eval.diagnosis.bench_cases import Case, full_cases, quick_cases
+from eval.diagnosis.diagnose import DiagnoseOptions, diagnose
+from eval.diagnosis.episodes import load_episodes
+from eval.diagnosis.reality.generate import make_reality
+
+CANDIDATES = ("ft_drift", "tool_runout", "latency")
+REQUIRED_EFFECT_KEYS = {"name", "params", "heldout_gap_before", "heldout_gap_after", "shrink", "ci_low", "ci_high"}
+
+
+def diagnosed(tmp_path, spec: str, seed: int, episodes: int = 6) -> dict:
+    make_reality(spec, episodes, seed, tmp_path / "logs")
+    eps, skipped = load_episodes(tmp_path / "logs")
+    assert not skipped
+    return diagnose(eps, DiagnoseOptions(workers=1, candidates=CANDIDATES, progress=False))
+
+
+def test_a_drifting_ft_sensor_is_named_and_the_gap_shrinks(tmp_path):
+    res = diagnosed(tmp_path, "ft_warmup:fz_n=3,fx_n=-1.5,fy_n=1", seed=11)
+    assert res["verdict"] == "explained" and res["named"] == ["ft_drift"]
+    best = res["effects"][0]
+    assert REQUIRED_EFFECT_KEYS <= set(best)
+    assert best["shrink"] >= 0.6 and best["ci_low"] <= best["shrink"] <= best["ci_high"]
+    assert best["heldout_gap_after"] < best["heldout_gap_before"]
+    where = res["where"]["all_episodes"]
+    fz = where["channels"].index("fz_n")
+    q1 = where["channels"].index("q1_rad")
+    retract = where["stages"].index("retract")
+    assert where["normalised"][fz][retract] > 10 * max(where["normalised"][q1][retract], 1.0)
+
+
+def test_clean_data_names_no_effect(tmp_path):
+    res = diagnosed(tmp_path, "none", seed=12)
+    assert res["verdict"] == "no_gap" and res["named"] == []
+    assert res["summary"].startswith("no significant gap")
+
+
+def test_an_effect_outside_the_library_is_unexplained_and_located(tmp_path):
+    res = diagnosed(tmp_path, "bone_void:length_m=0.0015,depth_m=0.0025", seed=13)
+    assert res["verdict"] == "unexplained" and res["named"] == []
+    assert (res["location"]["channel"], res["location"]["stage"]) == ("fz_n", "stable")
+    assert res["summary"] == "unexplained — located at fz_n, stable"
+
+
+def test_diagnose_cli_writes_json_report_and_figures_on_all_cores(tmp_path):
+    from eval.cli import main
+
+    make_reality("wobbly_runout:runout_m=4e-5", 4, 14, tmp_path / "logs")
+    out = tmp_path / "out"
+    argv = ["diagnose", "--real", str(tmp_path / "logs"), "--out", str(out), "--workers", "2"]
+    assert main([*argv, "--candidates", "tool_runout,ft_drift", "--no-progress"]) == 0
+    res = json.loads((out / "diagnosis.json").read_text())
+    assert res["verdict"] in ("explained", "no_gap", "unexplained") and "where" in res
+    assert res["named"] == ["tool_runout"]
+    assert res["timing"]["workers"] == 2
+    report = (out / "report.md").read_text()
+    assert "gap_map.png" in report and (out / "gap_map.png").stat().st_size > 1000
+    assert (out / "overlays.png").is_file() and (out / "spectra.png").is_file()
+
+
+def test_too_few_episodes_is_a_clear_error(tmp_path):
+    make_reality("none", 2, 0, tmp_path / "logs")
+    eps, _ = load_episodes(tmp_path / "logs")
+    with pytest.raises(ValueError, match="at least 4"):
+        diagnose(eps, DiagnoseOptions(workers=1, progress=False))
+
+
+def test_benchmark_cases_cover_the_acceptance():
+    cases = full_cases()
+    singles = [c for c in cases if c.kind == "single"]
+    assert {c.truth[0] for c in singles} == {
+        "ft_drift", "latency", "joint_friction", "kinematic_offset", "tool_length",
+        "density_gradient", "thermal_softening", "skid_friction", "tool_runout",
+    }  # fmt: skip
+    assert all(sum(c.truth == s.truth for c in singles) >= 2 for s in singles)  # two magnitudes each
+    assert any(c.kind == "pair" for c in cases) and any(c.kind == "clean" for c in cases)
+    outside = [c for c in cases if c.kind == "outside"]
+    assert outside and all(c.truth == [] and c.expected_location for c in outside)
+    assert len(quick_cases()) <= 3
+
+
+def test_benchmark_scoring():
+    single = Case("x", "single", "ft_warmup:fz_n=1", 0)
+    res = {
+        "verdict": "explained",
+        "named": ["ft_drift"],
+        "location": None,
+        "effects": [{"name": "ft_drift", "effects": ["ft_drift"], "shrink": 0.8}],
+        "significance": {"gap": 3.0, "null": 0.5},
+        "timing": {"total_s": 1.0},
+    }
+    row = score_case(single, res)
+    assert row["correct"] and row["true_effect_shrink"] == 0.8
+    outside = Case("o", "outside", "bone_void:length_m=0.001", 0)
+    res_o = {
+        **res,
+        "verdict": "unexplained",
+        "named": [],
+        "location": {"channel": "fz_n", "stage": "stable"},
+        "effects": [],
+    }
+    assert score_case(outside, res_o)["correct"]
+    res_wrong = {**res_o, "location": {"channel": "q1_rad", "stage": "stable"}}
+    assert not score_case(outside, res_wrong)["correct"]
+    summary = summarise([row, score_case(outside, res_o)])
+    assert summary["figures"]["top1_accuracy_single"] == 1.0 and summary["passed"]["top1_accuracy_single"]
+
+
+@pytest.mark.expensive
+def test_bench_diagnosis_quick_runs_end_to_end(tmp_path):
+    from eval.cli import main
+
+    assert main(["bench-diagnosis", "--quick", "--out", str(tmp_path), "--workers", "2", "--no-progress"]) == 0
+    bench = json.loads((tmp_path / "bench.json").read_text())
+    assert bench["summary"]["cases"] == 3 and (tmp_path / "bench.md").is_file()
+
+
+@pytest.mark.parametrize("command", ["diagnose", "make-reality", "bench-diagnosis", "import-rtde"])
+def test_new_commands_have_help(command, capsys):
+    from eval.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main([command, "--help"])
+    assert e.value.code == 0 and "--out" in capsys.readouterr().out

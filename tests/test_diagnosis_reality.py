@@ -1,0 +1,125 @@
+"""The reality generator: separate effects in other forms, real-schema logs with nothing privileged."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from test_diagnosis_effects import QUIET, scripted_action
+
+from envs.effects import CHANNEL_GROUPS, EFFECTS
+from eval.diagnosis.reality.bone import ForceScaleReset
+from eval.diagnosis.reality.generate import build_reality, make_reality
+from eval.diagnosis.reality.library import REALITY_EFFECTS
+from eval.logs import read_episode_log
+
+SETTINGS = {
+    "ft_warmup": "ft_warmup:fz_n=3,fx_n=-1.5",
+    "jittered_latency": "jittered_latency:mean_s=0.05,jitter_s=0.01",
+    "stribeck_friction": "stribeck_friction:static_rad=3e-4,coulomb_rad=2e-4",
+    "joint_offsets": "joint_offsets:dq0_rad=1e-3,dq1_rad=5e-4",
+    "chuck_tool_length": "chuck_tool_length:dl_m=0.003,chuck_rad_per_nm=0.02",
+    "density_layer": "density_layer:hardening=0.3,depth_m=0.001",
+    "heat_softening": "heat_softening:softening_per_k=0.004",
+    "entry_friction": "entry_friction:mu=0.3",
+    "wobbly_runout": "wobbly_runout:runout_m=3e-5",
+    "bone_void": "bone_void:length_m=0.001,depth_m=0.0015",
+}
+TOL = {"force": 1e-3, "torque": 1e-5, "tracker": 1e-6, "q": 1e-6, "tcp": 1e-6}
+UNTOUCHED = {"force": 1e-12, "torque": 1e-12, "tracker": 1e-12, "q": 1e-7, "tcp": 1e-7}
+
+
+def run(spec: str | None):
+    import gymnasium as gym
+
+    env = gym.make("drillgym/UR5BoneDrill-v0", **QUIET)
+    effects = build_reality(spec) if spec else []
+    for e in effects:
+        e.seed(np.random.default_rng(5))
+    env.unwrapped.set_effects([ForceScaleReset(), *effects] if effects else None)
+    env.reset(seed=1)
+    u = env.unwrapped
+    q, tracker, tcp, k = [], [], [], 0
+    while True:
+        _, _, te, tr, _ = env.step(scripted_action(k))
+        k += 1
+        q.append(u.cell.q_motor_rad.copy())
+        tracker.append(u.tracker_reading.copy())
+        tcp.append(u.rtde_tcp_base.copy())
+        if te or tr:
+            break
+    out = {
+        "force": np.asarray(u.recorder.ft_force_n),
+        "torque": np.asarray(u.recorder.ft_torque_nm),
+        "tracker": np.array(tracker),
+        "q": np.array(q),
+        "tcp": np.array(tcp),
+    }
+    env.close()
+    return out
+
+
+@pytest.fixture(scope="module")
+def baseline():
+    return run(None)
+
+
+def test_reality_effects_are_separate_classes_mapped_to_candidates():
+    assert set(SETTINGS) == set(REALITY_EFFECTS)
+    for name, cls in REALITY_EFFECTS.items():
+        assert cls not in EFFECTS.values() and name not in EFFECTS
+        assert cls.explains is None or cls.explains in EFFECTS
+        assert (cls.explains is None) == (cls.location is not None)
+    assert {c.explains for c in REALITY_EFFECTS.values()} - {None} == set(EFFECTS)  # each candidate has a truth
+    assert any(c.explains is None for c in REALITY_EFFECTS.values())  # and one effect is outside the library
+
+
+@pytest.mark.parametrize("name", sorted(SETTINGS))
+def test_reality_effect_changes_exactly_its_channels(baseline, name):
+    on = run(SETTINGS[name])
+    n = {g: min(len(on[g]), len(baseline[g])) for g in CHANNEL_GROUPS}
+    diff = {g: float(np.max(np.abs(on[g][: n[g]] - baseline[g][: n[g]]))) for g in CHANNEL_GROUPS}
+    expected = set(REALITY_EFFECTS[name].channels)
+    assert {g for g in CHANNEL_GROUPS if diff[g] > TOL[g]} == expected, diff
+    # Untouched: no change beyond round-off (joint offsets that follow the pose move the encoders' view by
+    # < 1e-7 rad while the servo catches up, a tenth of the RTDE resolution).
+    assert all(diff[g] <= UNTOUCHED[g] for g in set(CHANNEL_GROUPS) - expected), diff
+
+
+def test_make_reality_writes_real_schema_logs_with_nothing_privileged(tmp_path):
+    truth = make_reality("ft_warmup:fz_n=2+bone_void:length_m=0.001", 3, 7, tmp_path / "logs")
+    logs = sorted((tmp_path / "logs").glob("*.parquet"))
+    assert len(logs) == 3
+    controllers, scenarios = set(), set()
+    for p in logs:
+        header, df = read_episode_log(p)
+        assert header["source"] == "real" and header["seed"] is None
+        assert not [c for c in df.columns if c.startswith("sim_")]
+        text = json.dumps(header)
+        assert "ft_warmup" not in text and "bone_void" not in text and "effects" not in text
+        assert header["scenario"]["latency_s"] == 0.014 and header["scenario"]["density_scale"] == 1.0
+        controllers.add(header["controller"]["name"])
+        scenarios.add((header["scenario"]["beta_deg"], header["scenario"]["feed_mm_s"], header["scenario"]["depth_mm"]))
+    assert controllers == {"none", "li2023", "zhang2005"} and len(scenarios) > 1
+    assert [e["name"] for e in truth["effects"]] == ["ft_warmup", "bone_void"]
+    # Same seed, same logs.
+    make_reality("ft_warmup:fz_n=2+bone_void:length_m=0.001", 1, 7, tmp_path / "again")
+    a = read_episode_log(logs[0])[1]
+    b = read_episode_log(tmp_path / "again" / "episode_000.parquet")[1]
+    np.testing.assert_array_equal(a["ft_fz_n"], b["ft_fz_n"])
+
+
+def test_make_reality_cli_keeps_the_truth_outside_the_log_folder(tmp_path):
+    from eval.cli import main
+
+    assert (
+        main(["make-reality", "--effects", "none", "--episodes", "1", "--seed", "0", "--out", str(tmp_path / "r")]) == 0
+    )
+    assert sorted(p.name for p in (tmp_path / "r").iterdir()) == ["episode_000.parquet"]
+    assert json.loads((tmp_path / "r.truth.json").read_text())["effects"] == []
+
+
+def test_unknown_reality_effects_are_refused():
+    with pytest.raises(ValueError, match="unknown reality effect"):
+        build_reality("ft_drift:fz_rate_n_s=0.01")  # a candidate is not a reality
