@@ -73,6 +73,8 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
     import ray
 
     t0 = time.perf_counter()
+    if address not in (None, "auto") and not str(address).startswith("ray://"):
+        _check_reachable(str(address))  # also when an instance is already up: never run elsewhere silently
     owned = not ray.is_initialized()
     if owned:
         if address is None:
