@@ -27,7 +27,7 @@ SETTINGS = {
     "kinematic_offset": "kinematic_offset:dy_base_m=5e-4,dz_base_m=-2e-4",
     "tool_length": "tool_length:dl_m=0.003",
     "density_gradient": "density_gradient:offset=0.1,gradient_per_m=60",
-    "thermal_softening": "thermal_softening:softening=0.3,tau_s=2",
+    "thermal_softening": "thermal_softening:softening=0.3,work_j=5",
     "skid_friction": "skid_friction:mu=0.2",
     "tool_runout": "tool_runout:runout_m=3e-5",
 }

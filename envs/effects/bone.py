@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from envs.constants import CONTROL_DT_S
 from envs.effects.base import Effect, Param
 
 MIN_HARDNESS = 0.05
@@ -43,36 +44,36 @@ class DensityGradient(Effect):
 
 
 class ThermalSoftening(Effect):
-    """Thermal softening: the bone around the drill heats up and cuts more easily as drilling goes on.
+    """Thermal softening: the bone softens with the heat the drill has put into it.
 
-    Forces scale by ``1 − a (1 − exp(−t_c / τ))``, t_c the time since first contact (s): a saturating
-    loss a with time constant τ. Drilling heats cortical bone by 10–50 K within seconds; its strength
+    Forces scale by ``1 − a (1 − exp(−W / W₀))``, W the cutting work done so far (J): the spindle's
+    ``|M_z| ω`` plus the feed's ``|F_z| v``, summed over the episode. A saturating loss a with a heat scale
+    W₀. Drilling heats cortical bone by 10–50 K within seconds (1.5 mm drill: ~1–3 W); its strength
     falls by ~0.5–1 % per K.
     """
 
     name = "thermal_softening"
-    summary = "forces fall with time in contact (saturating exponential)"
+    summary = "forces fall with the cutting work done (saturating exponential in the heat put in)"
     params = (
         Param("softening", 0.0, 0.8, 0.0, "asymptotic fractional loss of hardness"),
-        Param("tau_s", 0.5, 60.0, 10.0, "time constant of the loss (s)"),
+        Param("work_j", 1.0, 200.0, 20.0, "cutting work for 63 % of the loss (J)"),
     )
     channels = frozenset({"force", "torque", "tracker"})
 
     def attach(self, env: Any) -> None:
-        """No contact yet."""
-        self.t_contact_s: float | None = None
+        """Cold bone."""
+        self.work_j = 0.0
 
     def begin_step(self, env: Any) -> None:
-        """Scale the specimen's forces by the softening reached so far."""
+        """Add the last step's cutting work and scale the specimen's forces by the softening reached."""
         a = self.values["softening"]
         if a == 0.0:
             return
-        if self.t_contact_s is None:
-            if env.cell.sample.stage == 0:
-                return
-            self.t_contact_s = env.t_s
-        tc = env.t_s - self.t_contact_s
-        factor = 1.0 - a * (1.0 - math.exp(-tc / self.values["tau_s"]))
+        smp = env.cell.sample
+        omega = 2.0 * math.pi * env.scenario.spindle_rpm / 60.0
+        power_w = abs(smp.torque_axis) * omega + abs(smp.force[2]) * max(env.path.speed_m_s(env.feed_scale), 0.0)
+        self.work_j += power_w * CONTROL_DT_S
+        factor = 1.0 - a * (1.0 - math.exp(-self.work_j / self.values["work_j"]))
         env.cell.solver.force_scale = env.specimen_hardness * max(factor, MIN_HARDNESS)
 
 

@@ -59,12 +59,14 @@ SINGLES: dict[str, tuple[str, str]] = {
 """Reality effect -> (moderate, strong) spec."""
 
 PAIRS: tuple[str, ...] = (
-    "ft_warmup:fz_n=2.0,fx_n=1.0+density_layer:hardening=0.3",
-    "jittered_latency:mean_s=0.05+chuck_tool_length:dl_m=0.003,chuck_rad_per_nm=0.02",
-    "joint_offsets:dq1_rad=7e-4+heat_softening:softening_per_k=0.003",
-    "stribeck_friction:static_rad=3e-4,coulomb_rad=2e-4+wobbly_runout:runout_m=3e-5",
-    "entry_friction:mu=0.3+ft_warmup:fz_n=2.0,fy_n=1.0",
+    "ft_warmup:fz_n=10,fx_n=5+density_layer:hardening=0.05",
+    "jittered_latency:mean_s=0.05+chuck_tool_length:dl_m=0.0001",
+    "joint_offsets:dq1_rad=2e-4+heat_softening:softening_per_k=0.002",
+    "stribeck_friction:static_rad=1e-4,coulomb_rad=7e-5+wobbly_runout:runout_m=6e-5",
+    "entry_friction:mu=0.01+ft_warmup:fz_n=10,fy_n=5",
 )
+"""Two effects at once, each at a size that leaves a gap of the same order as the other's (so that
+either could be seen on top of the other's misfit)."""
 OUTSIDE: tuple[str, ...] = ("bone_void:length_m=0.001", "bone_void:length_m=0.0015,depth_m=0.003,residual=0.2")
 CLEAN_TRIALS = 6
 

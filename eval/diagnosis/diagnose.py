@@ -48,8 +48,8 @@ class DiagnoseOptions:
     """Processes (each runs its own simulator)."""
     candidates: tuple[str, ...] = tuple(EFFECTS)
     """Candidate effects to try (default: the whole library)."""
-    pair_pool: int = 3
-    """Pairs are formed of the best single and each of the next best (this many singles in all)."""
+    pair_seeds: int = 2
+    """Pairs are built on top of this many of the best singles (forward selection from each)."""
     seed: int = 0
     """Seed of the split and the bootstrap."""
     progress: bool = True
@@ -99,9 +99,12 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     pairs: list[FitResult] = []
     g_null = pooled(null)
     if significance["significant"] and scores and scores[0].after >= PAIR_TRY_RESIDUAL * g_null:
+        # Forward selection from the best singles: every other candidate is fitted on top of each.
         s0 = baseline_score(before)
-        pool = [s for s in scores if s.score < s0][: opt.pair_pool]
-        jobs = [((pool[0].fit.names[0], b.fit.names[0]), [pool[0].fit.params[0], b.fit.params[0]]) for b in pool[1:]]
+        seeds = [s for s in scores if s.score < s0][: opt.pair_seeds] or scores[:1]
+        jobs = [
+            ((s.fit.names[0], n), [s.fit.params[0], {}]) for s in seeds for n in opt.candidates if n != s.fit.names[0]
+        ]
         if jobs:
             bar.total += len(jobs)
             bar.set_postfix_str("fitting pairs")
@@ -157,10 +160,10 @@ def _verdict(
         chosen = best_single
     by_name = {s.fit.names[0]: s for s in singles}
     for p in (s for s in scores if len(s.fit.names) == 2):
-        if best_single is None or best_single.fit.names[0] not in p.fit.names:
-            continue  # a pair is named only on top of the best single
-        other = by_name.get(next(n for n in p.fit.names if n != best_single.fit.names[0]))
-        if nameable(p, s0) and pair_beats(p, best_single, other, pooled(null)):
+        first, second = (by_name.get(n) for n in p.fit.names)
+        if best_single is None or first is None:
+            continue
+        if nameable(p, s0) and pair_beats(p, best_single, first, second, pooled(null)):
             if chosen is None or chosen is best_single or p.score < chosen.score:
                 chosen = p
     if chosen is None:

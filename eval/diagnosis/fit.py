@@ -29,8 +29,6 @@ GRID_FRACTIONS_TWO_SIDED = (1 / 8, 1 / 2)
 """Grid levels on each side of a two-sided parameter."""
 EVALS_PER_PARAM = 14
 """Local-search budget per parameter (evaluations)."""
-EVALS_PER_PARAM_PAIR = 8
-"""... for a pair, which starts from its singles' fits."""
 INITIAL_STEP = 1 / 16
 """First step of the local search (fraction of each parameter's range)."""
 MIN_STEP = 1 / 1024
@@ -96,11 +94,16 @@ class ParamBox:
         uq = np.round(np.clip(u, 0.0, 1.0), 5)
         return tuple((n, tuple(sorted(p.items()))) for n, p in zip(self.names, self.from_unit(uq), strict=True))
 
-    def grid(self) -> list[np.ndarray]:
-        """The off point, then one parameter at a time at its grid levels."""
-        off = self.to_unit([{} for _ in self.names])
+    def grid(self, around: np.ndarray | None = None, effect: int | None = None) -> list[np.ndarray]:
+        """The off point (or ``around``), then one parameter at a time at its grid levels.
+
+        ``effect`` limits the grid to that effect's parameters (the others stay at ``around``).
+        """
+        off = self.to_unit([{} for _ in self.names]) if around is None else np.asarray(around, dtype=float)
         points = [off]
-        for i, (_, p) in enumerate(self.entries):
+        for i, (k, p) in enumerate(self.entries):
+            if effect is not None and k != effect:
+                continue
             span_hi, span_lo = p.high - p.default, p.default - p.low
             levels = []
             if span_lo > 0 and span_hi > 0:
@@ -124,8 +127,9 @@ def fit_model(
     Args:
         ev: the evaluator (data + replayer).
         names: effect names.
-        start: a starting point (e.g. single-effect fits for a pair): skips the coarse grid.
-        budget: local-search evaluations (default :data:`EVALS_PER_PARAM` per parameter).
+        start: fitted parameters to build on (a pair on top of its first effect's fit): only the last
+            effect's parameters are then fitted (forward selection), the others stay at ``start``.
+        budget: local-search evaluations (default :data:`EVALS_PER_PARAM` per fitted parameter).
     """
     t0 = time.perf_counter()
     box = ParamBox(names)
@@ -149,26 +153,31 @@ def fit_model(
             guess = _guess(ev, names)
             if guess is not None:
                 points.append(box.to_unit(guess))
-            values = [objective(u) for u in points]
+            free = np.arange(box.size)
+        else:
+            # Forward selection: the earlier effects stay at their fit; the last one is fitted on top.
+            points = box.grid(around=box.to_unit(start), effect=len(names) - 1)
+            free = np.array([i for i, (k, _) in enumerate(box.entries) if k == len(names) - 1])
+        values = [objective(u) for u in points]
+        if free.size > 1:
             combined = points[0].copy()
-            for i in range(box.size):  # best level of each parameter, combined
+            for i in free:  # best level of each parameter, combined
                 axis = [(v, u[i]) for u, v in zip(points, values, strict=True) if u[i] != points[0][i]]
                 combined[i] = min([(values[0], points[0][i]), *axis])[1]
-            if box.size > 1:
-                points.append(combined)
-                values.append(objective(combined))
-            order = np.argsort(values)
-            starts = [points[int(order[0])]]
-            if not _worth_refining(values[0], values[int(order[0])], ev.data):
-                starts = []
-            # A second start in another direction when one is nearly as good (curved valleys, e.g. an
-            # uphill vs a deeper tool offset, which both make the drill touch earlier).
-            if box.size > 1 and len(order) > 1 and values[int(order[1])] < 2.0 * values[int(order[0])]:
-                starts.append(points[int(order[1])])
-        else:
-            starts = [box.to_unit(start)]
-        total = budget or (EVALS_PER_PARAM if start is None else EVALS_PER_PARAM_PAIR) * box.size
-        ends = [_local_search(objective, u0, total // len(starts)) for u0 in starts]
+            points.append(combined)
+            values.append(objective(combined))
+        order = np.argsort(values)
+        starts = [points[int(order[0])]]
+        # A second start in another direction when one is nearly as good (curved valleys, e.g. an
+        # uphill vs a deeper tool offset, which both make the drill touch earlier).
+        if free.size > 1 and len(order) > 1 and values[int(order[1])] < 2.0 * values[int(order[0])]:
+            starts.append(points[int(order[1])])
+        # A single effect that does nothing on its grid is left there; an effect fitted on top of another
+        # is always refined: what it has to explain is small, and the grid's levels easily overshoot it.
+        if start is None and not _worth_refining(values[0], values[int(order[0])], ev.data):
+            starts = []
+        total = budget or EVALS_PER_PARAM * free.size
+        ends = [_local_search(objective, u0, total // len(starts), free) for u0 in starts]
         u_best = min(ends, key=objective) if ends else points[int(np.argmin(values))]
         spec = box.spec(u_best)
         result.params = [dict(p) for _, p in spec]
@@ -182,7 +191,9 @@ def fit_model(
     return result
 
 
-def _local_search(objective: Callable[[np.ndarray], float], u0: np.ndarray, budget: int) -> np.ndarray:
+def _local_search(
+    objective: Callable[[np.ndarray], float], u0: np.ndarray, budget: int, free: np.ndarray | None = None
+) -> np.ndarray:
     """Bounded compass search in the unit box.
 
     Try ± a step on each parameter, move on improvement (then try the same move again, a pattern step),
@@ -194,9 +205,10 @@ def _local_search(objective: Callable[[np.ndarray], float], u0: np.ndarray, budg
     u = np.clip(np.asarray(u0, dtype=float), 0.0, 1.0)
     f = objective(u)
     step, evals = INITIAL_STEP, 0
+    axes = range(u.size) if free is None else [int(i) for i in free]
     while evals < budget and step >= MIN_STEP:
         improved = False
-        for i in range(u.size):
+        for i in axes:
             for sign in (1.0, -1.0):
                 v = u.copy()
                 v[i] = min(max(u[i] + sign * step, 0.0), 1.0)

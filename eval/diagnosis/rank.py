@@ -11,11 +11,10 @@ the simulator's own level ``G₀`` comes from null replays (noise and a drawn sp
 
 Verdict: ``no_gap`` unless the gap is significant (:func:`gap_significance`); ``explained`` when the
 best-scoring model removes at least :data:`NAME_SHRINK_MIN` of the excess (interval above
-:data:`NAME_CI_LOW_MIN`) and beats "no effect" on the penalised score; a pair is named over its best
-single only when it scores better in :data:`PAIR_P_MIN` of the resamples and removes at least
-:data:`PAIR_RESIDUAL_SHRINK_MIN` of the excess the single leaves, its second effect doing on its own at
-least :data:`PAIR_ALONE_MIN` of that; otherwise ``unexplained``, located at the channel and stage with
-the largest excess gap.
+:data:`NAME_CI_LOW_MIN`) and beats "no effect" on the penalised score; a pair (one of the best singles
+with another effect fitted on top) is named instead when it passes the same test and
+:func:`pair_beats` the best single; otherwise
+``unexplained``, located at the channel and stage with the largest excess gap.
 """
 
 from __future__ import annotations
@@ -41,12 +40,12 @@ NAME_CI_LOW_MIN = 0.2
 PAIR_P_MIN = 0.95
 """A pair beats its best single in at least this share of the bootstrap resamples."""
 PAIR_RESIDUAL_SHRINK_MIN = 0.5
-"""... and removes at least this share of the excess gap the single leaves (so a second effect much
-smaller than the first can still be named, and a second effect that only patches a misfit cannot)."""
+"""... removes at least this share of the excess gap the single leaves ..."""
 PAIR_ALONE_MIN = 0.3
-"""... and its second effect alone removes at least this share of what it adds in the pair."""
+"""... and its second effect alone removes at least this share of what it adds on top of the first."""
 PAIR_TRY_RESIDUAL = 2.0
-"""Pairs are tried when the best single leaves a held-out gap of at least this many times ``G₀``."""
+"""Pairs (the best single plus each other candidate) are tried when the best single leaves a held-out gap
+of at least this many times ``G₀``."""
 
 
 def pooled(terms: list[Terms]) -> float:
@@ -182,21 +181,25 @@ def nameable(s: ModelScore, s0: float) -> bool:
     return s.shrink >= NAME_SHRINK_MIN and s.ci_low >= NAME_CI_LOW_MIN and s.score < s0
 
 
-def pair_beats(pair: ModelScore, single: ModelScore, other: ModelScore | None, null_gap: float) -> bool:
-    """Is the pair (``single``'s effect plus ``other``'s) surely better than ``single`` alone?
+def pair_beats(
+    pair: ModelScore, best: ModelScore, first: ModelScore, second: ModelScore | None, null_gap: float
+) -> bool:
+    """Is the pair (``first``'s fit plus ``second``'s effect fitted on top) surely better than ``best``?
 
-    It must score better in :data:`PAIR_P_MIN` of the resamples, its second effect must remove at least
-    :data:`PAIR_RESIDUAL_SHRINK_MIN` of what the single leaves, and that effect alone must do at least
-    :data:`PAIR_ALONE_MIN` of what it adds in the pair: two real effects add up, while an effect that
-    only helps alongside another is patching the other's misfit (a different form), not a second effect.
+    ``best`` is the best single. The pair must score better than it in :data:`PAIR_P_MIN` of the
+    resamples and remove at least :data:`PAIR_RESIDUAL_SHRINK_MIN` of the excess it leaves; and its
+    second effect must be a second effect rather than a patch on the first one's form: alone it must
+    remove at least :data:`PAIR_ALONE_MIN` of what it adds on top of the first (two real effects add up;
+    an effect that only helps alongside another is correcting the other's misfit).
     """
-    p = float(np.mean(pair.score_draws < single.score_draws))
-    left = single.after - null_gap
-    if p < PAIR_P_MIN or left <= 0 or (single.after - pair.after) / left < PAIR_RESIDUAL_SHRINK_MIN:
+    p = float(np.mean(pair.score_draws < best.score_draws))
+    left = best.after - null_gap
+    if p < PAIR_P_MIN or left <= 0 or (best.after - pair.after) / left < PAIR_RESIDUAL_SHRINK_MIN:
         return False
-    added = single.after - pair.after
-    alone = 0.0 if other is None else other.before - other.after
-    return alone >= PAIR_ALONE_MIN * added
+    added = first.after - pair.after
+    if second is None or added <= 0:
+        return False
+    return second.before - second.after >= PAIR_ALONE_MIN * added
 
 
 def gap_map(terms: list[Terms], null: list[Terms]) -> dict[str, Any]:

@@ -62,8 +62,8 @@ class HeatSoftening(RealityEffect):
     explains = "thermal_softening"
     params = (
         Param("softening_per_k", 0.0, 0.02, 0.0, "hardness lost per kelvin (1/K)"),
-        Param("heat_capacity_j_k", 0.01, 2.0, 0.1, "heat capacity of the heated bone (J/K)"),
-        Param("cooling_s", 0.5, 60.0, 4.0, "cooling time constant (s)"),
+        Param("heat_capacity_j_k", 0.01, 2.0, 0.3, "heat capacity of the heated bone (J/K)"),
+        Param("cooling_s", 0.5, 120.0, 20.0, "cooling time constant (s): bone conducts heat poorly"),
     )
     channels = frozenset({"force", "torque", "tracker"})
 

@@ -1,0 +1,56 @@
+"""The rule that names a pair of effects over the best single one."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from eval.diagnosis.fit import FitResult
+from eval.diagnosis.rank import ModelScore, pair_beats
+
+NULL_GAP = 1.0
+
+
+def _score(names: tuple[str, ...], before: float, after: float, draws: float) -> ModelScore:
+    fit = FitResult(names=names, params=[{} for _ in names], n_params=len(names))
+    rng = np.random.default_rng(len(names))
+    return ModelScore(
+        fit=fit,
+        before=before,
+        after=after,
+        shrink=(before - after) / (before - NULL_GAP),
+        ci_low=0.0,
+        ci_high=1.0,
+        score=draws,
+        score_draws=draws + rng.normal(0.0, 0.01 * draws, 500),
+    )
+
+
+def test_two_real_effects_that_add_up_are_named_as_a_pair():
+    a = _score(("a",), 11.0, 5.0, 500.0)  # a alone removes 6 of 10
+    b = _score(("b",), 11.0, 7.0, 700.0)  # b alone removes 4
+    ab = _score(("a", "b"), 11.0, 1.2, 120.0)  # together almost all
+    assert pair_beats(ab, best=a, first=a, second=b, null_gap=NULL_GAP)
+
+
+def test_an_effect_that_only_helps_alongside_another_is_not_a_second_effect():
+    a = _score(("a",), 11.0, 5.0, 500.0)
+    patch = _score(("p",), 11.0, 10.9, 1090.0)  # alone it does nothing
+    ap = _score(("a", "p"), 11.0, 1.2, 120.0)
+    assert not pair_beats(ap, best=a, first=a, second=patch, null_gap=NULL_GAP)
+
+
+def test_a_pair_must_remove_half_of_what_the_best_single_leaves():
+    a = _score(("a",), 11.0, 5.0, 500.0)
+    b = _score(("b",), 11.0, 7.0, 700.0)
+    ab = _score(("a", "b"), 11.0, 3.5, 350.0)  # removes 1.5 of the 4 left: not enough
+    assert not pair_beats(ab, best=a, first=a, second=b, null_gap=NULL_GAP)
+
+
+def test_a_pair_built_on_the_second_best_single_is_judged_against_the_best():
+    a = _score(("a",), 11.0, 5.0, 500.0)  # the best single
+    b = _score(("b",), 11.0, 6.0, 600.0)
+    c = _score(("c",), 11.0, 8.0, 800.0)
+    bc = _score(("b", "c"), 11.0, 1.5, 150.0)  # c adds 4.5 on top of b; alone c removes 3 (≥ 30 %)
+    assert pair_beats(bc, best=a, first=b, second=c, null_gap=NULL_GAP)
+    worse = _score(("b", "c"), 11.0, 4.8, 480.0)  # better than b, but not surely better than a
+    assert not pair_beats(worse, best=a, first=b, second=c, null_gap=NULL_GAP)
