@@ -11,7 +11,7 @@ from controllers import make_controller
 from training.config import TrainConfig, load_config
 from training.env_factory import make_train_vec_env
 from training.model import build_model
-from training.residual_wrapper import BASE_ACTION_KEY, ResidualWrapper, combine
+from training.residual_wrapper import BASE_ACTION_KEY, PREV_RESIDUAL_KEY, ResidualWrapper, combine
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 SHIPPED = Path(__file__).resolve().parents[1] / "training" / "policies" / "residual_li2023_sac.zip"
@@ -72,6 +72,40 @@ def test_initial_policy_outputs_zero_residual(algo):
     venv.close()
 
 
+@pytest.mark.parametrize(
+    ("algo", "warmup", "frozen"), [("sac", 10_000, True), ("sac", 0, False), ("td3", 10_000, True)]
+)
+def test_critic_warmup_keeps_the_residual_at_zero_while_the_critic_learns(algo, warmup, frozen):
+    import torch
+
+    cfg = TrainConfig(
+        algo=algo, n_envs=1, net_arch=[16], batch_size=32, learning_starts=20, actor_warmup_steps=warmup, seed=3
+    )
+    venv = make_train_vec_env(cfg)
+    model = build_model(cfg, venv)
+    actor0 = [p.detach().clone() for p in model.actor.parameters()]
+    critic0 = [p.detach().clone() for p in model.critic.parameters()]
+    model.learn(total_timesteps=120)
+    same = lambda a, b: all(torch.equal(x, y) for x, y in zip(a, b, strict=True))  # noqa: E731
+    assert not same(critic0, list(model.critic.parameters()))  # the critic learned either way
+    assert same(actor0, list(model.actor.parameters())) == frozen
+    if frozen:
+        action, _ = model.predict(venv.reset(), deterministic=True)
+        np.testing.assert_array_equal(action, np.zeros_like(action))
+    venv.close()
+
+
+def test_policy_sees_its_previous_residual_reset_to_zero_at_each_episode():
+    env = ResidualWrapper(gym.make(ENV_ID), "li2023", 0.5)
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_array_equal(obs[PREV_RESIDUAL_KEY], [0.0, 0.0])
+    obs, *_ = env.step(np.array([0.3, -2.0], np.float32))
+    np.testing.assert_allclose(obs[PREV_RESIDUAL_KEY], [0.3, -1.0])  # clipped as applied
+    obs, _ = env.reset(seed=1)
+    np.testing.assert_array_equal(obs[PREV_RESIDUAL_KEY], [0.0, 0.0])
+    env.close()
+
+
 def test_config_yaml_overrides_and_rejects_typos(tmp_path):
     p = tmp_path / "c.yaml"
     p.write_text("algo: td3\ntotal_timesteps: 123\n")
@@ -125,4 +159,4 @@ def test_shipped_policy_completes_an_episode_from_real_cell_signals_only():
     assert np.isfinite(result.metrics["deviation_mean_mm"])
     # the policy's inputs are the env observation keys (real-cell signals) plus the base action
     keys = set(controller.bundle.model.observation_space.spaces)
-    assert keys == set(env.observation_space.spaces) | {BASE_ACTION_KEY}
+    assert keys == set(env.observation_space.spaces) | {BASE_ACTION_KEY, PREV_RESIDUAL_KEY}

@@ -21,6 +21,9 @@ CURVE_COLUMNS = (
     "base_lateral_force_max_n",
 )
 
+BEST_NORMALIZER = "vecnormalize.pkl"
+"""Saved beside ``best_model.zip`` whenever a new best model is saved."""
+
 
 class ZeroResidual:
     """A 'policy' that always outputs a zero residual: the base controller alone."""
@@ -81,7 +84,12 @@ class BaseComparisonEvalCallback(EvalCallback):
     def _on_step(self) -> bool:
         evaluating = self.eval_freq > 0 and self.n_calls % self.eval_freq == 0
         self._episode_metrics = []
+        best_before = self.best_mean_reward
         keep_going = super()._on_step()
+        normalizer = self.model.get_vec_normalize_env()
+        if self.best_mean_reward > best_before and self.best_model_save_path is not None and normalizer is not None:
+            # the best model's observation statistics: the ones it was just evaluated with
+            normalizer.save(str(Path(self.best_model_save_path) / BEST_NORMALIZER))
         if evaluating and self.evaluations_results:
             policy = self._summary(self.evaluations_results[-1])
             row = {

@@ -49,6 +49,8 @@ class TrainConfig:
     """SAC entropy coefficient: start small so exploration does not swamp the zero-initialised residual."""
     target_entropy: float = -6.0
     """SAC target entropy (more negative than −dim(A) = −3: keep the residual's noise modest)."""
+    actor_warmup_steps: int = 0
+    """SAC/TD3: agent steps during which only the critic learns (the residual stays at zero)."""
     log_std_init: float = -2.0
     """Initial log standard deviation of the Gaussian policy (SAC/PPO): std 0.14 of the residual range."""
     n_steps: int = 1024

@@ -12,7 +12,47 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from training.config import TrainConfig
 
-ALGO_CLASSES: dict[str, type[BaseAlgorithm]] = {"sac": SAC, "td3": TD3, "ppo": PPO}
+
+class ResidualSAC(SAC):
+    """SAC with a critic warm-up.
+
+    For the first ``actor_warmup_steps`` the actor and the entropy coefficient do not learn (their
+    learning rate is 0), so the residual stays exactly zero while the critic learns the base
+    controller's values (Silver et al. 2018, residual policy learning: without it the actor follows an
+    untrained critic away from the base).
+    """
+
+    def __init__(self, *args: Any, actor_warmup_steps: int = 0, **kwargs: Any) -> None:
+        self.actor_warmup_steps = int(actor_warmup_steps)
+        super().__init__(*args, **kwargs)
+
+    def _update_learning_rate(self, optimizers: Any) -> None:
+        super()._update_learning_rate(optimizers)
+        if self.num_timesteps < self.actor_warmup_steps:
+            frozen = [self.actor.optimizer] + ([self.ent_coef_optimizer] if self.ent_coef_optimizer else [])
+            _freeze(frozen)
+
+
+class ResidualTD3(TD3):
+    """TD3 with the same critic warm-up as :class:`ResidualSAC`."""
+
+    def __init__(self, *args: Any, actor_warmup_steps: int = 0, **kwargs: Any) -> None:
+        self.actor_warmup_steps = int(actor_warmup_steps)
+        super().__init__(*args, **kwargs)
+
+    def _update_learning_rate(self, optimizers: Any) -> None:
+        super()._update_learning_rate(optimizers)
+        if self.num_timesteps < self.actor_warmup_steps:
+            _freeze([self.actor.optimizer])
+
+
+def _freeze(optimizers: list[torch.optim.Optimizer]) -> None:
+    for opt in optimizers:
+        for group in opt.param_groups:
+            group["lr"] = 0.0
+
+
+ALGO_CLASSES: dict[str, type[BaseAlgorithm]] = {"sac": ResidualSAC, "td3": ResidualTD3, "ppo": PPO}
 
 
 def build_model(cfg: TrainConfig, env: VecEnv, tensorboard_log: Path | None = None) -> BaseAlgorithm:
@@ -24,9 +64,10 @@ def build_model(cfg: TrainConfig, env: VecEnv, tensorboard_log: Path | None = No
     }
     if cfg.algo == "sac":
         target_entropy: float | str = cfg.target_entropy
-        model: BaseAlgorithm = SAC(
+        model: BaseAlgorithm = ResidualSAC(
             "MultiInputPolicy",
             env,
+            actor_warmup_steps=cfg.actor_warmup_steps,
             learning_rate=cfg.learning_rate,
             buffer_size=cfg.buffer_size,
             learning_starts=cfg.learning_starts,
@@ -40,9 +81,10 @@ def build_model(cfg: TrainConfig, env: VecEnv, tensorboard_log: Path | None = No
             **common,
         )
     elif cfg.algo == "td3":
-        model = TD3(
+        model = ResidualTD3(
             "MultiInputPolicy",
             env,
+            actor_warmup_steps=cfg.actor_warmup_steps,
             learning_rate=cfg.learning_rate,
             buffer_size=cfg.buffer_size,
             learning_starts=cfg.learning_starts,

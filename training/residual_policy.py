@@ -15,7 +15,7 @@ from controllers.base import Controller
 from controllers.registry import make_controller
 from envs.plan import DrillPlan
 from training.policy_bundle import load_bundle
-from training.residual_wrapper import BASE_ACTION_KEY, combine
+from training.residual_wrapper import BASE_ACTION_KEY, PREV_RESIDUAL_KEY, combine
 
 
 class ResidualPolicyController(Controller):
@@ -38,17 +38,25 @@ class ResidualPolicyController(Controller):
     def reset(self) -> None:
         """Mark an episode start: the base controller resets on its next call."""
         self._start = True
+        self._prev_residual: np.ndarray | None = None
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Base action plus the policy's residual."""
         base_action, _ = self.base.predict(obs, episode_start=np.array([self._start]))
         self._start = False
         aug = {**obs, BASE_ACTION_KEY: base_action}
+        space = self.bundle.model.observation_space
+        if PREV_RESIDUAL_KEY in getattr(space, "spaces", {}):
+            shape = space[PREV_RESIDUAL_KEY].shape  # type: ignore[index]
+            prev = self._prev_residual if self._prev_residual is not None else np.zeros(shape, np.float32)
+            aug[PREV_RESIDUAL_KEY] = prev
         if self.bundle.normalizer is not None:
             aug = self.bundle.normalizer(aug)
         residual, _ = self.bundle.model.predict(aug, deterministic=True)
+        residual = np.clip(np.asarray(residual, dtype=np.float32).reshape(-1), -1.0, 1.0)
+        self._prev_residual = residual
         R = self.plan.R_base_task if self.config.residual_axes == "lateral" and self.plan is not None else None
-        return combine(base_action, np.asarray(residual).reshape(-1), self.config.residual_scale, R)
+        return combine(base_action, residual, self.config.residual_scale, R)
 
     def describe(self) -> dict[str, Any]:
         """Name, file and training configuration."""

@@ -2,7 +2,7 @@
 
 The wrapper owns the base controller (its filters, PID memory and path prediction live here and are
 reset with the env), tells it the plan at every reset, and shows the policy the base's action as an
-extra observation key. With a residual of zero the wrapped env behaves exactly as the base controller
+extra observation key, with the policy's previous residual. With a residual of zero the wrapped env behaves exactly as the base controller
 does: the policy starts from the baseline.
 """
 
@@ -18,6 +18,9 @@ from controllers import Controller, make_controller
 from envs.constants import ACTION_DIM
 
 BASE_ACTION_KEY = "base_action"
+PREV_RESIDUAL_KEY = "residual_prev"
+"""The policy's own previous residual (zero at an episode start): the controller knows what it sent, and
+with it a memoryless policy can hold or integrate a correction."""
 
 
 RESIDUAL_AXES = ("lateral", "xyz")
@@ -83,13 +86,21 @@ class ResidualWrapper(gym.Wrapper):
         obs_space = env.observation_space
         assert isinstance(obs_space, spaces.Dict)
         self.observation_space = spaces.Dict(
-            {**obs_space.spaces, BASE_ACTION_KEY: spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)}
+            {
+                **obs_space.spaces,
+                BASE_ACTION_KEY: spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32),
+                PREV_RESIDUAL_KEY: spaces.Box(-1.0, 1.0, self.action_space.shape, np.float32),
+            }
         )
         self._base_action = np.zeros(ACTION_DIM, dtype=np.float32)
+        self._n_residual = residual_dims(residual_feed, axes)
+        self._prev_residual = np.zeros(self._n_residual, dtype=np.float32)
 
     def _augment(self, obs: dict[str, np.ndarray], episode_start: bool) -> dict[str, np.ndarray]:
         self._base_action, _ = self.base.predict(obs, episode_start=np.array([episode_start]))
-        return {**obs, BASE_ACTION_KEY: self._base_action.copy()}
+        if episode_start:
+            self._prev_residual = np.zeros(self._n_residual, dtype=np.float32)
+        return {**obs, BASE_ACTION_KEY: self._base_action.copy(), PREV_RESIDUAL_KEY: self._prev_residual.copy()}
 
     def reset(self, **kwargs: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Reset the env, hand the base controller the new plan, return the augmented observation."""
@@ -107,6 +118,7 @@ class ResidualWrapper(gym.Wrapper):
         if not np.all(np.isfinite(residual)):
             raise ValueError(f"residual action {residual.tolist()} contains NaN or inf")
         total = combine(self._base_action, residual, self.scale, self._R)
+        self._prev_residual = np.clip(residual, -1.0, 1.0).astype(np.float32)
         obs, reward, terminated, truncated, info = self.env.step(total)
         info = {**info, "base_action": self._base_action.copy(), "residual_action": residual.astype(np.float32)}
         return self._augment(obs, False), float(reward), terminated, truncated, info

@@ -48,6 +48,35 @@ def latest_checkpoint(folder: Path) -> tuple[Path, int] | None:
     return best
 
 
+def _export(out: Path, cfg: Any, model: Any, evaluation: Any, wall_s: float, export: Path | None) -> None:
+    """Write ``summary.json`` and the curves; bundle the best model as ``out/policy.zip`` (and ``export``).
+
+    The best model goes with the observation normaliser it was evaluated with.
+    """
+    from training.callbacks import BEST_NORMALIZER
+    from training.plots import plot_curves
+    from training.policy_bundle import save_bundle
+
+    best_zip = out / "best" / "best_model.zip"
+    summary = {
+        "timesteps": int(model.num_timesteps),
+        "wall_time_s": wall_s,
+        "base_eval": evaluation.base,
+        "curve": evaluation.curve,
+        "best_policy_reward": float(evaluation.best_mean_reward),
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    plot_curves(evaluation.curve, out / "training_curves.png")
+    best_norm = out / "best" / BEST_NORMALIZER
+    if best_zip.exists() and (best_norm.exists() or not cfg.normalize_obs):
+        source, norm = best_zip, best_norm
+    else:
+        source, norm = out / "model.zip", out / "vecnormalize.pkl"
+    save_bundle(source, norm, cfg, {"training": summary}, out / "policy.zip")
+    if export is not None:
+        save_bundle(source, norm, cfg, {"training": summary}, export)
+
+
 def run(args: argparse.Namespace) -> int:
     """Train (or resume), export the best policy bundle, plot the curves; ``--sweep``: see training.sweep."""
     if getattr(args, "sweep", None) is not None or getattr(args, "ray", False) or getattr(args, "address", None):
@@ -60,8 +89,6 @@ def run(args: argparse.Namespace) -> int:
     from training.callbacks import BaseComparisonEvalCallback
     from training.env_factory import make_eval_vec_env, make_train_vec_env
     from training.model import ALGO_CLASSES, build_model
-    from training.plots import plot_curves
-    from training.policy_bundle import save_bundle
 
     overrides: dict[str, Any] = {
         k: v
@@ -129,20 +156,7 @@ def run(args: argparse.Namespace) -> int:
     model.save(out / "model.zip")
     if cfg.normalize_obs:
         venv.save(str(out / "vecnormalize.pkl"))  # type: ignore[attr-defined]
-    best_zip = out / "best" / "best_model.zip"
-    summary = {
-        "timesteps": int(model.num_timesteps),
-        "wall_time_s": wall_s,
-        "base_eval": evaluation.base,
-        "curve": evaluation.curve,
-        "best_policy_reward": float(evaluation.best_mean_reward),
-    }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
-    plot_curves(evaluation.curve, out / "training_curves.png")
-    source = best_zip if best_zip.exists() else out / "model.zip"
-    save_bundle(source, out / "vecnormalize.pkl", cfg, {"training": summary}, out / "policy.zip")
-    if args.export is not None:
-        save_bundle(source, out / "vecnormalize.pkl", cfg, {"training": summary}, args.export)
+    _export(out, cfg, model, evaluation, wall_s, args.export)
     venv.close()
     eval_env.close()
     print(f"trained {model.num_timesteps} steps in {wall_s / 60:.1f} min; policy: {(out / 'policy.zip').resolve()}")
