@@ -134,3 +134,18 @@ def test_an_unreachable_cluster_is_a_clear_error(tmp_path, capsys):
     pytest.importorskip("ray")
     assert main(["bench", "--seeds", "1", "--out", str(tmp_path / "b"), "--address", "127.0.0.1:1"]) == 2
     assert "cannot connect to the Ray cluster" in capsys.readouterr().err
+
+
+def test_a_worker_on_another_node_ships_the_log_bytes_to_the_driver(tmp_path):
+    pytest.importorskip("ray")
+    from eval.scale.bench_ray import _scratch, run_episode_task
+
+    name = "logs/paper__paper__li2023__seed0.parquet"
+    job = EpisodeJob("paper", "paper", {}, "li2023", 0, tmp_path / "remote" / name, name)
+    row, files = run_episode_task(job)  # no driver node given: as on a node other than the driver's
+    assert list(files) == [name] and not (tmp_path / "remote").exists() and not _scratch(job).exists()
+    sink = StreamingSink(tmp_path / "driver", [("paper", "paper", "li2023")])
+    sink.add(row, files)
+    local = tmp_path / "local" / name
+    run_job(EpisodeJob("paper", "paper", {}, "li2023", 0, local, name))
+    pd.testing.assert_frame_equal(read_episode_log(tmp_path / "driver" / name)[1], read_episode_log(local)[1])

@@ -1,9 +1,10 @@
 """``drillgym bench --ray``: the episode grid as Ray tasks, streamed into the usual outputs.
 
 One Ray task per episode (1 CPU each) runs :func:`eval.bench_episode.run_job` in a Ray worker, which
-keeps its envs and controllers cached between tasks like a pool worker does. The task writes the
-episode's log into node-local scratch space and returns the row together with the log's bytes, so the
-driver writes every output itself and a cluster needs no shared file system. A task whose worker
+keeps its envs and controllers cached between tasks like a pool worker does. A worker on the driver's
+node writes the episode's log straight into the output folder, as a pool worker does; a worker on
+another node writes it into node-local scratch space and returns the row together with the log's
+bytes, which the driver writes, so a cluster needs no shared file system. A task whose worker
 process dies (killed, out of memory, node lost) is run again by Ray, up to ``max_retries`` times; the
 driver records only finished episodes, so nothing already recorded is lost or duplicated, and a
 retried episode gives the same row (``reset(seed)`` replays an episode bit for bit).
@@ -49,14 +50,24 @@ def _scratch(job: EpisodeJob) -> Path:
     return Path(tempfile.gettempdir()) / "drillgym-bench" / key
 
 
-def run_episode_task(job: EpisodeJob, runner: Runner = run_job) -> tuple[dict[str, Any], dict[str, bytes]]:
+def run_episode_task(
+    job: EpisodeJob, runner: Runner = run_job, driver_node: str | None = None
+) -> tuple[dict[str, Any], dict[str, bytes]]:
     """Run one episode in a Ray worker.
+
+    Args:
+        job: the episode.
+        runner: what runs it.
+        driver_node: the driver's Ray node id. A worker on that node writes the log straight into the
+            output folder, as a pool worker does; a worker on another node writes it into scratch space
+            and returns its bytes.
 
     Returns:
         The ``episodes.csv`` row and the files of its log, ``{path relative to the output folder: bytes}``
-        (a finished ``logs/NAME.parquet``, or the ``logs/NAME/`` parts of an episode that raised).
+        (a finished ``logs/NAME.parquet``, or the ``logs/NAME/`` parts of an episode that raised); no
+        files when the log was written in place.
     """
-    if job.log_path is None:
+    if job.log_path is None or (driver_node is not None and ray.get_runtime_context().get_node_id() == driver_node):
         return runner(job), {}
     scratch = _scratch(job)
     shutil.rmtree(scratch, ignore_errors=True)
@@ -127,7 +138,8 @@ def run_jobs_ray(
         print(f"ray: {session.cpus} workers started and warmed up in {warmup_s:.1f} s")
         sink = StreamingSink(out, _groups(jobs))
         t0 = time.perf_counter()
-        jobs_of = {task.remote(job, runner): job for job in jobs}
+        driver_node = ray.get_runtime_context().get_node_id()
+        jobs_of = {task.remote(job, runner, driver_node): job for job in jobs}
         waiting = list(jobs_of)
         with tqdm(total=len(jobs), desc=desc, unit="ep") as bar:
             while waiting:
