@@ -96,7 +96,8 @@ def test_critic_warmup_keeps_the_residual_at_zero_while_the_critic_learns(algo, 
 
 
 def test_policy_sees_its_previous_residual_reset_to_zero_at_each_episode():
-    env = ResidualWrapper(gym.make(ENV_ID), "li2023", 0.5)
+    assert PREV_RESIDUAL_KEY not in ResidualWrapper(gym.make(ENV_ID)).observation_space.spaces  # off by default
+    env = ResidualWrapper(gym.make(ENV_ID), "li2023", 0.5, observe_prev_residual=True)
     obs, _ = env.reset(seed=0)
     np.testing.assert_array_equal(obs[PREV_RESIDUAL_KEY], [0.0, 0.0])
     obs, *_ = env.step(np.array([0.3, -2.0], np.float32))
@@ -159,4 +160,41 @@ def test_shipped_policy_completes_an_episode_from_real_cell_signals_only():
     assert np.isfinite(result.metrics["deviation_mean_mm"])
     # the policy's inputs are the env observation keys (real-cell signals) plus the base action
     keys = set(controller.bundle.model.observation_space.spaces)
-    assert keys == set(env.observation_space.spaces) | {BASE_ACTION_KEY, PREV_RESIDUAL_KEY}
+    extra = {BASE_ACTION_KEY} | ({PREV_RESIDUAL_KEY} if controller.config.observe_prev_residual else set())
+    assert keys == set(env.observation_space.spaces) | extra
+
+
+def test_saved_policy_acts_through_the_controller_exactly_as_in_its_training_wrapper(tmp_path):
+    import torch
+
+    from training.policy_bundle import save_bundle
+
+    cfg = TrainConfig(n_envs=1, net_arch=[16], observe_prev_residual=True, normalize_obs=False, seed=5)
+    venv = make_train_vec_env(cfg)
+    model = build_model(cfg, venv)
+    with torch.no_grad():  # a policy that is not zero, and depends on its previous residual
+        torch.manual_seed(0)
+        for p in model.actor.parameters():
+            p.add_(0.3 * torch.randn_like(p))
+    model.save(tmp_path / "m.zip")
+    save_bundle(tmp_path / "m.zip", None, cfg, {}, tmp_path / "p.zip")
+    venv.close()
+
+    controller = make_controller(f"residual:{tmp_path / 'p.zip'}")
+    wrapped = ResidualWrapper(gym.make(ENV_ID), cfg.base, cfg.residual_scale, observe_prev_residual=True)
+    plain = gym.make(ENV_ID)
+    obs_w, _ = wrapped.reset(seed=2)
+    obs_p, _ = plain.reset(seed=2)
+    controller.set_plan(plain.unwrapped.plan)
+    start, residuals = True, []
+    for _ in range(80):
+        residual, _ = model.predict(obs_w, deterministic=True)
+        action, _ = controller.predict(obs_p, episode_start=np.array([start]))
+        start = False
+        obs_w, *_ = wrapped.step(residual)
+        np.testing.assert_allclose(action, wrapped.unwrapped.prev_action, atol=1e-6)  # what the env was sent
+        obs_p, *_ = plain.step(action)
+        residuals.append(residual)
+    assert np.ptp(np.array(residuals), axis=0).max() > 0.01  # the residual did vary
+    wrapped.close()
+    plain.close()

@@ -26,6 +26,8 @@ class TrainConfig:
     """Let the residual change the feed (off: compare at the base's feed, as Li does)."""
     residual_axes: str = "lateral"
     """``lateral``: the residual moves the tip across the drill only; ``xyz``: along the base axes too."""
+    observe_prev_residual: bool = False
+    """Show the policy its own previous residual (``residual_prev``)."""
     total_timesteps: int = 200_000
     """Agent steps over all environments."""
     n_envs: int = 2

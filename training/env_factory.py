@@ -23,7 +23,9 @@ def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | N
     env: gym.Env = gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})})
     if randomize:
         env = DomainRandomization(env)
-    return ResidualWrapper(env, cfg.base, cfg.residual_scale, cfg.residual_feed, cfg.residual_axes)
+    return ResidualWrapper(
+        env, cfg.base, cfg.residual_scale, cfg.residual_feed, cfg.residual_axes, cfg.observe_prev_residual
+    )
 
 
 def make_train_vec_env(cfg: TrainConfig) -> VecEnv:

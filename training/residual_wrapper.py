@@ -64,6 +64,7 @@ class ResidualWrapper(gym.Wrapper):
         residual_feed: let the residual change the feed override too (off: the base's feed is kept).
         axes: ``"lateral"`` (default): the residual moves the tip across the drill only (task x, y), as the
             compensators do; ``"xyz"``: along the three base axes (it can then plunge the drill).
+        observe_prev_residual: add the policy's previous residual to the observation (``residual_prev``).
     """
 
     def __init__(
@@ -73,6 +74,7 @@ class ResidualWrapper(gym.Wrapper):
         scale: float = 0.5,
         residual_feed: bool = False,
         axes: str = "lateral",
+        observe_prev_residual: bool = False,
     ):
         super().__init__(env)
         if not 0.0 < scale <= 2.0:
@@ -85,13 +87,11 @@ class ResidualWrapper(gym.Wrapper):
         self._R: np.ndarray | None = None
         obs_space = env.observation_space
         assert isinstance(obs_space, spaces.Dict)
-        self.observation_space = spaces.Dict(
-            {
-                **obs_space.spaces,
-                BASE_ACTION_KEY: spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32),
-                PREV_RESIDUAL_KEY: spaces.Box(-1.0, 1.0, self.action_space.shape, np.float32),
-            }
-        )
+        extra = {BASE_ACTION_KEY: spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)}
+        if observe_prev_residual:
+            extra[PREV_RESIDUAL_KEY] = spaces.Box(-1.0, 1.0, self.action_space.shape, np.float32)
+        self.observe_prev_residual = observe_prev_residual
+        self.observation_space = spaces.Dict({**obs_space.spaces, **extra})
         self._base_action = np.zeros(ACTION_DIM, dtype=np.float32)
         self._n_residual = residual_dims(residual_feed, axes)
         self._prev_residual = np.zeros(self._n_residual, dtype=np.float32)
@@ -100,7 +100,10 @@ class ResidualWrapper(gym.Wrapper):
         self._base_action, _ = self.base.predict(obs, episode_start=np.array([episode_start]))
         if episode_start:
             self._prev_residual = np.zeros(self._n_residual, dtype=np.float32)
-        return {**obs, BASE_ACTION_KEY: self._base_action.copy(), PREV_RESIDUAL_KEY: self._prev_residual.copy()}
+        out = {**obs, BASE_ACTION_KEY: self._base_action.copy()}
+        if self.observe_prev_residual:
+            out[PREV_RESIDUAL_KEY] = self._prev_residual.copy()
+        return out
 
     def reset(self, **kwargs: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Reset the env, hand the base controller the new plan, return the augmented observation."""
