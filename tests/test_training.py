@@ -198,3 +198,18 @@ def test_saved_policy_acts_through_the_controller_exactly_as_in_its_training_wra
     assert np.ptp(np.array(residuals), axis=0).max() > 0.01  # the residual did vary
     wrapped.close()
     plain.close()
+
+
+def test_validation_scenarios_are_held_in_and_visited_once_per_evaluation():
+    from eval.suites import outside_training
+    from training.domain_randomization import ScenarioCycle, validation_scenarios
+
+    scenarios = validation_scenarios(6)
+    assert scenarios[0] == {} and len(scenarios) == 6 and validation_scenarios(6) == scenarios
+    for kw in scenarios:
+        assert outside_training(kw) == [], kw  # inside the training ranges
+    env = ScenarioCycle(gym.make(ENV_ID), scenarios[1:3])
+    seen = [env.reset(seed=0)[1]["scenario"] for _ in range(4)]
+    assert seen == [scenarios[1], scenarios[2], scenarios[1], scenarios[2]]
+    assert env.unwrapped.scenario.beta_deg == scenarios[2]["beta_deg"]
+    env.close()

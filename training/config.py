@@ -62,13 +62,18 @@ class TrainConfig:
     eval_freq: int = 10_000
     """Agent steps between evaluations (over all envs)."""
     eval_episodes: int = 4
-    """Episodes per evaluation, paper scenario, seeds fixed."""
+    """Episodes per evaluation."""
+    eval_scenarios: str = "paper"
+    """``paper``: every evaluation episode in the paper scenario; ``validation``: the paper scenario and
+    fixed draws inside the training ranges, one episode each (the best model is picked on these)."""
     checkpoint_freq: int = 20_000
     """Agent steps between checkpoints."""
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
             raise ValueError(f"algo={self.algo!r}; choose from {ALGOS}")
+        if self.eval_scenarios not in ("paper", "validation"):
+            raise ValueError(f"eval_scenarios={self.eval_scenarios!r}; choose paper or validation")
         if self.total_timesteps < 1 or self.n_envs < 1:
             raise ValueError("total_timesteps and n_envs must be >= 1")
 

@@ -55,3 +55,34 @@ class DomainRandomization(gym.Wrapper):
         opts = {**(options or {}), "scenario": {**self.current, **(options or {}).get("scenario", {})}}
         obs, info = self.env.reset(seed=seed, options=opts)
         return obs, {**info, "scenario": dict(self.current)}
+
+
+VALIDATION_SEED = 20_231
+"""Seed of the validation scenarios' draw (fixed: every run selects its best model on the same set)."""
+
+
+def validation_scenarios(n: int, seed: int = VALIDATION_SEED) -> list[dict[str, Any]]:
+    """The paper scenario (env defaults) and ``n - 1`` fixed draws inside the training ranges.
+
+    Used to pick a run's best model: held-in conditions, never the ``heldout`` suite's.
+    """
+    rng = np.random.default_rng(seed)
+    return [{}] + [sample_scenario(rng) for _ in range(max(n - 1, 0))]
+
+
+class ScenarioCycle(gym.Wrapper):
+    """Reset into the next scenario of a fixed list, in turn: ``len(scenarios)`` episodes visit each once."""
+
+    def __init__(self, env: gym.Env, scenarios: list[dict[str, Any]]):
+        super().__init__(env)
+        if not scenarios:
+            raise ValueError("ScenarioCycle needs at least one scenario")
+        self.scenarios = [dict(s) for s in scenarios]
+        self.episode = 0
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset with the next scenario of the list."""
+        scenario = self.scenarios[self.episode % len(self.scenarios)]
+        self.episode += 1
+        obs, info = self.env.reset(seed=seed, options={**(options or {}), "scenario": scenario})
+        return obs, {**info, "scenario": dict(scenario)}

@@ -10,7 +10,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 from training.config import TrainConfig
-from training.domain_randomization import DomainRandomization
+from training.domain_randomization import DomainRandomization, ScenarioCycle, validation_scenarios
 from training.residual_wrapper import ResidualWrapper
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
@@ -43,5 +43,22 @@ def make_train_vec_env(cfg: TrainConfig) -> VecEnv:
 
 
 def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) -> VecEnv:
-    """The paper scenario (or ``scenario``) under the residual wrapper, one env, for evaluations."""
-    return make_vec_env(lambda: residual_env(cfg, False, scenario), n_envs=1, seed=10_000 + cfg.seed)
+    """The evaluation env under the residual wrapper (one env).
+
+    ``cfg.eval_scenarios == "paper"``: the paper scenario (or ``scenario``) every episode;
+    ``"validation"``: :func:`training.domain_randomization.validation_scenarios` in turn, one per
+    evaluation episode (so an evaluation of ``cfg.eval_episodes`` episodes visits each once).
+    """
+
+    def factory() -> gym.Env:
+        if cfg.eval_scenarios == "validation" and scenario is None:
+            import envs  # noqa: F401
+
+            env: gym.Env = gym.make(ENV_ID, **cfg.env_kwargs)
+            env = ScenarioCycle(env, validation_scenarios(cfg.eval_episodes))
+            return ResidualWrapper(
+                env, cfg.base, cfg.residual_scale, cfg.residual_feed, cfg.residual_axes, cfg.observe_prev_residual
+            )
+        return residual_env(cfg, False, scenario)
+
+    return make_vec_env(factory, n_envs=1, seed=10_000 + cfg.seed)

@@ -163,7 +163,7 @@ def run(args: argparse.Namespace) -> int:
     if evaluation.curve:
         last = evaluation.curve[-1]
         print(
-            f"last evaluation (paper scenario): deviation {last['policy_deviation_mean_mm']:.3f} mm "
+            f"last evaluation: deviation {last['policy_deviation_mean_mm']:.3f} mm "
             f"vs base {last['base_deviation_mean_mm']:.3f} mm"
         )
     return 0
