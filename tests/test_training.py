@@ -11,7 +11,7 @@ from controllers import make_controller
 from training.config import TrainConfig, load_config
 from training.env_factory import make_train_vec_env
 from training.model import build_model
-from training.residual_wrapper import BASE_ACTION_KEY, PREV_RESIDUAL_KEY, ResidualWrapper, combine
+from training.residual_wrapper import BASE_ACTION_KEY, PLAN_KEY, PREV_RESIDUAL_KEY, ResidualWrapper, combine
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 SHIPPED = Path(__file__).resolve().parents[1] / "training" / "policies" / "residual_li2023_sac.zip"
@@ -161,6 +161,7 @@ def test_shipped_policy_completes_an_episode_from_real_cell_signals_only():
     # the policy's inputs are the env observation keys (real-cell signals) plus the base action
     keys = set(controller.bundle.model.observation_space.spaces)
     extra = {BASE_ACTION_KEY} | ({PREV_RESIDUAL_KEY} if controller.config.observe_prev_residual else set())
+    extra |= {PLAN_KEY} if controller.config.observe_plan else set()
     assert keys == set(env.observation_space.spaces) | extra
 
 
@@ -169,7 +170,9 @@ def test_saved_policy_acts_through_the_controller_exactly_as_in_its_training_wra
 
     from training.policy_bundle import save_bundle
 
-    cfg = TrainConfig(n_envs=1, net_arch=[16], observe_prev_residual=True, normalize_obs=False, seed=5)
+    cfg = TrainConfig(
+        n_envs=1, net_arch=[16], observe_prev_residual=True, observe_plan=True, normalize_obs=False, seed=5
+    )
     venv = make_train_vec_env(cfg)
     model = build_model(cfg, venv)
     with torch.no_grad():  # a policy that is not zero, and depends on its previous residual
@@ -181,7 +184,9 @@ def test_saved_policy_acts_through_the_controller_exactly_as_in_its_training_wra
     venv.close()
 
     controller = make_controller(f"residual:{tmp_path / 'p.zip'}")
-    wrapped = ResidualWrapper(gym.make(ENV_ID), cfg.base, cfg.residual_scale, observe_prev_residual=True)
+    wrapped = ResidualWrapper(
+        gym.make(ENV_ID), cfg.base, cfg.residual_scale, observe_prev_residual=True, observe_plan=True
+    )
     plain = gym.make(ENV_ID)
     obs_w, _ = wrapped.reset(seed=2)
     obs_p, _ = plain.reset(seed=2)
@@ -212,4 +217,14 @@ def test_validation_scenarios_are_held_in_and_visited_once_per_evaluation():
     seen = [env.reset(seed=0)[1]["scenario"] for _ in range(4)]
     assert seen == [scenarios[1], scenarios[2], scenarios[1], scenarios[2]]
     assert env.unwrapped.scenario.beta_deg == scenarios[2]["beta_deg"]
+    env.close()
+
+
+def test_plan_features_are_what_the_plan_says_in_si_units():
+    env = ResidualWrapper(gym.make(ENV_ID, beta_deg=20.0, feed_mm_s=0.8, stickout_mm=33.0), observe_plan=True)
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_allclose(
+        obs[PLAN_KEY], [np.radians(20.0), 0.8e-3, 33e-3, env.unwrapped.plan.cortical_thickness_m], rtol=1e-6
+    )
+    assert env.observation_space[PLAN_KEY].contains(obs[PLAN_KEY])
     env.close()

@@ -28,6 +28,8 @@ class TrainConfig:
     """``lateral``: the residual moves the tip across the drill only; ``xyz``: along the base axes too."""
     observe_prev_residual: bool = False
     """Show the policy its own previous residual (``residual_prev``)."""
+    observe_plan: bool = False
+    """Show the policy the plan's angle, feed, stick-out and cortical thickness (``plan``)."""
     total_timesteps: int = 200_000
     """Agent steps over all environments."""
     n_envs: int = 2

@@ -24,7 +24,13 @@ def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | N
     if randomize:
         env = DomainRandomization(env)
     return ResidualWrapper(
-        env, cfg.base, cfg.residual_scale, cfg.residual_feed, cfg.residual_axes, cfg.observe_prev_residual
+        env,
+        cfg.base,
+        cfg.residual_scale,
+        cfg.residual_feed,
+        cfg.residual_axes,
+        cfg.observe_prev_residual,
+        cfg.observe_plan,
     )
 
 
@@ -57,7 +63,13 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
             env: gym.Env = gym.make(ENV_ID, **cfg.env_kwargs)
             env = ScenarioCycle(env, validation_scenarios(cfg.eval_episodes))
             return ResidualWrapper(
-                env, cfg.base, cfg.residual_scale, cfg.residual_feed, cfg.residual_axes, cfg.observe_prev_residual
+                env,
+                cfg.base,
+                cfg.residual_scale,
+                cfg.residual_feed,
+                cfg.residual_axes,
+                cfg.observe_prev_residual,
+                cfg.observe_plan,
             )
         return residual_env(cfg, False, scenario)
 

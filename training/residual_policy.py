@@ -15,7 +15,7 @@ from controllers.base import Controller
 from controllers.registry import make_controller
 from envs.plan import DrillPlan
 from training.policy_bundle import load_bundle
-from training.residual_wrapper import BASE_ACTION_KEY, PREV_RESIDUAL_KEY, combine
+from training.residual_wrapper import BASE_ACTION_KEY, PLAN_KEY, PREV_RESIDUAL_KEY, combine, plan_features
 
 
 class ResidualPolicyController(Controller):
@@ -50,6 +50,10 @@ class ResidualPolicyController(Controller):
             shape = space[PREV_RESIDUAL_KEY].shape  # type: ignore[index]
             prev = self._prev_residual if self._prev_residual is not None else np.zeros(shape, np.float32)
             aug[PREV_RESIDUAL_KEY] = prev
+        if PLAN_KEY in getattr(space, "spaces", {}):
+            if self.plan is None:
+                raise RuntimeError("this residual policy observes the plan: call set_plan(plan) first")
+            aug[PLAN_KEY] = plan_features(self.plan)
         if self.bundle.normalizer is not None:
             aug = self.bundle.normalizer(aug)
         residual, _ = self.bundle.model.predict(aug, deterministic=True)

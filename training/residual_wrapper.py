@@ -18,12 +18,23 @@ from controllers import Controller, make_controller
 from envs.constants import ACTION_DIM
 
 BASE_ACTION_KEY = "base_action"
+PLAN_KEY = "plan"
+"""Planned interaction angle (rad), feed (m/s), drill stick-out (m) and cortical thickness (m): what the
+cell knows before drilling (the plan from imaging and the tool measured on the bench)."""
 PREV_RESIDUAL_KEY = "residual_prev"
 """The policy's own previous residual (zero at an episode start): the controller knows what it sent, and
 with it a memoryless policy can hold or integrate a correction."""
 
 
 RESIDUAL_AXES = ("lateral", "xyz")
+PLAN_HIGH = np.array([np.pi / 2, 5e-3, 0.1, 0.05], dtype=np.float32)
+"""Upper bounds of the plan features (their lower bounds are 0)."""
+
+
+def plan_features(plan: Any) -> np.ndarray:
+    """``[beta_rad, feed_m_s, stickout_m, cortical_thickness_m]`` of a :class:`envs.plan.DrillPlan`."""
+    values = [plan.beta_rad, plan.feed_m_s, plan.stickout_m, plan.cortical_thickness_m]
+    return np.clip(np.array(values, dtype=np.float32), 0.0, PLAN_HIGH)
 
 
 def residual_dims(residual_feed: bool, axes: str = "lateral") -> int:
@@ -65,6 +76,7 @@ class ResidualWrapper(gym.Wrapper):
         axes: ``"lateral"`` (default): the residual moves the tip across the drill only (task x, y), as the
             compensators do; ``"xyz"``: along the three base axes (it can then plunge the drill).
         observe_prev_residual: add the policy's previous residual to the observation (``residual_prev``).
+        observe_plan: add the plan's angle, feed, stick-out and cortical thickness (``plan``).
     """
 
     def __init__(
@@ -75,6 +87,7 @@ class ResidualWrapper(gym.Wrapper):
         residual_feed: bool = False,
         axes: str = "lateral",
         observe_prev_residual: bool = False,
+        observe_plan: bool = False,
     ):
         super().__init__(env)
         if not 0.0 < scale <= 2.0:
@@ -90,7 +103,11 @@ class ResidualWrapper(gym.Wrapper):
         extra = {BASE_ACTION_KEY: spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)}
         if observe_prev_residual:
             extra[PREV_RESIDUAL_KEY] = spaces.Box(-1.0, 1.0, self.action_space.shape, np.float32)
+        if observe_plan:
+            extra[PLAN_KEY] = spaces.Box(0.0, PLAN_HIGH, dtype=np.float32)
         self.observe_prev_residual = observe_prev_residual
+        self.observe_plan = observe_plan
+        self._plan = np.zeros(PLAN_HIGH.shape, dtype=np.float32)
         self.observation_space = spaces.Dict({**obs_space.spaces, **extra})
         self._base_action = np.zeros(ACTION_DIM, dtype=np.float32)
         self._n_residual = residual_dims(residual_feed, axes)
@@ -103,6 +120,8 @@ class ResidualWrapper(gym.Wrapper):
         out = {**obs, BASE_ACTION_KEY: self._base_action.copy()}
         if self.observe_prev_residual:
             out[PREV_RESIDUAL_KEY] = self._prev_residual.copy()
+        if self.observe_plan:
+            out[PLAN_KEY] = self._plan.copy()
         return out
 
     def reset(self, **kwargs: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
@@ -110,6 +129,7 @@ class ResidualWrapper(gym.Wrapper):
         obs, info = self.env.reset(**kwargs)
         plan = self.env.unwrapped.plan  # type: ignore[attr-defined]
         self.base.set_plan(plan)
+        self._plan = plan_features(plan)
         self._R = plan.R_base_task if self.axes == "lateral" else None
         return self._augment(obs, True), info
 
