@@ -213,10 +213,16 @@ def test_validation_scenarios_are_held_in_and_visited_once_per_evaluation():
     assert scenarios[0] == {} and len(scenarios) == 6 and validation_scenarios(6) == scenarios
     for kw in scenarios:
         assert outside_training(kw) == [], kw  # inside the training ranges
-    env = ScenarioCycle(gym.make(ENV_ID), scenarios[1:3])
-    seen = [env.reset(seed=0)[1]["scenario"] for _ in range(4)]
+    env = ScenarioCycle(gym.make(ENV_ID), scenarios[1:3], seeds=[7, 8])
+    seen, first_obs = [], []
+    for _ in range(4):
+        _, info = env.reset()
+        seen.append(info["scenario"])
+        first_obs.append(env.step(np.zeros(4, np.float32))[0]["ft_wrench"])  # noisy F/T reading
     assert seen == [scenarios[1], scenarios[2], scenarios[1], scenarios[2]]
     assert env.unwrapped.scenario.beta_deg == scenarios[2]["beta_deg"]
+    np.testing.assert_array_equal(first_obs[0], first_obs[2])  # the same episode replayed (same noise)
+    assert not np.array_equal(first_obs[0], first_obs[1])
     env.close()
 
 

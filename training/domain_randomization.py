@@ -71,18 +71,28 @@ def validation_scenarios(n: int, seed: int = VALIDATION_SEED) -> list[dict[str, 
 
 
 class ScenarioCycle(gym.Wrapper):
-    """Reset into the next scenario of a fixed list, in turn: ``len(scenarios)`` episodes visit each once."""
+    """Reset into the next scenario of a fixed list, in turn: ``len(scenarios)`` episodes visit each once.
 
-    def __init__(self, env: gym.Env, scenarios: list[dict[str, Any]]):
+    With ``seeds`` (one per scenario) every visit of a scenario replays the same episode (noise and
+    specimen draws), so successive evaluations differ only by the policy.
+    """
+
+    def __init__(self, env: gym.Env, scenarios: list[dict[str, Any]], seeds: list[int] | None = None):
         super().__init__(env)
         if not scenarios:
             raise ValueError("ScenarioCycle needs at least one scenario")
+        if seeds is not None and len(seeds) != len(scenarios):
+            raise ValueError(f"{len(seeds)} seeds for {len(scenarios)} scenarios")
         self.scenarios = [dict(s) for s in scenarios]
+        self.seeds = None if seeds is None else [int(x) for x in seeds]
         self.episode = 0
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
-        """Reset with the next scenario of the list."""
-        scenario = self.scenarios[self.episode % len(self.scenarios)]
+        """Reset with the next scenario of the list (and its seed, if the cycle has seeds)."""
+        k = self.episode % len(self.scenarios)
+        scenario = self.scenarios[k]
         self.episode += 1
+        if self.seeds is not None:
+            seed = self.seeds[k]
         obs, info = self.env.reset(seed=seed, options={**(options or {}), "scenario": scenario})
         return obs, {**info, "scenario": dict(scenario)}

@@ -10,7 +10,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 from training.config import TrainConfig
-from training.domain_randomization import DomainRandomization, ScenarioCycle, validation_scenarios
+from training.domain_randomization import VALIDATION_SEED, DomainRandomization, ScenarioCycle, validation_scenarios
 from training.residual_wrapper import ResidualWrapper
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
@@ -53,7 +53,8 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
 
     ``cfg.eval_scenarios == "paper"``: the paper scenario (or ``scenario``) every episode;
     ``"validation"``: :func:`training.domain_randomization.validation_scenarios` in turn, one per
-    evaluation episode (so an evaluation of ``cfg.eval_episodes`` episodes visits each once).
+    evaluation episode, each with its own fixed seed (so every evaluation of ``cfg.eval_episodes``
+    episodes replays the same episodes: evaluations, and the base's, differ only by the policy).
     """
 
     def factory() -> gym.Env:
@@ -61,7 +62,8 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
             import envs  # noqa: F401
 
             env: gym.Env = gym.make(ENV_ID, **cfg.env_kwargs)
-            env = ScenarioCycle(env, validation_scenarios(cfg.eval_episodes))
+            scenarios = validation_scenarios(cfg.eval_episodes)
+            env = ScenarioCycle(env, scenarios, seeds=[VALIDATION_SEED + i for i in range(len(scenarios))])
             return ResidualWrapper(
                 env,
                 cfg.base,

@@ -59,14 +59,14 @@ SINGLES: dict[str, tuple[str, str]] = {
 """Reality effect -> (moderate, strong) spec."""
 
 PAIRS: tuple[str, ...] = (
-    "ft_warmup:fz_n=10,fx_n=5+density_layer:hardening=0.05",
-    "jittered_latency:mean_s=0.05+chuck_tool_length:dl_m=0.0001",
-    "joint_offsets:dq1_rad=2e-4+heat_softening:softening_per_k=0.002",
-    "stribeck_friction:static_rad=1e-4,coulomb_rad=7e-5+wobbly_runout:runout_m=6e-5",
-    "entry_friction:mu=0.01+ft_warmup:fz_n=10,fy_n=5",
+    "jittered_latency:mean_s=0.08,jitter_s=0.02+heat_softening:softening_per_k=0.002",
+    "joint_offsets:dq1_rad=2.5e-4+density_layer:hardening=0.5,depth_m=0.002",
+    "ft_warmup:fz_n=10,fx_n=5+wobbly_runout:runout_m=2e-5",
+    "entry_friction:mu=0.2+stribeck_friction:static_rad=2e-4,coulomb_rad=1.5e-4",
+    "chuck_tool_length:dl_m=0.002,chuck_rad_per_nm=0.02+joint_offsets:dq0_rad=1e-3,dq2_rad=-1e-3",
 )
-"""Two effects at once, each at a size that leaves a gap of the same order as the other's (so that
-either could be seen on top of the other's misfit)."""
+"""Two effects at once, at sizes whose single-effect gaps (gap over the simulator's own level, measured
+on the single cases) lie within a factor of about 3 of each other, so that neither hides the other."""
 OUTSIDE: tuple[str, ...] = ("bone_void:length_m=0.001", "bone_void:length_m=0.0015,depth_m=0.003,residual=0.2")
 CLEAN_TRIALS = 6
 
