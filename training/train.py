@@ -29,6 +29,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=None, help="override seed")
     parser.add_argument("--export", type=Path, default=None, help="also copy the best policy bundle here (NAME.zip)")
     parser.add_argument(
+        "--torch-threads",
+        type=int,
+        default=1,
+        help="CPU threads of the learner (default 1: the networks are small, and more threads spin-wait "
+        "against the env workers and other jobs for the cores)",
+    )
+    parser.add_argument(
         "--sweep",
         type=Path,
         default=None,
@@ -83,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
         from training import sweep
 
         return sweep.run(args)
+    import torch
     from stable_baselines3.common.callbacks import CheckpointCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
@@ -95,6 +103,8 @@ def run(args: argparse.Namespace) -> int:
         for k, v in (("total_timesteps", args.timesteps), ("n_envs", args.n_envs), ("seed", args.seed))
         if v is not None
     }
+    if getattr(args, "torch_threads", None):
+        torch.set_num_threads(max(int(args.torch_threads), 1))
     out: Path = args.out
     if args.resume and (out / "config.yaml").exists():
         cfg = load_config(out / "config.yaml", overrides)
