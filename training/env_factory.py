@@ -16,13 +16,8 @@ from training.residual_wrapper import ResidualWrapper
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 
 
-def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | None = None) -> gym.Env:
-    """One drilling env (optionally domain-randomised) under the residual wrapper."""
-    import envs  # noqa: F401  (registers the ids in spawned workers)
-
-    env: gym.Env = gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})})
-    if randomize:
-        env = DomainRandomization(env)
+def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:
+    """``env`` under the residual wrapper configured by ``cfg``."""
     return ResidualWrapper(
         env,
         cfg.base,
@@ -32,6 +27,16 @@ def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | N
         cfg.observe_prev_residual,
         cfg.observe_plan,
     )
+
+
+def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | None = None) -> gym.Env:
+    """One drilling env (optionally domain-randomised) under the residual wrapper."""
+    import envs  # noqa: F401  (registers the ids in spawned workers)
+
+    env: gym.Env = gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})})
+    if randomize:
+        env = DomainRandomization(env)
+    return wrap_residual(env, cfg)
 
 
 def make_train_vec_env(cfg: TrainConfig) -> VecEnv:
@@ -64,15 +69,7 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
             env: gym.Env = gym.make(ENV_ID, **cfg.env_kwargs)
             scenarios = validation_scenarios(cfg.eval_episodes)
             env = ScenarioCycle(env, scenarios, seeds=[VALIDATION_SEED + i for i in range(len(scenarios))])
-            return ResidualWrapper(
-                env,
-                cfg.base,
-                cfg.residual_scale,
-                cfg.residual_feed,
-                cfg.residual_axes,
-                cfg.observe_prev_residual,
-                cfg.observe_plan,
-            )
+            return wrap_residual(env, cfg)
         return residual_env(cfg, False, scenario)
 
     return make_vec_env(factory, n_envs=1, seed=10_000 + cfg.seed)

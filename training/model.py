@@ -13,43 +13,48 @@ from stable_baselines3.common.vec_env import VecEnv
 from training.config import TrainConfig
 
 
-class ResidualSAC(SAC):
-    """SAC with a critic warm-up.
+class _CriticWarmup:
+    """Critic warm-up for off-policy algorithms.
 
-    For the first ``actor_warmup_steps`` the actor and the entropy coefficient do not learn (their
-    learning rate is 0), so the residual stays exactly zero while the critic learns the base
-    controller's values (Silver et al. 2018, residual policy learning: without it the actor follows an
-    untrained critic away from the base).
+    The actor (and SAC's entropy coefficient) do not learn for the first ``actor_warmup_steps``
+    (learning rate 0), so the residual stays exactly zero while the critic learns the base controller's
+    values (the burn-in of Silver et al. 2018, residual policy learning).
     """
 
+    actor_warmup_steps: int = 0
+    num_timesteps: int
+
+    def _frozen_optimizers(self) -> list[torch.optim.Optimizer]:
+        raise NotImplementedError
+
+    def _update_learning_rate(self, optimizers: Any) -> None:
+        super()._update_learning_rate(optimizers)  # type: ignore[misc]
+        if self.num_timesteps < self.actor_warmup_steps:
+            for opt in self._frozen_optimizers():
+                for group in opt.param_groups:
+                    group["lr"] = 0.0
+
+
+class ResidualSAC(_CriticWarmup, SAC):
+    """SAC with an optional critic warm-up (:class:`_CriticWarmup`)."""
+
     def __init__(self, *args: Any, actor_warmup_steps: int = 0, **kwargs: Any) -> None:
         self.actor_warmup_steps = int(actor_warmup_steps)
         super().__init__(*args, **kwargs)
 
-    def _update_learning_rate(self, optimizers: Any) -> None:
-        super()._update_learning_rate(optimizers)
-        if self.num_timesteps < self.actor_warmup_steps:
-            frozen = [self.actor.optimizer] + ([self.ent_coef_optimizer] if self.ent_coef_optimizer else [])
-            _freeze(frozen)
+    def _frozen_optimizers(self) -> list[torch.optim.Optimizer]:
+        return [self.actor.optimizer] + ([self.ent_coef_optimizer] if self.ent_coef_optimizer else [])
 
 
-class ResidualTD3(TD3):
-    """TD3 with the same critic warm-up as :class:`ResidualSAC`."""
+class ResidualTD3(_CriticWarmup, TD3):
+    """TD3 with an optional critic warm-up (:class:`_CriticWarmup`)."""
 
     def __init__(self, *args: Any, actor_warmup_steps: int = 0, **kwargs: Any) -> None:
         self.actor_warmup_steps = int(actor_warmup_steps)
         super().__init__(*args, **kwargs)
 
-    def _update_learning_rate(self, optimizers: Any) -> None:
-        super()._update_learning_rate(optimizers)
-        if self.num_timesteps < self.actor_warmup_steps:
-            _freeze([self.actor.optimizer])
-
-
-def _freeze(optimizers: list[torch.optim.Optimizer]) -> None:
-    for opt in optimizers:
-        for group in opt.param_groups:
-            group["lr"] = 0.0
+    def _frozen_optimizers(self) -> list[torch.optim.Optimizer]:
+        return [self.actor.optimizer]
 
 
 ALGO_CLASSES: dict[str, type[BaseAlgorithm]] = {"sac": ResidualSAC, "td3": ResidualTD3, "ppo": PPO}
