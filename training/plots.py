@@ -10,8 +10,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 
-def plot_curves(curve: list[dict[str, float]], path: Path) -> None:
-    """Deviation and max lateral force of the policy vs the base, per evaluation (paper scenario)."""
+def plot_curves(curve: list[dict[str, float]], path: Path, episodes: str = "paper scenario") -> None:
+    """Deviation and max lateral force of the policy vs the base, per evaluation (means over ``episodes``)."""
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))
     if curve:
         t = [r["timesteps"] for r in curve]
@@ -19,9 +19,11 @@ def plot_curves(curve: list[dict[str, float]], path: Path) -> None:
         a.plot(t, [r["base_deviation_mean_mm"] for r in curve], "--", label="base controller")
         b.plot(t, [r["policy_lateral_force_max_n"] for r in curve], "o-", label="residual policy")
         b.plot(t, [r["base_lateral_force_max_n"] for r in curve], "--", label="base controller")
-    a.set(xlabel="agent steps", ylabel="mean tip deviation (mm)", title="paper scenario, deterministic evaluation")
-    b.set(xlabel="agent steps", ylabel="max lateral force (N)", title="paper scenario, deterministic evaluation")
+    title = f"{episodes}, deterministic evaluation"
+    a.set(xlabel="agent steps (thousands)", ylabel="mean tip deviation (mm)", title=title)
+    b.set(xlabel="agent steps (thousands)", ylabel="max lateral force (N)", title=title)
     for ax in (a, b):
+        ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:g}")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
         ax.title.set_fontsize(9)

@@ -73,7 +73,8 @@ def _export(out: Path, cfg: Any, model: Any, evaluation: Any, wall_s: float, exp
         "best_policy_reward": float(evaluation.best_mean_reward),
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
-    plot_curves(evaluation.curve, out / "training_curves.png")
+    episodes = "paper scenario" if cfg.eval_scenarios == "paper" else f"{cfg.eval_episodes} validation episodes"
+    plot_curves(evaluation.curve, out / "training_curves.png", episodes)
     best_norm = out / "best" / BEST_NORMALIZER
     if best_zip.exists() and (best_norm.exists() or not cfg.normalize_obs):
         source, norm = best_zip, best_norm
