@@ -2,13 +2,25 @@
 
 from __future__ import annotations
 
+import logging
+
 import gymnasium as gym
 import numpy as np
+import pytest
 
 import envs  # noqa: F401  (registers the ids)
 from eval.rollout import EpisodeResult, run_episode
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
+
+
+@pytest.fixture(scope="module")
+def ray_local():
+    """One local Ray instance with 2 CPUs per test module (starting Ray takes seconds); skips without Ray."""
+    ray = pytest.importorskip("ray")
+    ray.init(address="local", num_cpus=2, include_dashboard=False, logging_level=logging.WARNING)
+    yield ray
+    ray.shutdown()
 
 
 def run_zero_action(seed: int = 0, **scenario) -> EpisodeResult:

@@ -42,10 +42,8 @@ def scripted_action(k: int) -> np.ndarray:
     return a
 
 
-def run_open_loop(spec: str | None) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """Channels of a scripted episode, and the replay's engaged share per sample."""
-    env = gym.make("drillgym/UR5BoneDrill-v0", **QUIET)
-    env.unwrapped.set_effects(build_effects(spec) if spec else None)
+def scripted_channels(env: gym.Env) -> dict[str, np.ndarray]:
+    """Reset ``env`` (seed 1), run the scripted actions to the end and return its channels."""
     env.reset(seed=1)
     u = env.unwrapped
     q, tracker, tcp, k = [], [], [], 0
@@ -57,13 +55,21 @@ def run_open_loop(spec: str | None) -> tuple[dict[str, np.ndarray], np.ndarray]:
         tcp.append(u.rtde_tcp_base.copy())
         if te or tr:
             break
-    out = {
+    return {
         "force": np.asarray(u.recorder.ft_force_n),
         "torque": np.asarray(u.recorder.ft_torque_nm),
         "tracker": np.array(tracker),
         "q": np.array(q),
         "tcp": np.array(tcp),
     }
+
+
+def run_open_loop(spec: str | None) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Channels of a scripted episode, and the replay's engaged share per sample."""
+    env = gym.make("drillgym/UR5BoneDrill-v0", **QUIET)
+    env.unwrapped.set_effects(build_effects(spec) if spec else None)
+    out = scripted_channels(env)
+    u = env.unwrapped
     tips = np.asarray(u.recorder.tip_task_m)
     share = np.interp(
         tips[:, 2] + tips[:, 0] * u.cell.solver.tan_beta, u.cell.table.depth_m, u.cell.table.engaged_fraction

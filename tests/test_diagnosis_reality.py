@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from test_diagnosis_effects import QUIET, scripted_action
+from test_diagnosis_effects import QUIET, scripted_channels
 
 from envs.effects import CHANNEL_GROUPS, EFFECTS
 from eval.diagnosis.reality.bone import ForceScaleReset
@@ -38,24 +38,7 @@ def run(spec: str | None):
     for e in effects:
         e.seed(np.random.default_rng(5))
     env.unwrapped.set_effects([ForceScaleReset(), *effects] if effects else None)
-    env.reset(seed=1)
-    u = env.unwrapped
-    q, tracker, tcp, k = [], [], [], 0
-    while True:
-        _, _, te, tr, _ = env.step(scripted_action(k))
-        k += 1
-        q.append(u.cell.q_motor_rad.copy())
-        tracker.append(u.tracker_reading.copy())
-        tcp.append(u.rtde_tcp_base.copy())
-        if te or tr:
-            break
-    out = {
-        "force": np.asarray(u.recorder.ft_force_n),
-        "torque": np.asarray(u.recorder.ft_torque_nm),
-        "tracker": np.array(tracker),
-        "q": np.array(q),
-        "tcp": np.array(tcp),
-    }
+    out = scripted_channels(env)
     env.close()
     return out
 

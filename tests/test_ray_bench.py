@@ -1,6 +1,5 @@
 """`drillgym bench --ray`: same episodes as a local run, streamed outputs, a killed worker's episode retried."""
 
-import logging
 import os
 import signal
 
@@ -11,15 +10,6 @@ from eval.bench_episode import EpisodeJob, run_job
 from eval.cli import main
 from eval.logs import read_episode_log
 from eval.scale.sink import StreamingSink
-
-
-@pytest.fixture(scope="module")
-def ray_local():
-    """One local Ray instance with 2 CPUs for the whole module (starting Ray takes seconds)."""
-    ray = pytest.importorskip("ray")
-    ray.init(address="local", num_cpus=2, include_dashboard=False, logging_level=logging.WARNING)
-    yield ray
-    ray.shutdown()
 
 
 def _jobs(out, controllers=("none", "li2023"), seeds=2):

@@ -1,7 +1,6 @@
 """`drillgym train --sweep`: the spec is checked without Ray; a small sweep runs end to end with ASHA."""
 
 import json
-import logging
 from pathlib import Path
 
 import gymnasium as gym
@@ -15,14 +14,6 @@ from eval.cli import main
 from training.sweep import load_sweep
 
 SWEEPS = Path(__file__).resolve().parents[1] / "training" / "sweeps"
-
-
-@pytest.fixture(scope="module")
-def ray_local():
-    ray = pytest.importorskip("ray")
-    ray.init(address="local", num_cpus=2, include_dashboard=False, logging_level=logging.WARNING)
-    yield ray
-    ray.shutdown()
 
 
 @pytest.mark.parametrize("name", ["small", "residual_sac"])

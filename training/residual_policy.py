@@ -29,6 +29,10 @@ class ResidualPolicyController(Controller):
         self.bundle = load_bundle(self.path)
         self.base = make_controller(self.bundle.config.base)
         self.config = self.bundle.config
+        spaces = getattr(self.bundle.model.observation_space, "spaces", {})
+        prev = spaces.get(PREV_RESIDUAL_KEY)
+        self._prev_shape = None if prev is None else prev.shape
+        self._observes_plan = PLAN_KEY in spaces
 
     def set_plan(self, plan: DrillPlan) -> None:
         """The base controller gets the plan too."""
@@ -45,12 +49,10 @@ class ResidualPolicyController(Controller):
         base_action, _ = self.base.predict(obs, episode_start=np.array([self._start]))
         self._start = False
         aug = {**obs, BASE_ACTION_KEY: base_action}
-        space = self.bundle.model.observation_space
-        if PREV_RESIDUAL_KEY in getattr(space, "spaces", {}):
-            shape = space[PREV_RESIDUAL_KEY].shape  # type: ignore[index]
-            prev = self._prev_residual if self._prev_residual is not None else np.zeros(shape, np.float32)
+        if self._prev_shape is not None:
+            prev = self._prev_residual if self._prev_residual is not None else np.zeros(self._prev_shape, np.float32)
             aug[PREV_RESIDUAL_KEY] = prev
-        if PLAN_KEY in getattr(space, "spaces", {}):
+        if self._observes_plan:
             if self.plan is None:
                 raise RuntimeError("this residual policy observes the plan: call set_plan(plan) first")
             aug[PLAN_KEY] = plan_features(self.plan)

@@ -210,17 +210,15 @@ def _local_search(
         improved = False
         for i in axes:
             for sign in (1.0, -1.0):
-                v = u.copy()
-                v[i] = min(max(u[i] + sign * step, 0.0), 1.0)
-                if v[i] == u[i] or evals >= budget:
+                v = _moved(u, i, sign * step)
+                if v is None or evals >= budget:
                     continue
                 fv = objective(v)
                 evals += 1
                 while fv < f:  # keep going while it pays
                     u, f, improved = v, fv, True
-                    v = u.copy()
-                    v[i] = min(max(u[i] + sign * step, 0.0), 1.0)
-                    if v[i] == u[i] or evals >= budget:
+                    v = _moved(u, i, sign * step)
+                    if v is None or evals >= budget:
                         break
                     fv = objective(v)
                     evals += 1
@@ -247,6 +245,13 @@ def _guess(ev: Evaluator, names: Sequence[str]) -> list[dict[str, float]] | None
     evidence = {"tracker_offset_task_m": np.mean(offsets, axis=0), "R_base_task": d.episodes[d.cal[0]].r_base_task}
     guess = EFFECTS[names[0]].initial_guess(evidence)
     return None if guess is None else [guess]
+
+
+def _moved(u: np.ndarray, i: int, delta: float) -> np.ndarray | None:
+    """``u`` with parameter ``i`` moved by ``delta`` inside [0, 1]; None if the bound leaves it where it was."""
+    v = u.copy()
+    v[i] = min(max(u[i] + delta, 0.0), 1.0)
+    return None if v[i] == u[i] else v
 
 
 def _worth_refining(f_off: float, f_best: float, data: Any) -> bool:
