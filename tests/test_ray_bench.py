@@ -43,7 +43,8 @@ def test_ray_and_local_runs_give_identical_outputs(tmp_path, ray_local):
     assert not list((remote / "logs").glob("*.tmp")) and not [p for p in (remote / "logs").iterdir() if p.is_dir()]
 
 
-def test_a_worker_killed_mid_episode_is_retried_and_nothing_is_lost(tmp_path, ray_local):
+@pytest.mark.parametrize("chunk_size", [1, 2])
+def test_a_worker_killed_mid_episode_is_retried_and_nothing_is_lost(tmp_path, ray_local, chunk_size):
     from eval.scale.bench_ray import _scratch, run_jobs_ray
 
     marker = tmp_path / "killed"
@@ -74,7 +75,7 @@ def test_a_worker_killed_mid_episode_is_retried_and_nothing_is_lost(tmp_path, ra
 
     out = tmp_path / "ray"
     jobs = _jobs(out)
-    result = run_jobs_ray(jobs, out, runner=kill_once)
+    result = run_jobs_ray(jobs, out, runner=kill_once, chunk_size=chunk_size)  # 2: the chunk is re-run whole
     assert marker.exists()  # the victim's worker did die
     expected = sorted((run_job(j) for j in _jobs(tmp_path / "local")), key=lambda r: (r["controller"], r["seed"]))
     got = sorted(result.rows, key=lambda r: (r["controller"], r["seed"]))
@@ -104,6 +105,13 @@ def test_a_worker_that_dies_past_its_retries_becomes_an_error_row(tmp_path, ray_
     by_seed = {r["seed"]: r for r in rows}
     assert "worker failed" in by_seed[0]["error"] and by_seed[1]["error"] == ""
     assert (out / by_seed[1]["log"]).exists() and not (out / "logs/paper__paper__none__seed0.parquet").exists()
+
+
+def test_chunks_cover_the_grid_with_about_four_tasks_per_cpu():
+    from eval.scale.bench_ray import chunk_size_for
+
+    assert chunk_size_for(4, 2) == 1 and chunk_size_for(40, 2) == 5 and chunk_size_for(10_000, 2) == 8
+    assert chunk_size_for(40, 64) == 1
 
 
 def test_the_sink_appends_rows_and_logs_as_they_arrive(tmp_path):

@@ -79,6 +79,21 @@ def run_episode_task(
     return row, files
 
 
+def run_chunk_task(
+    jobs: Sequence[EpisodeJob], runner: Runner = run_job, driver_node: str | None = None
+) -> list[tuple[dict[str, Any], dict[str, bytes]]]:
+    """Run a few episodes one after another in one Ray task (see :func:`run_episode_task`).
+
+    Episodes of ~0.1 s cost Ray ~10 ms each to schedule and return; a chunk pays that once.
+    """
+    return [run_episode_task(job, runner, driver_node) for job in jobs]
+
+
+def chunk_size_for(n_jobs: int, cpus: int, chunks_per_cpu: int = 4, max_size: int = 8) -> int:
+    """Episodes per task: about ``chunks_per_cpu`` tasks per CPU (for balance), at most ``max_size``."""
+    return max(1, min(max_size, n_jobs // max(1, cpus * chunks_per_cpu)))
+
+
 def _import_worker() -> int:
     """Warm-up task: import the episode code (PyBullet, Pinocchio, controllers) in a worker."""
     import eval.bench_episode  # noqa: F401
@@ -91,12 +106,12 @@ def _failed_row(job: EpisodeJob, error: BaseException) -> dict[str, Any]:
     return {**row, "error": f"worker failed: {type(error).__name__}: {error}", "log": job.log_name}
 
 
-def _collect(ref: Any, job: EpisodeJob) -> tuple[dict[str, Any], dict[str, bytes]]:
-    """A finished task's row and log files; a task that failed past its retries becomes an error row."""
+def _collect(ref: Any, chunk: list[EpisodeJob]) -> list[tuple[dict[str, Any], dict[str, bytes]]]:
+    """A finished task's rows and log files; a task that failed past its retries gives error rows."""
     try:
         return ray.get(ref)
     except (ray.exceptions.RayError, OSError) as e:
-        return _failed_row(job, e), {}
+        return [(_failed_row(job, e), {}) for job in chunk]
 
 
 def _groups(jobs: Sequence[EpisodeJob]) -> list[tuple[str, str, str]]:
@@ -111,6 +126,7 @@ def run_jobs_ray(
     runner: Runner = run_job,
     max_retries: int = MAX_RETRIES,
     num_cpus: int | None = None,
+    chunk_size: int | None = None,
 ) -> RayBenchRun:
     """Run every job as a Ray task, writing rows and logs into ``out`` as they complete.
 
@@ -122,13 +138,14 @@ def run_jobs_ray(
         runner: what a task runs on a job (tests swap in one that crashes its worker).
         max_retries: re-runs of a task whose worker died; after that the episode is an error row.
         num_cpus: CPUs of a local instance (default: the machine's).
+        chunk_size: episodes per Ray task (default :func:`chunk_size_for`); a chunk's rows arrive together.
 
     Returns:
         Rows in completion order, and the timings.
     """
     from tqdm import tqdm
 
-    task = ray.remote(num_cpus=1, max_retries=max_retries, retry_exceptions=False)(run_episode_task)
+    task = ray.remote(num_cpus=1, max_retries=max_retries, retry_exceptions=False)(run_chunk_task)
     with ray_session(address, num_cpus) as session:
         print(session.describe())
         t0 = time.perf_counter()
@@ -139,14 +156,18 @@ def run_jobs_ray(
         sink = StreamingSink(out, _groups(jobs))
         t0 = time.perf_counter()
         driver_node = ray.get_runtime_context().get_node_id()
-        jobs_of = {task.remote(job, runner, driver_node): job for job in jobs}
+        size = chunk_size or chunk_size_for(len(jobs), session.cpus)
+        chunks = [list(jobs[i : i + size]) for i in range(0, len(jobs), size)]
+        jobs_of = {task.remote(chunk, runner, driver_node): chunk for chunk in chunks}
         waiting = list(jobs_of)
         with tqdm(total=len(jobs), desc=desc, unit="ep") as bar:
             while waiting:
                 done, waiting = ray.wait(waiting, num_returns=1)  # block for one, then take all that are ready
                 more, waiting = ray.wait(waiting, num_returns=len(waiting), timeout=0) if waiting else ([], [])
-                sink.extend([_collect(ref, jobs_of.pop(ref)) for ref in done + more])
-                bar.update(len(done) + len(more))
+                for ref in done + more:
+                    results = _collect(ref, jobs_of.pop(ref))
+                    sink.extend(results)
+                    bar.update(len(results))
         sink.write_summary()
         episodes_s = time.perf_counter() - t0
     print(f"ray: {len(jobs)} episodes in {episodes_s:.1f} s")
