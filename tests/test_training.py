@@ -32,6 +32,20 @@ def test_combine_adds_the_scaled_residual_and_clips():
     np.testing.assert_allclose(combine(base, np.array([9.0, 9.0, 9.0]), 1.0)[:3], [1.0, 0.1, 1.0], atol=1e-6)
 
 
+def test_a_gain_residual_scales_the_base_correction_per_task_axis():
+    from envs.cell_params import R_BASE_TASK
+
+    base = np.array([0.2, -0.9, 0.05, 0.1], np.float32)  # task x = base y = -0.9, task y = base x = 0.2
+    out = combine(base, np.array([-0.5, 1.0]), 0.5, R_BASE_TASK, mode="gain")
+    np.testing.assert_allclose(out, [0.3, -0.675, 0.05, 0.1], atol=1e-6)
+    np.testing.assert_allclose(combine(base, np.zeros(2), 1.0, R_BASE_TASK, mode="gain"), base, atol=1e-7)
+    cancelled = combine(base, -np.ones(2), 1.0, R_BASE_TASK, mode="gain")
+    np.testing.assert_allclose(cancelled, [0.0, 0.0, 0.05, 0.1], atol=1e-7)  # only the across-drill part
+    np.testing.assert_allclose(combine(base, np.array([1.0, 0.0, -1.0]), 0.5, mode="gain")[:3], [0.3, -0.9, 0.025])
+    with pytest.raises(ValueError, match="mode"):
+        combine(base, np.zeros(2), 0.5, R_BASE_TASK, mode="multiply")
+
+
 def test_zero_residual_reproduces_the_base_controller_exactly():
     wrapped = ResidualWrapper(gym.make(ENV_ID), "li2023", 0.5)
     plain = gym.make(ENV_ID)
@@ -224,6 +238,35 @@ def test_validation_scenarios_are_held_in_and_visited_once_per_evaluation():
     np.testing.assert_array_equal(first_obs[0], first_obs[2])  # the same episode replayed (same noise)
     assert not np.array_equal(first_obs[0], first_obs[1])
     env.close()
+
+
+def test_extra_randomisation_ranges_reach_training_and_validation_draws():
+    from training.domain_randomization import DomainRandomization, merged_ranges, validation_scenarios
+
+    cfg = TrainConfig(dr_ranges={"density_scale": [0.9, 1.1]})
+    ranges = merged_ranges(cfg.dr_ranges)
+    assert ranges["density_scale"] == (0.9, 1.1) and ranges["beta_deg"] == (15.0, 35.0)
+    draws = [s["density_scale"] for s in validation_scenarios(8, ranges=ranges)[1:]]
+    assert all(0.9 <= d <= 1.1 for d in draws) and np.ptp(draws) > 0.05
+    env = DomainRandomization(gym.make(ENV_ID), ranges)
+    env.reset(seed=3)
+    assert env.unwrapped.scenario.density_scale == env.current["density_scale"] != 1.0
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("ranges", "message"),
+    [
+        ({"hardness": [0.9, 1.1]}, "not a numeric scenario argument"),
+        ({"bone": [0.9, 1.1]}, "not a numeric scenario argument"),
+        ({"density_scale": [1.1, 0.9]}, "low <= high"),
+        ({"density_scale": 1.0}, "must be [low, high]"),
+        ({"density_scale": [0.1, 1.0]}, "density_scale"),
+    ],
+)
+def test_bad_randomisation_ranges_are_rejected_with_a_clear_message(ranges, message):
+    with pytest.raises(ValueError, match=message.replace("[", r"\[")):
+        TrainConfig(dr_ranges=ranges)
 
 
 def test_plan_features_are_what_the_plan_says_in_si_units():

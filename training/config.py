@@ -22,6 +22,9 @@ class TrainConfig:
     """Base controller spec under the residual."""
     residual_scale: float = 0.5
     """Residual ±1 = ± this share of the env's action range (0.5: ±1 mm of correction)."""
+    residual_mode: str = "add"
+    """``add``: the residual adds ± ``residual_scale`` of the action range; ``gain``: it scales the base's
+    lateral correction by ``1 + residual_scale · residual`` (see :data:`training.residual_wrapper.RESIDUAL_MODES`)."""
     residual_feed: bool = False
     """Let the residual change the feed (off: compare at the base's feed, as Li does)."""
     residual_axes: str = "lateral"
@@ -40,6 +43,9 @@ class TrainConfig:
     """Extra env arguments for training and evaluation (e.g. reward weights: ``reward_force_weight``)."""
     domain_randomization: bool = True
     """Draw a new scenario every episode inside the training ranges."""
+    dr_ranges: dict[str, list[float]] = field(default_factory=dict)
+    """Extra or replaced domain-randomisation ranges, ``{scenario argument: [low, high]}`` on top of
+    :data:`training.domain_randomization.DR_RANGES` (training and validation draws alike)."""
     net_arch: list[int] = field(default_factory=lambda: [64, 64])
     """Hidden layers of actor and critic."""
     learning_rate: float = 3e-4
@@ -74,8 +80,13 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
             raise ValueError(f"algo={self.algo!r}; choose from {ALGOS}")
+        if self.residual_mode not in ("add", "gain"):
+            raise ValueError(f"residual_mode={self.residual_mode!r}; choose add or gain")
         if self.eval_scenarios not in ("paper", "validation"):
             raise ValueError(f"eval_scenarios={self.eval_scenarios!r}; choose paper or validation")
+        from training.domain_randomization import check_ranges
+
+        check_ranges(self.dr_ranges)
         if self.total_timesteps < 1 or self.n_envs < 1:
             raise ValueError("total_timesteps and n_envs must be >= 1")
 

@@ -22,6 +22,31 @@ DR_RANGES: dict[str, tuple[float, float]] = {
 """Uniform ranges per scenario argument (β in deg, feed in mm/s, stick-out and cortex in mm, noise, latency)."""
 
 
+def check_ranges(ranges: dict[str, Any]) -> None:
+    """Raise ``ValueError`` unless every entry is a numeric scenario argument with ``[low, high]`` inside its limits."""
+    from envs.scenario import Scenario
+
+    for name, bounds in ranges.items():
+        if name in ("bone", "tracker") or not hasattr(Scenario(), name):
+            raise ValueError(f"dr_ranges: {name!r} is not a numeric scenario argument")
+        try:
+            lo, hi = (float(v) for v in bounds)
+        except (TypeError, ValueError):
+            raise ValueError(f"dr_ranges: {name}={bounds!r} must be [low, high]") from None
+        if not lo <= hi:
+            raise ValueError(f"dr_ranges: {name}=[{lo}, {hi}] needs low <= high")
+        Scenario.from_kwargs(**{name: lo})  # the scenario's own range check, with its message
+        Scenario.from_kwargs(**{name: hi})
+
+
+def merged_ranges(extra: dict[str, Any] | None = None) -> dict[str, tuple[float, float]]:
+    """:data:`DR_RANGES` with ``extra`` entries added or replacing theirs."""
+    out = dict(DR_RANGES)
+    for name, (lo, hi) in (extra or {}).items():
+        out[name] = (float(lo), float(hi))
+    return out
+
+
 def sample_scenario(rng: np.random.Generator, ranges: dict[str, tuple[float, float]] = DR_RANGES) -> dict[str, Any]:
     """One scenario: every ranged argument uniform, the bone one of the training presets.
 
@@ -61,13 +86,15 @@ VALIDATION_SEED = 20_231
 """Seed of the validation scenarios' draw (fixed: every run selects its best model on the same set)."""
 
 
-def validation_scenarios(n: int, seed: int = VALIDATION_SEED) -> list[dict[str, Any]]:
+def validation_scenarios(
+    n: int, seed: int = VALIDATION_SEED, ranges: dict[str, tuple[float, float]] = DR_RANGES
+) -> list[dict[str, Any]]:
     """The paper scenario (env defaults) and ``n - 1`` fixed draws inside the training ranges.
 
     Used to pick a run's best model: held-in conditions, never the ``heldout`` suite's.
     """
     rng = np.random.default_rng(seed)
-    return [{}] + [sample_scenario(rng) for _ in range(max(n - 1, 0))]
+    return [{}] + [sample_scenario(rng, ranges) for _ in range(max(n - 1, 0))]
 
 
 class ScenarioCycle(gym.Wrapper):

@@ -10,7 +10,13 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 from training.config import TrainConfig
-from training.domain_randomization import VALIDATION_SEED, DomainRandomization, ScenarioCycle, validation_scenarios
+from training.domain_randomization import (
+    VALIDATION_SEED,
+    DomainRandomization,
+    ScenarioCycle,
+    merged_ranges,
+    validation_scenarios,
+)
 from training.residual_wrapper import ResidualWrapper
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
@@ -26,6 +32,7 @@ def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:
         cfg.residual_axes,
         cfg.observe_prev_residual,
         cfg.observe_plan,
+        cfg.residual_mode,
     )
 
 
@@ -35,7 +42,7 @@ def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | N
 
     env: gym.Env = gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})})
     if randomize:
-        env = DomainRandomization(env)
+        env = DomainRandomization(env, merged_ranges(cfg.dr_ranges))
     return wrap_residual(env, cfg)
 
 
@@ -67,7 +74,7 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
             import envs  # noqa: F401
 
             env: gym.Env = gym.make(ENV_ID, **cfg.env_kwargs)
-            scenarios = validation_scenarios(cfg.eval_episodes)
+            scenarios = validation_scenarios(cfg.eval_episodes, ranges=merged_ranges(cfg.dr_ranges))
             env = ScenarioCycle(env, scenarios, seeds=[VALIDATION_SEED + i for i in range(len(scenarios))])
             return wrap_residual(env, cfg)
         return residual_env(cfg, False, scenario)

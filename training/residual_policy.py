@@ -19,7 +19,10 @@ from training.residual_wrapper import BASE_ACTION_KEY, PLAN_KEY, PREV_RESIDUAL_K
 
 
 class ResidualPolicyController(Controller):
-    """``clip(base(obs) + scale · π(normalise(obs + base action)))``, π deterministic."""
+    """``clip(base(obs) + scale · π(normalise(obs + base action)))``, π deterministic.
+
+    A ``gain`` residual instead scales the base's correction across the drill by ``1 + scale · π(...)``.
+    """
 
     name = "residual"
 
@@ -62,7 +65,7 @@ class ResidualPolicyController(Controller):
         residual = np.clip(np.asarray(residual, dtype=np.float32).reshape(-1), -1.0, 1.0)
         self._prev_residual = residual
         R = self.plan.R_base_task if self.config.residual_axes == "lateral" and self.plan is not None else None
-        return combine(base_action, residual, self.config.residual_scale, R)
+        return combine(base_action, residual, self.config.residual_scale, R, self.config.residual_mode)
 
     def describe(self) -> dict[str, Any]:
         """Name, file and training configuration."""

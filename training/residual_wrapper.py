@@ -27,6 +27,10 @@ with it a memoryless policy can hold or integrate a correction."""
 
 
 RESIDUAL_AXES = ("lateral", "xyz")
+RESIDUAL_MODES = ("add", "gain")
+"""``add``: the residual adds a correction (± ``scale`` of the action range); ``gain``: it scales the base's
+own correction by ``1 + scale · residual`` per axis (it can strengthen, weaken or cancel what the base
+does, never add a correction where the base has none)."""
 PLAN_HIGH = np.array([np.pi / 2, 5e-3, 0.1, 0.05], dtype=np.float32)
 """Upper bounds of the plan features (their lower bounds are 0)."""
 
@@ -45,21 +49,29 @@ def residual_dims(residual_feed: bool, axes: str = "lateral") -> int:
 
 
 def combine(
-    base_action: np.ndarray, residual: np.ndarray, scale: float, R_base_task: np.ndarray | None = None
+    base_action: np.ndarray,
+    residual: np.ndarray,
+    scale: float,
+    R_base_task: np.ndarray | None = None,
+    mode: str = "add",
 ) -> np.ndarray:
-    """``clip(base + scale · residual)`` into the env's action box.
+    """``clip(base + scale · residual)`` (mode ``add``) or ``clip(base · (1 + scale · residual))`` (``gain``).
 
     With ``R_base_task`` the first two residual entries are task x and y (across the drill) and are
     turned into base axes; without it the first three are base x, y, z. A last extra entry, if any,
-    is the feed residual; otherwise the feed is the base's.
+    is the feed residual (always added); otherwise the feed is the base's.
     """
     out = np.asarray(base_action, dtype=np.float64).copy()
     r = np.clip(np.asarray(residual, dtype=np.float64).reshape(-1), -1.0, 1.0)
     n_xyz = 2 if R_base_task is not None else 3
+    if mode not in RESIDUAL_MODES:
+        raise ValueError(f"mode={mode!r}; choose from {RESIDUAL_MODES}")
     if R_base_task is not None:
-        out[:3] += scale * (np.asarray(R_base_task)[:, :2] @ r[:2])
+        lateral = np.asarray(R_base_task)[:, :2]
+        step = r[:2] * (lateral.T @ out[:3]) if mode == "gain" else r[:2]
+        out[:3] += scale * (lateral @ step)
     else:
-        out[:3] += scale * r[:3]
+        out[:3] += scale * (r[:3] * out[:3] if mode == "gain" else r[:3])
     if r.size > n_xyz:
         out[3] += scale * r[n_xyz]
     return np.clip(out, -1.0, 1.0).astype(np.float32)
@@ -77,6 +89,7 @@ class ResidualWrapper(gym.Wrapper):
             compensators do; ``"xyz"``: along the three base axes (it can then plunge the drill).
         observe_prev_residual: add the policy's previous residual to the observation (``residual_prev``).
         observe_plan: add the plan's angle, feed, stick-out and cortical thickness (``plan``).
+        mode: ``"add"`` or ``"gain"`` (:data:`RESIDUAL_MODES`).
     """
 
     def __init__(
@@ -88,8 +101,12 @@ class ResidualWrapper(gym.Wrapper):
         axes: str = "lateral",
         observe_prev_residual: bool = False,
         observe_plan: bool = False,
+        mode: str = "add",
     ):
         super().__init__(env)
+        if mode not in RESIDUAL_MODES:
+            raise ValueError(f"mode={mode!r}; choose from {RESIDUAL_MODES}")
+        self.mode = mode
         if not 0.0 < scale <= 2.0:
             raise ValueError(f"scale={scale} must be in (0, 2]")
         self.base = make_controller(base) if isinstance(base, str) else base
@@ -140,7 +157,7 @@ class ResidualWrapper(gym.Wrapper):
             raise ValueError(f"residual action must have shape {self.action_space.shape}, got {residual.shape}")
         if not np.all(np.isfinite(residual)):
             raise ValueError(f"residual action {residual.tolist()} contains NaN or inf")
-        total = combine(self._base_action, residual, self.scale, self._R)
+        total = combine(self._base_action, residual, self.scale, self._R, self.mode)
         self._prev_residual = np.clip(residual, -1.0, 1.0).astype(np.float32)
         obs, reward, terminated, truncated, info = self.env.step(total)
         info = {**info, "base_action": self._base_action.copy(), "residual_action": residual.astype(np.float32)}
