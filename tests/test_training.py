@@ -46,8 +46,9 @@ def test_a_gain_residual_scales_the_base_correction_per_task_axis():
         combine(base, np.zeros(2), 0.5, R_BASE_TASK, mode="multiply")
 
 
-def test_zero_residual_reproduces_the_base_controller_exactly():
-    wrapped = ResidualWrapper(gym.make(ENV_ID), "li2023", 0.5)
+@pytest.mark.parametrize(("mode", "scale"), [("add", 0.5), ("gain", 1.0)])
+def test_zero_residual_reproduces_the_base_controller_exactly(mode, scale):
+    wrapped = ResidualWrapper(gym.make(ENV_ID), "li2023", scale, mode=mode)
     plain = gym.make(ENV_ID)
     base = make_controller("li2023")
     obs_w, _ = wrapped.reset(seed=1)
