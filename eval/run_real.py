@@ -20,11 +20,18 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
+from envs.real.config import SafetyLimits
 from envs.real.emulator.cli import parse_scenario
 from envs.real.metrics import OBSERVABLE_METRICS
 from envs.real.netft import NetFTCalibration
 
 ENV_ID = "drillgym/UR5BoneDrillReal-v0"
+
+
+def _limits(max_gap_ms: float) -> SafetyLimits:
+    """Default safety limits with the three stream-timing limits set to ``max_gap_ms``."""
+    gap_s = max_gap_ms * 1e-3
+    return SafetyLimits(max_cycle_gap_s=gap_s, rtde_stale_s=gap_s, ft_stale_s=gap_s)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -40,6 +47,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="reset seed of the first episode (logged)")
     parser.add_argument("--counts-per-force", type=float, default=NetFTCalibration.counts_per_force)
     parser.add_argument("--counts-per-torque", type=float, default=NetFTCalibration.counts_per_torque)
+    parser.add_argument(
+        "--max-gap-ms",
+        type=float,
+        default=SafetyLimits.max_cycle_gap_s * 1e3,
+        help="longest pause tolerated in the servo stream, the RTDE state and the F/T stream before a stop (ms; "
+        "the robot's own RTDE watchdog stops at twice this)",
+    )
     parser.add_argument("--dry-run", action="store_true", help="connect and stream nothing: log what would be sent")
     parser.add_argument("--yes", action="store_true", help="do not ask before moving the robot")
     parser.add_argument("--out", type=Path, required=True, help="output folder (logs, metrics.json, commands.jsonl)")
@@ -85,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
         scenario = parse_scenario(args.scenario).to_dict()
         controller = make_controller(args.controller)
         calibration = NetFTCalibration(args.counts_per_force, args.counts_per_torque)
+        limits = _limits(args.max_gap_ms)
     except (ValueError, TypeError) as e:
         print(f"drillgym run: {e}", file=sys.stderr)
         return 2
@@ -102,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
             ft_calibration=calibration,
             dry_run=args.dry_run,
             command_log_path=str(args.out / "commands.jsonl"),
+            safety_limits=limits,
             **scenario,
         )
     except (RuntimeError, OSError, ValueError) as e:

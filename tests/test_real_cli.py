@@ -17,6 +17,7 @@ SHORT_PLAN = "feed_mm_s=3,depth_mm=3"
 def test_run_drills_logs_and_prints_the_measurable_metrics(start_emulator, tmp_path, capsys):  # noqa: F811
     emu = start_emulator(scenario={"feed_mm_s": 3.0, "depth_mm": 3.0})
     argv = ["run", "--robot", emu.host, "--tracker", f"udp:{emu.host}", "--scenario", SHORT_PLAN, "--yes"]
+    argv += ["--max-gap-ms", "300"]  # a shared CI machine can stall the emulator for >100 ms
     assert main([*argv, "--controller", "li2023", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "lateral_force_max_n" in out and "tracker_deviation_mean_mm" in out and "measure the hole" in out
@@ -40,6 +41,11 @@ def test_run_asks_before_moving(start_emulator, tmp_path):  # noqa: F811
 def test_run_rejects_an_unknown_controller_before_connecting(tmp_path, capsys):
     assert main(["run", "--robot", "127.0.0.1", "--controller", "pid9000", "--out", str(tmp_path)]) == 2
     assert "pid9000" in capsys.readouterr().err
+
+
+def test_run_rejects_a_non_positive_timing_limit_before_connecting(tmp_path, capsys):
+    assert main(["run", "--robot", "127.0.0.1", "--max-gap-ms", "0", "--out", str(tmp_path)]) == 2
+    assert "max_cycle_gap_s=0.0" in capsys.readouterr().err
 
 
 def test_emulate_serves_and_exits_by_itself(capsys):
