@@ -15,6 +15,7 @@ import sys
 import tempfile
 import time
 import traceback
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -32,31 +33,41 @@ ACCEPTANCE = {
 """The issue's acceptance figures."""
 
 
-def run_case(job: tuple[Case, int, tuple[str, ...], Path | None]) -> dict[str, Any]:
+CaseJob = tuple[Case, int, tuple[str, ...], bool]
+"""``(case, episodes per case, candidate effects, keep the diagnosis)``."""
+DIAGNOSIS_KEY = "diagnosis"
+"""Row key of a case's ``diagnosis.json`` content (kept jobs only; written by :func:`run_bench`)."""
+
+
+def error_row(case: Case, error: str) -> dict[str, Any]:
+    """The row of a case that could not be run (scored as failed)."""
+    return {
+        "case": case.name,
+        "kind": case.kind,
+        "spec": case.spec,
+        "truth": case.truth,
+        "verdict": "error",
+        "named": [],
+        "top_single": None,
+        "location": None,
+        "true_effect_shrink": None,
+        "correct": False,
+        "top1_ranked": False,
+        "located": False,
+        "diagnose_s": 0.0,
+        "error": error,
+    }
+
+
+def run_case(job: CaseJob) -> dict[str, Any]:
     """Generate, diagnose and score one case (in a worker); a case that raises is scored as failed."""
-    case = job[0]
     try:
         return _run_case(job)
     except Exception as e:  # one broken case must not stop the benchmark
-        return {
-            "case": case.name,
-            "kind": case.kind,
-            "spec": case.spec,
-            "truth": case.truth,
-            "verdict": "error",
-            "named": [],
-            "top_single": None,
-            "location": None,
-            "true_effect_shrink": None,
-            "correct": False,
-            "top1_ranked": False,
-            "located": False,
-            "diagnose_s": 0.0,
-            "error": f"{type(e).__name__}: {e}\n{traceback.format_exc()}",
-        }
+        return error_row(job[0], f"{type(e).__name__}: {e}\n{traceback.format_exc()}")
 
 
-def _run_case(job: tuple[Case, int, tuple[str, ...], Path | None]) -> dict[str, Any]:
+def _run_case(job: CaseJob) -> dict[str, Any]:
     case, episodes, candidates, keep = job
     from eval.diagnosis.diagnose import DiagnoseOptions, run_diagnosis
     from eval.diagnosis.episodes import load_episodes
@@ -68,12 +79,19 @@ def _run_case(job: tuple[Case, int, tuple[str, ...], Path | None]) -> dict[str, 
         eps, skipped = load_episodes(Path(tmp) / "logs")
     gen_s = time.perf_counter() - t0
     diag = run_diagnosis(eps, DiagnoseOptions(workers=1, candidates=candidates, seed=case.seed, progress=False))
-    res = diag.result
-    if keep is not None:
-        d = keep / case.name
-        d.mkdir(parents=True, exist_ok=True)
-        (d / "diagnosis.json").write_text(json.dumps(_clean_json(res), indent=2))
-    return score_case(case, res, gen_s, skipped)
+    row = score_case(case, diag.result, gen_s, skipped)
+    if keep:
+        row[DIAGNOSIS_KEY] = _clean_json(diag.result)
+    return row
+
+
+def local_rows(jobs: list[CaseJob], workers: int) -> Iterator[dict[str, Any]]:
+    """Run the cases in this process (one worker) or a ``spawn`` pool, yielding rows as they finish."""
+    if workers <= 1:
+        yield from map(run_case, jobs)
+        return
+    with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
+        yield from pool.imap_unordered(run_case, jobs)
 
 
 def score_case(case: Case, res: dict[str, Any], gen_s: float = 0.0, skipped: list[str] | None = None) -> dict[str, Any]:
@@ -145,25 +163,34 @@ def _outside_unexplained(rows: list[dict[str, Any]]) -> float | None:
 
 
 def run_bench(
-    cases: list[Case], episodes: int, candidates: tuple[str, ...], out: Path, workers: int, progress: bool = True
+    cases: list[Case],
+    episodes: int,
+    candidates: tuple[str, ...],
+    out: Path,
+    workers: int,
+    progress: bool = True,
+    rows_of: Callable[[list[CaseJob]], Iterable[dict[str, Any]]] | None = None,
 ) -> dict[str, Any]:
-    """Run every case (``workers`` in parallel) and write ``bench.json`` and ``bench.md`` into ``out``."""
+    """Run every case and write ``bench.json``, ``bench.md`` and ``cases/NAME/diagnosis.json`` into ``out``.
+
+    ``rows_of`` runs the jobs and yields their rows as they finish (default: :func:`local_rows` with
+    ``workers`` processes; ``eval.diagnosis.bench_ray.ray_rows`` for a Ray cluster).
+    """
     out.mkdir(parents=True, exist_ok=True)
-    keep = out / "cases"
-    jobs = [(c, episodes, candidates, keep) for c in cases]
+    jobs: list[CaseJob] = [(c, episodes, candidates, True) for c in cases]
+    run_jobs = rows_of or (lambda js: local_rows(js, workers))
     t0 = time.perf_counter()
     rows: list[dict[str, Any]] = []
     bar = tqdm(total=len(jobs), desc="bench-diagnosis", file=sys.stderr, disable=not progress)
-    if workers <= 1:
-        for job in jobs:
-            rows.append(run_case(job))
-            bar.update()
-    else:
-        with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
-            for row in pool.imap_unordered(run_case, jobs):
-                rows.append(row)
-                bar.set_postfix_str(f"{row['case']}: {row['verdict']}")
-                bar.update()
+    for row in run_jobs(jobs):
+        diagnosis = row.pop(DIAGNOSIS_KEY, None)
+        if diagnosis is not None:
+            d = out / "cases" / row["case"]
+            d.mkdir(parents=True, exist_ok=True)
+            (d / "diagnosis.json").write_text(json.dumps(diagnosis, indent=2))
+        rows.append(row)
+        bar.set_postfix_str(f"{row['case']}: {row['verdict']}")
+        bar.update()
     bar.close()
     order = {c.name: k for k, c in enumerate(cases)}
     rows.sort(key=lambda r: order[r["case"]])

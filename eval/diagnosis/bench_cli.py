@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 from pathlib import Path
 
 
@@ -17,6 +18,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--only", default="", help="comma-separated case names to run (default: all)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--ray", action="store_true", help="run the cases as Ray tasks (a local instance by default)")
+    parser.add_argument(
+        "--address", default=None, help="Ray cluster address (implies --ray): HOST:6379, auto, ray://..."
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -31,7 +36,21 @@ def run(args: argparse.Namespace) -> int:
         cases = [c for c in cases if c.name in wanted]
     episodes = args.episodes or (6 if args.quick else 12)
     candidates = QUICK_CANDIDATES if args.quick else tuple(EFFECTS)
-    result = run_bench(cases, episodes, candidates, args.out, args.workers, progress=not args.no_progress)
+    rows_of = None
+    if args.ray or args.address:
+        from eval.scale.cluster import require_ray
+
+        require_ray()
+        from eval.diagnosis.bench_ray import ray_rows
+
+        rows_of = lambda jobs: ray_rows(jobs, args.address, args.workers)  # noqa: E731
+    try:
+        result = run_bench(
+            cases, episodes, candidates, args.out, args.workers, progress=not args.no_progress, rows_of=rows_of
+        )
+    except ConnectionError as e:
+        print(f"drillgym bench-diagnosis: {e}", file=sys.stderr)
+        return 2
     for k, v in result["summary"]["figures"].items():
         print(f"{k}: {v}")
     print(f"wrote {args.out / 'bench.json'} and {args.out / 'bench.md'}")
