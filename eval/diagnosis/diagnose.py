@@ -26,6 +26,7 @@ from eval.diagnosis.pool import Runner
 from eval.diagnosis.rank import (
     PAIR_TRY_RESIDUAL,
     ModelScore,
+    alternatives,
     baseline_score,
     gap_map,
     gap_significance,
@@ -113,12 +114,15 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
     bar.close()
     verdict, named, location = _verdict(significance, scores, before, data, null)
+    chosen = next((s for s in scores if s.named), None)
+    alts = alternatives(scores, chosen, baseline_score(before)) if chosen is not None else []
     timings["total_s"] = time.perf_counter() - t0
     result = {
         "verdict": verdict,
         "named": named,
-        "summary": _summary(verdict, named, scores, location),
+        "summary": _summary(verdict, named, scores, location, alts),
         "effects": [s.to_json() for s in scores],
+        "alternatives": alts,
         "where": {
             "all_episodes": gap_map(data.baseline_terms, data.null_terms),
             "heldout_after": _after_map(scores, named, null),
@@ -180,14 +184,23 @@ def _after_map(scores: list[ModelScore], named: list[str], null: list[Any]) -> d
     return None
 
 
-def _summary(verdict: str, named: list[str], scores: list[ModelScore], location: dict[str, Any] | None) -> str:
+def _summary(
+    verdict: str,
+    named: list[str],
+    scores: list[ModelScore],
+    location: dict[str, Any] | None,
+    alts: list[dict[str, Any]] | None = None,
+) -> str:
     if verdict == "no_gap":
         return "no significant gap: the simulator explains these episodes within its own noise and specimen scatter"
     if verdict == "unexplained" and location is not None:
         return f"unexplained — located at {location['channel']}, {location['stage']}"
     s = next(x for x in scores if x.named)
     pct = lambda v: "nan" if not math.isfinite(v) else f"{100 * v:.0f} %"  # noqa: E731
-    return f"explained by {' + '.join(named)}: held-out gap shrinks by {pct(s.shrink)} ({pct(s.ci_low)} to {pct(s.ci_high)})"
+    text = f"explained by {' + '.join(named)}: held-out gap shrinks by {pct(s.shrink)} ({pct(s.ci_low)} to {pct(s.ci_high)})"
+    if alts:
+        text += "; not ruled out: " + ", ".join(f"{a['name']} (better in {pct(a['p_better'])})" for a in alts[:3])
+    return text
 
 
 __all__ = ["DiagnoseOptions", "Diagnosis", "diagnose", "pooled", "run_diagnosis"]

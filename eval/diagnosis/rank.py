@@ -202,6 +202,36 @@ def pair_beats(
     return second.before - second.after >= PAIR_ALONE_MIN * added
 
 
+ALTERNATIVE_P_MIN = 0.05
+"""A model with other effects that scores better than the named one in at least this share of the
+bootstrap resamples is reported as an alternative the data cannot rule out."""
+
+
+def alternatives(scores: list[ModelScore], named: ModelScore, s0: float) -> list[dict[str, Any]]:
+    """Nameable models with other effects that the held-out data do not rule out against ``named``.
+
+    A model that holds every named effect plus others is not an alternative (it adds to the named
+    explanation); one that swaps an effect for another is (e.g. a tool-length error for a kinematic
+    offset, which move the tool alike at nearby poses). A pair is left out when one of its effects is
+    an alternative on its own.
+
+    Returns:
+        ``{"name", "effects", "p_better"}`` per alternative, most likely first; ``p_better`` is the share
+        of resamples in which it scores better than the named model.
+    """
+    out: list[dict[str, Any]] = []
+    sets: list[set[str]] = []
+    for s in scores:
+        if s is named or set(named.fit.names) <= set(s.fit.names) or not nameable(s, s0):
+            continue
+        p = float(np.mean(s.score_draws < named.score_draws))
+        if p >= ALTERNATIVE_P_MIN:
+            out.append({"name": s.name, "effects": list(s.fit.names), "p_better": p})
+            sets.append(set(s.fit.names))
+    minimal = [a for a, e in zip(out, sets, strict=True) if not any(o < e for o in sets)]
+    return sorted(minimal, key=lambda a: -a["p_better"])
+
+
 def gap_map(terms: list[Terms], null: list[Terms]) -> dict[str, Any]:
     """Gap by channel and stage: normalised (≈ 1 where the sim explains the data), raw RMS, excess."""
     tot = sum(terms, Terms.zeros())
