@@ -54,3 +54,17 @@ def test_a_pair_built_on_the_second_best_single_is_judged_against_the_best():
     assert pair_beats(bc, best=a, first=b, second=c, null_gap=NULL_GAP)
     worse = _score(("b", "c"), 11.0, 4.8, 480.0)  # better than b, but not surely better than a
     assert not pair_beats(worse, best=a, first=b, second=c, null_gap=NULL_GAP)
+
+
+def test_a_second_effect_hidden_behind_the_first_is_reported_as_possible_not_named():
+    from eval.diagnosis.rank import possible_second_effects
+
+    a = _score(("a",), 11.0, 5.0, 500.0)
+    hidden = _score(("h",), 11.0, 10.9, 1090.0)  # alone it explains nothing visible
+    ah = _score(("a", "h"), 11.0, 1.2, 120.0)
+    real = _score(("b",), 11.0, 7.0, 700.0)
+    ab = _score(("a", "b"), 11.0, 1.3, 130.0)
+    useless = _score(("a", "u"), 11.0, 4.99, 499.5)  # adds nothing on top
+    possible = possible_second_effects([ah, ab, a, useless, hidden, real], a, NULL_GAP)
+    assert [x["second"] for x in possible] == ["h"] and possible[0]["p_better"] > 0.95
+    assert possible_second_effects([ah, a, hidden], ah, NULL_GAP) == []  # a named pair has no "second"

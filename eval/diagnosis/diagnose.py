@@ -34,6 +34,7 @@ from eval.diagnosis.rank import (
     nameable,
     pair_beats,
     pooled,
+    possible_second_effects,
     score_models,
 )
 
@@ -116,13 +117,15 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     verdict, named, location = _verdict(significance, scores, before, data, null)
     chosen = next((s for s in scores if s.named), None)
     alts = alternatives(scores, chosen, baseline_score(before)) if chosen is not None else []
+    seconds = possible_second_effects(scores, chosen, pooled(null)) if chosen is not None else []
     timings["total_s"] = time.perf_counter() - t0
     result = {
         "verdict": verdict,
         "named": named,
-        "summary": _summary(verdict, named, scores, location, alts),
+        "summary": _summary(verdict, named, scores, location, alts, seconds),
         "effects": [s.to_json() for s in scores],
         "alternatives": alts,
+        "possible_second_effects": seconds,
         "where": {
             "all_episodes": gap_map(data.baseline_terms, data.null_terms),
             "heldout_after": _after_map(scores, named, null),
@@ -190,6 +193,7 @@ def _summary(
     scores: list[ModelScore],
     location: dict[str, Any] | None,
     alts: list[dict[str, Any]] | None = None,
+    seconds: list[dict[str, Any]] | None = None,
 ) -> str:
     if verdict == "no_gap":
         return "no significant gap: the simulator explains these episodes within its own noise and specimen scatter"
@@ -200,6 +204,9 @@ def _summary(
     text = f"explained by {' + '.join(named)}: held-out gap shrinks by {pct(s.shrink)} ({pct(s.ci_low)} to {pct(s.ci_high)})"
     if alts:
         text += "; not ruled out: " + ", ".join(f"{a['name']} (better in {pct(a['p_better'])})" for a in alts[:3])
+    if seconds:
+        names = ", ".join(x["second"] for x in seconds[:3])
+        text += f"; a second effect may be present ({names}: better on top, but little alone)"
     return text
 
 

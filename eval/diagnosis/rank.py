@@ -181,25 +181,61 @@ def nameable(s: ModelScore, s0: float) -> bool:
     return s.shrink >= NAME_SHRINK_MIN and s.ci_low >= NAME_CI_LOW_MIN and s.score < s0
 
 
+def pair_improves(pair: ModelScore, best: ModelScore, null_gap: float) -> bool:
+    """Is ``pair`` surely better than the best single ``best``?
+
+    It must score better in :data:`PAIR_P_MIN` of the resamples and remove at least
+    :data:`PAIR_RESIDUAL_SHRINK_MIN` of the excess gap ``best`` leaves.
+    """
+    p = float(np.mean(pair.score_draws < best.score_draws))
+    left = best.after - null_gap
+    return p >= PAIR_P_MIN and left > 0 and (best.after - pair.after) / left >= PAIR_RESIDUAL_SHRINK_MIN
+
+
+def second_stands_alone(pair: ModelScore, first: ModelScore, second: ModelScore | None) -> bool:
+    """Does the pair's second effect explain on its own what it adds on top of ``first``?
+
+    Alone it must remove at least :data:`PAIR_ALONE_MIN` of what it adds. Two real effects add up; an
+    effect that only helps alongside another may be correcting the other's misfit.
+    """
+    added = first.after - pair.after
+    if second is None or added <= 0:
+        return False
+    return second.before - second.after >= PAIR_ALONE_MIN * added
+
+
 def pair_beats(
     pair: ModelScore, best: ModelScore, first: ModelScore, second: ModelScore | None, null_gap: float
 ) -> bool:
     """Is the pair (``first``'s fit plus ``second``'s effect fitted on top) surely better than ``best``?
 
-    ``best`` is the best single. The pair must score better than it in :data:`PAIR_P_MIN` of the
-    resamples and remove at least :data:`PAIR_RESIDUAL_SHRINK_MIN` of the excess it leaves; and its
-    second effect must be a second effect rather than a patch on the first one's form: alone it must
-    remove at least :data:`PAIR_ALONE_MIN` of what it adds on top of the first (two real effects add up;
-    an effect that only helps alongside another is correcting the other's misfit).
+    ``best`` is the best single: the pair must :func:`pair_improves` on it, and its second effect must be
+    a second effect rather than a patch on the first one's form (:func:`second_stands_alone`).
     """
-    p = float(np.mean(pair.score_draws < best.score_draws))
-    left = best.after - null_gap
-    if p < PAIR_P_MIN or left <= 0 or (best.after - pair.after) / left < PAIR_RESIDUAL_SHRINK_MIN:
-        return False
-    added = first.after - pair.after
-    if second is None or added <= 0:
-        return False
-    return second.before - second.after >= PAIR_ALONE_MIN * added
+    return pair_improves(pair, best, null_gap) and second_stands_alone(pair, first, second)
+
+
+def possible_second_effects(scores: list[ModelScore], named: ModelScore, null_gap: float) -> list[dict[str, Any]]:
+    """Pairs on the named single effect that improve on it but whose second effect explains little alone.
+
+    Such a second effect may be real but hidden behind a much larger first one, or a patch on the first
+    one's form: the data cannot tell, so it is reported, not named.
+
+    Returns:
+        ``{"name", "second", "heldout_gap_after", "p_better"}`` per pair, best score first.
+    """
+    if len(named.fit.names) != 1:
+        return []
+    singles = {s.fit.names[0]: s for s in scores if len(s.fit.names) == 1}
+    out = []
+    for s in scores:
+        if len(s.fit.names) != 2 or s.fit.names[0] != named.fit.names[0]:
+            continue
+        second = singles.get(s.fit.names[1])
+        if pair_improves(s, named, null_gap) and not second_stands_alone(s, named, second):
+            p = float(np.mean(s.score_draws < named.score_draws))
+            out.append({"name": s.name, "second": s.fit.names[1], "heldout_gap_after": s.after, "p_better": p})
+    return out
 
 
 ALTERNATIVE_P_MIN = 0.05
