@@ -18,7 +18,7 @@ from envs.real.config import SafetyLimits
 from envs.real.emulator.process import EmulatorProcess, ports_free
 
 REAL_ENV_ID = "drillgym/UR5BoneDrillReal-v0"
-CI_LIMITS = SafetyLimits(max_cycle_gap_s=0.3, rtde_stale_s=0.3, ft_stale_s=0.3)
+CI_LIMITS = SafetyLimits(max_cycle_gap_s=0.5, rtde_stale_s=0.5, ft_stale_s=0.5)
 """Timing limits for long episodes on a shared CI machine (the defaults are exercised by the fault tests)."""
 
 

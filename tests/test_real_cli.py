@@ -17,7 +17,7 @@ SHORT_PLAN = "feed_mm_s=3,depth_mm=3"
 def test_run_drills_logs_and_prints_the_measurable_metrics(start_emulator, tmp_path, capsys):  # noqa: F811
     emu = start_emulator(scenario={"feed_mm_s": 3.0, "depth_mm": 3.0})
     argv = ["run", "--robot", emu.host, "--tracker", f"udp:{emu.host}", "--scenario", SHORT_PLAN, "--yes"]
-    argv += ["--max-gap-ms", "300"]  # a shared CI machine can stall the emulator for >100 ms
+    argv += ["--max-gap-ms", "500"]  # a shared CI machine can stall the emulator for >100 ms
     assert main([*argv, "--controller", "li2023", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "lateral_force_max_n" in out and "tracker_deviation_mean_mm" in out and "measure the hole" in out

@@ -1,7 +1,7 @@
 """Faults during an episode on the real backend (emulator + real ur_rtde), one test each.
 
 Each fault is injected on the emulator's control port between two agent steps, while drilling. Timing limits
-are the CI ones (0.3 s, for shared machines) except the limit under test, which keeps its default.
+are the CI ones (0.5 s, for shared machines) except the limit under test, which keeps its default.
 """
 
 import dataclasses

@@ -28,6 +28,7 @@ class ResidualPolicyController(Controller):
 
     def __init__(self, path: Path | str) -> None:
         super().__init__()
+        _single_thread_inference()
         self.path = Path(path)
         self.bundle = load_bundle(self.path)
         self.base = make_controller(self.bundle.config.base)
@@ -70,6 +71,18 @@ class ResidualPolicyController(Controller):
     def describe(self) -> dict[str, Any]:
         """Name, file and training configuration."""
         return {"name": "residual", "config": {"path": str(self.path), **self.config.to_dict()}}
+
+
+def _single_thread_inference() -> None:
+    """Run torch on one thread in this process.
+
+    The policy is a small MLP that gains nothing from intra-op threads, and their spin-waiting takes CPU
+    from the real cell's servo thread (and from the other benchmark workers).
+    """
+    import torch
+
+    if torch.get_num_threads() > 1:
+        torch.set_num_threads(1)
 
 
 def load_residual_controller(path: str) -> ResidualPolicyController:
