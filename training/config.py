@@ -80,12 +80,12 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
             raise ValueError(f"algo={self.algo!r}; choose from {ALGOS}")
-        if self.residual_mode not in ("add", "gain"):
-            raise ValueError(f"residual_mode={self.residual_mode!r}; choose add or gain")
         if self.eval_scenarios not in ("paper", "validation"):
             raise ValueError(f"eval_scenarios={self.eval_scenarios!r}; choose paper or validation")
         from training.domain_randomization import check_ranges
+        from training.residual_wrapper import check_mode
 
+        check_mode(self.residual_mode)
         check_ranges(self.dr_ranges)
         if self.total_timesteps < 1 or self.n_envs < 1:
             raise ValueError("total_timesteps and n_envs must be >= 1")

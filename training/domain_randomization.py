@@ -26,8 +26,10 @@ def check_ranges(ranges: dict[str, Any]) -> None:
     """Raise ``ValueError`` unless every entry is a numeric scenario argument with ``[low, high]`` inside its limits."""
     from envs.scenario import Scenario
 
+    defaults = Scenario()
     for name, bounds in ranges.items():
-        if name in ("bone", "tracker") or not hasattr(Scenario(), name):
+        default = getattr(defaults, name, None)
+        if isinstance(default, bool) or not isinstance(default, int | float):
             raise ValueError(f"dr_ranges: {name!r} is not a numeric scenario argument")
         try:
             lo, hi = (float(v) for v in bounds)

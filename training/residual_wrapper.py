@@ -31,6 +31,14 @@ RESIDUAL_MODES = ("add", "gain")
 """``add``: the residual adds a correction (± ``scale`` of the action range); ``gain``: it scales the base's
 own correction by ``1 + scale · residual`` per axis (it can strengthen, weaken or cancel what the base
 does, never add a correction where the base has none)."""
+
+
+def check_mode(mode: str) -> None:
+    """Raise ``ValueError`` unless ``mode`` is one of :data:`RESIDUAL_MODES`."""
+    if mode not in RESIDUAL_MODES:
+        raise ValueError(f"residual mode {mode!r}; choose from {RESIDUAL_MODES}")
+
+
 PLAN_HIGH = np.array([np.pi / 2, 5e-3, 0.1, 0.05], dtype=np.float32)
 """Upper bounds of the plan features (their lower bounds are 0)."""
 
@@ -64,8 +72,7 @@ def combine(
     out = np.asarray(base_action, dtype=np.float64).copy()
     r = np.clip(np.asarray(residual, dtype=np.float64).reshape(-1), -1.0, 1.0)
     n_xyz = 2 if R_base_task is not None else 3
-    if mode not in RESIDUAL_MODES:
-        raise ValueError(f"mode={mode!r}; choose from {RESIDUAL_MODES}")
+    check_mode(mode)
     if R_base_task is not None:
         lateral = np.asarray(R_base_task)[:, :2]
         step = r[:2] * (lateral.T @ out[:3]) if mode == "gain" else r[:2]
@@ -104,8 +111,7 @@ class ResidualWrapper(gym.Wrapper):
         mode: str = "add",
     ):
         super().__init__(env)
-        if mode not in RESIDUAL_MODES:
-            raise ValueError(f"mode={mode!r}; choose from {RESIDUAL_MODES}")
+        check_mode(mode)
         self.mode = mode
         if not 0.0 < scale <= 2.0:
             raise ValueError(f"scale={scale} must be in (0, 2]")

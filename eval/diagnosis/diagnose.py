@@ -114,21 +114,23 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
             scores = score_models(singles + pairs, before, null, opt.seed)
     timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
     bar.close()
-    verdict, named, location = _verdict(significance, scores, before, data, null)
-    chosen = next((s for s in scores if s.named), None)
-    alts = alternatives(scores, chosen, baseline_score(before)) if chosen is not None else []
-    seconds = possible_second_effects(scores, chosen, pooled(null)) if chosen is not None else []
+    verdict, chosen, location = _verdict(significance, scores, before, data, null)
+    named = [] if chosen is None else list(chosen.fit.names)
+    alts, seconds = [], []
+    if chosen is not None:
+        alts = alternatives(scores, chosen, baseline_score(before))
+        seconds = possible_second_effects(scores, chosen, pooled(null))
     timings["total_s"] = time.perf_counter() - t0
     result = {
         "verdict": verdict,
         "named": named,
-        "summary": _summary(verdict, named, scores, location, alts, seconds),
+        "summary": _summary(verdict, chosen, location, alts, seconds),
         "effects": [s.to_json() for s in scores],
         "alternatives": alts,
         "possible_second_effects": seconds,
         "where": {
             "all_episodes": gap_map(data.baseline_terms, data.null_terms),
-            "heldout_after": _after_map(scores, named, null),
+            "heldout_after": None if chosen is None else gap_map(chosen.fit.ho_terms, null),
             "largest_excess": locate(data.baseline_terms, data.null_terms),
             "frequency": data.spectrum,
         },
@@ -156,9 +158,10 @@ def _run_fits(runner: Runner, data: DiagnosisData, jobs: list[Any], bar: tqdm) -
 
 def _verdict(
     significance: dict[str, Any], scores: list[ModelScore], before: list[Any], data: DiagnosisData, null: list[Any]
-) -> tuple[str, list[str], dict[str, Any] | None]:
+) -> tuple[str, ModelScore | None, dict[str, Any] | None]:
+    """Verdict, the named model (marked ``named``) and, when unexplained, where the gap lies."""
     if not significance["significant"]:
-        return "no_gap", [], None
+        return "no_gap", None, None
     s0 = baseline_score(before)
     singles = [s for s in scores if len(s.fit.names) == 1]
     best_single = singles[0] if singles else None
@@ -166,42 +169,36 @@ def _verdict(
     if best_single is not None and nameable(best_single, s0):
         chosen = best_single
     by_name = {s.fit.names[0]: s for s in singles}
+    g_null = pooled(null)
     for p in (s for s in scores if len(s.fit.names) == 2):
         first, second = (by_name.get(n) for n in p.fit.names)
         if best_single is None or first is None:
             continue
-        if nameable(p, s0) and pair_beats(p, best_single, first, second, pooled(null)):
+        if nameable(p, s0) and pair_beats(p, best_single, first, second, g_null):
             if chosen is None or chosen is best_single or p.score < chosen.score:
                 chosen = p
     if chosen is None:
         top = locate(data.baseline_terms, data.null_terms, top=1)[0]
-        return "unexplained", [], {"channel": top["channel"], "stage": top["stage"], "share": top["share"]}
+        return "unexplained", None, {"channel": top["channel"], "stage": top["stage"], "share": top["share"]}
     chosen.named = True
-    return "explained", list(chosen.fit.names), None
-
-
-def _after_map(scores: list[ModelScore], named: list[str], null: list[Any]) -> dict[str, Any] | None:
-    for s in scores:
-        if s.named:
-            return gap_map(s.fit.ho_terms, null)
-    return None
+    return "explained", chosen, None
 
 
 def _summary(
     verdict: str,
-    named: list[str],
-    scores: list[ModelScore],
+    chosen: ModelScore | None,
     location: dict[str, Any] | None,
-    alts: list[dict[str, Any]] | None = None,
-    seconds: list[dict[str, Any]] | None = None,
+    alts: list[dict[str, Any]],
+    seconds: list[dict[str, Any]],
 ) -> str:
     if verdict == "no_gap":
         return "no significant gap: the simulator explains these episodes within its own noise and specimen scatter"
-    if verdict == "unexplained" and location is not None:
+    if chosen is None:
+        assert location is not None
         return f"unexplained — located at {location['channel']}, {location['stage']}"
-    s = next(x for x in scores if x.named)
+    s = chosen
     pct = lambda v: "nan" if not math.isfinite(v) else f"{100 * v:.0f} %"  # noqa: E731
-    text = f"explained by {' + '.join(named)}: held-out gap shrinks by {pct(s.shrink)} ({pct(s.ci_low)} to {pct(s.ci_high)})"
+    text = f"explained by {' + '.join(s.fit.names)}: held-out gap shrinks by {pct(s.shrink)} ({pct(s.ci_low)} to {pct(s.ci_high)})"
     if alts:
         text += "; not ruled out: " + ", ".join(f"{a['name']} (better in {pct(a['p_better'])})" for a in alts[:3])
     if seconds:

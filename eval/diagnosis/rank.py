@@ -181,15 +181,21 @@ def nameable(s: ModelScore, s0: float) -> bool:
     return s.shrink >= NAME_SHRINK_MIN and s.ci_low >= NAME_CI_LOW_MIN and s.score < s0
 
 
+def p_better(a: ModelScore, b: ModelScore) -> float:
+    """Share of the bootstrap resamples in which ``a`` scores better (lower) than ``b``."""
+    return float(np.mean(a.score_draws < b.score_draws))
+
+
 def pair_improves(pair: ModelScore, best: ModelScore, null_gap: float) -> bool:
     """Is ``pair`` surely better than the best single ``best``?
 
     It must score better in :data:`PAIR_P_MIN` of the resamples and remove at least
     :data:`PAIR_RESIDUAL_SHRINK_MIN` of the excess gap ``best`` leaves.
     """
-    p = float(np.mean(pair.score_draws < best.score_draws))
     left = best.after - null_gap
-    return p >= PAIR_P_MIN and left > 0 and (best.after - pair.after) / left >= PAIR_RESIDUAL_SHRINK_MIN
+    return (
+        p_better(pair, best) >= PAIR_P_MIN and left > 0 and (best.after - pair.after) / left >= PAIR_RESIDUAL_SHRINK_MIN
+    )
 
 
 def second_stands_alone(pair: ModelScore, first: ModelScore, second: ModelScore | None) -> bool:
@@ -233,7 +239,7 @@ def possible_second_effects(scores: list[ModelScore], named: ModelScore, null_ga
             continue
         second = singles.get(s.fit.names[1])
         if pair_improves(s, named, null_gap) and not second_stands_alone(s, named, second):
-            p = float(np.mean(s.score_draws < named.score_draws))
+            p = p_better(s, named)
             out.append({"name": s.name, "second": s.fit.names[1], "heldout_gap_after": s.after, "p_better": p})
     return out
 
@@ -260,7 +266,7 @@ def alternatives(scores: list[ModelScore], named: ModelScore, s0: float) -> list
     for s in scores:
         if s is named or set(named.fit.names) <= set(s.fit.names) or not nameable(s, s0):
             continue
-        p = float(np.mean(s.score_draws < named.score_draws))
+        p = p_better(s, named)
         if p >= ALTERNATIVE_P_MIN:
             out.append({"name": s.name, "effects": list(s.fit.names), "p_better": p})
             sets.append(set(s.fit.names))
