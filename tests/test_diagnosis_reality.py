@@ -106,3 +106,31 @@ def test_make_reality_cli_keeps_the_truth_outside_the_log_folder(tmp_path):
 def test_unknown_reality_effects_are_refused():
     with pytest.raises(ValueError, match="unknown reality effect"):
         build_reality("ft_drift:fz_rate_n_s=0.01")  # a candidate is not a reality
+
+
+def _tool_offsets_after_steps(spec: str, steps: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    import gymnasium as gym
+
+    env = gym.make("drillgym/UR5BoneDrill-v0", **QUIET)
+    env.unwrapped.set_effects(build_reality(spec))
+    env.reset(seed=1)
+    for _ in range(steps):
+        env.step(np.zeros(4, dtype=np.float32))
+    cell = env.unwrapped.cell
+    tip = np.zeros(3) if cell.geometry_offset_task_m is None else cell.geometry_offset_task_m.copy()
+    marker = np.zeros(3) if cell.marker_offset_base_m is None else cell.marker_offset_base_m.copy()
+    env.close()
+    return tip, marker
+
+
+@pytest.mark.parametrize("order", [0, 1])
+def test_effects_that_move_the_tool_add_up(order):
+    # A stick-out error and joint zero errors together: the tip sits off by both, the marker by the joints'.
+    length, joints = SETTINGS["chuck_tool_length"], SETTINGS["joint_offsets"]
+    tip_l, marker_l = _tool_offsets_after_steps(length)
+    tip_j, marker_j = _tool_offsets_after_steps(joints)
+    both = f"{length}+{joints}" if order == 0 else f"{joints}+{length}"
+    tip, marker = _tool_offsets_after_steps(both)
+    assert np.allclose(tip_l, [0.0, 0.0, 0.003]) and not marker_l.any()
+    np.testing.assert_allclose(tip, tip_l + tip_j, atol=1e-9)
+    np.testing.assert_allclose(marker, marker_j, atol=1e-9)

@@ -122,12 +122,12 @@ class JointZeroOffsets(RealityEffect):
     def attach(self, env: Any) -> None:
         """Put the tool where the true kinematics have it."""
         tip, marker = self._offsets(env)
-        shift_tool(env, tip, marker, at_attach=True)
+        shift_tool(env, self, tip, marker, at_attach=True)
 
     def begin_step(self, env: Any) -> None:
         """The offsets at the current pose."""
         tip, marker = self._offsets(env)
-        shift_tool(env, tip, marker, at_attach=False)
+        shift_tool(env, self, tip, marker, at_attach=False)
 
 
 class ChuckToolLength(RealityEffect):
@@ -159,5 +159,5 @@ class ChuckToolLength(RealityEffect):
         lateral = length**3 / (3.0 * e_pa * inertia) + length**2 * c_chuck
         axial = length / (e_pa * math.pi * d_eff**2 / 4.0)
         cell.set_tool_compliance(np.diag([lateral, lateral, axial]))
-        shift_tool(env, np.array([0.0, 0.0, dl]), None, at_attach=True)
+        shift_tool(env, self, np.array([0.0, 0.0, dl]), None, at_attach=True)
         cell.sensor_arm_m = cell.tcp_offset_m + dl

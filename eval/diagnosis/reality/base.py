@@ -28,22 +28,31 @@ class RealityEffect(Effect):
     def __init__(self, **values: float) -> None:
         super().__init__(**values)
         self.rng = np.random.default_rng(0)
+        self.tool_share: tuple[np.ndarray, np.ndarray] = (np.zeros(3), np.zeros(3))
+        """This effect's share of the tool and marker offsets (:func:`shift_tool`)."""
 
     def seed(self, rng: np.random.Generator) -> None:
         """Random stream of this episode (jitter, phases, states): set before the env's reset."""
         self.rng = rng
 
 
-def shift_tool(env: Any, offset_task_m: np.ndarray, marker_base_m: np.ndarray | None, at_attach: bool) -> None:
-    """Set where the physical tool (task frame, m) and the marker (base frame, m) sit off the model.
+def shift_tool(
+    env: Any, owner: RealityEffect, offset_task_m: np.ndarray, marker_base_m: np.ndarray | None, at_attach: bool
+) -> None:
+    """Set ``owner``'s share of where the physical tool (task frame, m) and the marker (base frame, m) sit.
 
-    At attach the tip balance's starting state moves there too (the tool starts where it really is);
-    later the servo carries the tool to the new offset.
+    The cell holds the sum over the effects that move the tool (a stick-out error and joint zero errors
+    add up); each call replaces ``owner``'s own share only. At attach the tip balance's starting state
+    moves with the share (the tool starts where it really is); later the servo carries the tool there.
     """
     cell = env.cell
     new = np.asarray(offset_task_m, dtype=float)
+    new_marker = np.zeros(3) if marker_base_m is None else np.asarray(marker_base_m, dtype=float)
+    old, old_marker = (np.zeros(3), np.zeros(3)) if at_attach else owner.tool_share
+    owner.tool_share = (new, new_marker)
+    total = np.zeros(3) if cell.geometry_offset_task_m is None else cell.geometry_offset_task_m
+    marker = np.zeros(3) if cell.marker_offset_base_m is None else cell.marker_offset_base_m
     if at_attach:
-        old = np.zeros(3) if cell.geometry_offset_task_m is None else cell.geometry_offset_task_m
         delta = (new - old).tolist()
         s = cell.solver
         s.rigid = [a + b for a, b in zip(s.rigid, delta, strict=True)]
@@ -52,5 +61,6 @@ def shift_tool(env: Any, offset_task_m: np.ndarray, marker_base_m: np.ndarray | 
         cell.sample = dataclasses.replace(
             cell.sample, tip=tuple(s.tip), rigid=tuple(s.rigid), depth_local=s.depth_local
         )
-    cell.geometry_offset_task_m = new
-    cell.marker_offset_base_m = None if marker_base_m is None else np.asarray(marker_base_m, dtype=float)
+    cell.geometry_offset_task_m = total - old + new
+    if cell.marker_offset_base_m is not None or marker_base_m is not None:
+        cell.marker_offset_base_m = marker - old_marker + new_marker
