@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401
+from envs.constants import SUBSTEPS_PER_STEP
 from envs.effects import CHANNEL_GROUPS, EFFECTS, TraceView, build_effects, parse_effect_spec
 
 QUIET = {
@@ -112,6 +113,30 @@ def test_effect_changes_exactly_its_channels(baseline, name):
     assert untouched == set(CHANNEL_GROUPS) - expected, (
         f"{name}: {sorted(set(CHANNEL_GROUPS) - expected - untouched)} moved a little"
     )
+
+
+BEFORE_CONTACT_MARGIN_SAMPLES = 10
+"""F/T samples left out before the first contact (the sensor's filter spreads the contact force back)."""
+
+
+@pytest.mark.parametrize("name", sorted(SETTINGS))
+def test_effect_changes_exactly_its_declared_channels_before_contact(name):
+    # The diagnosis credits an effect with gap before contact only where its physics reaches there.
+    spec = SETTINGS[name] if name != "tool_length" else "tool_length:dl_m=0.001"  # 3 mm starts in the bone
+    base, share_base = run_open_loop(None)
+    on, share_on = run_open_loop(spec)
+    first = min(np.flatnonzero(share_base > 0)[0], np.flatnonzero(share_on > 0)[0]) - BEFORE_CONTACT_MARGIN_SAMPLES
+    assert first > 5 * SUBSTEPS_PER_STEP, "the scripted episode must start clear of the bone"
+    per_step = {"tracker", "q", "tcp"}
+    changed = set()
+    for g in CHANNEL_GROUPS:
+        n = first // SUBSTEPS_PER_STEP if g in per_step else first
+        if max_diff(on[g][:n], base[g][:n]) > 1e-12:
+            changed.add(g)
+    assert changed == set(EFFECTS[name].channels_before_contact), (
+        f"{name}: before contact changed {sorted(changed)}, declared {sorted(EFFECTS[name].channels_before_contact)}"
+    )
+    assert EFFECTS[name].channels_before_contact <= EFFECTS[name].channels
 
 
 def test_runout_moves_the_lateral_force_and_its_moment_only(baseline):

@@ -83,6 +83,8 @@ class Effect:
     params: ClassVar[tuple[Param, ...]] = ()
     channels: ClassVar[frozenset[str]] = frozenset()
     """Channel groups (:data:`CHANNEL_GROUPS`) the physics says this effect changes; the others stay put."""
+    channels_before_contact: ClassVar[frozenset[str]] = frozenset()
+    """The groups it changes before the drill touches the bone (most effects act only through the cut)."""
     sensor_only: ClassVar[bool] = False
     servo_offset_task_m: np.ndarray | None = None
 

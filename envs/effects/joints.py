@@ -70,6 +70,7 @@ class JointFriction(Effect):
         Param("viscous_s", 0.0, 0.02, 0.0, "viscous position error per joint speed (rad per rad/s = s)"),
     )
     channels = frozenset({"force", "torque", "tracker", "q", "tcp"})
+    channels_before_contact = frozenset({"tracker", "q", "tcp"})
 
     def begin_step(self, env: Any) -> None:
         """Set the servo offset from the joint speeds of the commanded motion."""
@@ -98,6 +99,7 @@ class KinematicOffset(Effect):
         Param("dz_base_m", -2e-3, 2e-3, 0.0, "tool offset along base z (m)"),
     )
     channels = frozenset({"force", "torque", "tracker"})
+    channels_before_contact = frozenset({"tracker"})
 
     @classmethod
     def initial_guess(cls, evidence: dict[str, Any]) -> dict[str, float] | None:

@@ -30,6 +30,7 @@ class FTDrift(Effect):
         Param("fz_rate_n_s", -0.05, 0.05, 0.0, "drift rate of Fz (N/s, sensor frame)"),
     )
     channels = frozenset({"force"})
+    channels_before_contact = frozenset({"force"})
     sensor_only = True
 
     def _rates(self) -> np.ndarray:

@@ -52,6 +52,9 @@ class DiagnoseOptions:
     """Candidate effects to try (default: the whole library)."""
     pair_seeds: int = 2
     """Pairs are built on top of this many of the best singles (forward selection from each)."""
+    refit_pairs: int = 2
+    """This many of the best pairs (and the pair of the two best nameable singles) are then refitted
+    with every parameter free (:func:`~eval.diagnosis.fit.refit_jointly`); 0 keeps forward selection."""
     seed: int = 0
     """Seed of the split and the bootstrap."""
     progress: bool = True
@@ -112,6 +115,18 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
             bar.set_postfix_str("fitting pairs")
             pairs = _run_fits(runner, data, jobs, bar)
             scores = score_models(singles + pairs, before, null, opt.seed)
+            refits = _refit_jobs(scores, pairs, s0, opt.refit_pairs)
+            if refits:
+                bar.total += len(refits)
+                bar.set_postfix_str("refitting the best pairs jointly")
+                out: list[Any] = [None] * len(refits)
+                for k, r in runner.refits(data, [(names, starts) for names, starts, _ in refits]):
+                    out[k] = r
+                    bar.update()
+                for (_, _, i), r in zip(refits, out, strict=True):
+                    if not r.error and r.cal_objective <= pairs[i].cal_objective:
+                        pairs[i] = r
+                scores = score_models(singles + pairs, before, null, opt.seed)
     timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
     bar.close()
     verdict, chosen, location = _verdict(significance, scores, before, data, null)
@@ -119,7 +134,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     alts, seconds = [], []
     if chosen is not None:
         alts = alternatives(scores, chosen, baseline_score(before))
-        seconds = possible_second_effects(scores, chosen, pooled(null))
+        seconds = possible_second_effects(scores, chosen, pooled(null), null)
     timings["total_s"] = time.perf_counter() - t0
     result = {
         "verdict": verdict,
@@ -148,6 +163,34 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     return Diagnosis(result, data, scores)
 
 
+def _refit_jobs(
+    scores: list[ModelScore], pairs: list[FitResult], s0: float, top: int
+) -> list[tuple[tuple[str, ...], list[list[dict[str, float]]], int]]:
+    """``(names, starts, index in pairs)`` of the pairs to refit jointly.
+
+    The ``top`` best-scoring pairs, and the pair of the two best singles that are nameable on their own
+    (two effects that each explain the data may be confounded, or both present). Starts: the forward
+    fit, and the two effects' single fits side by side.
+    """
+    if top <= 0:
+        return []
+    singles = {s.fit.names[0]: s.fit for s in scores if len(s.fit.names) == 1}
+    index = {p.names: i for i, p in enumerate(pairs) if not p.error}
+    wanted: list[tuple[str, ...]] = []
+    wanted.extend([s.fit.names for s in scores if len(s.fit.names) == 2 and s.fit.names in index][:top])
+    both = [s.fit.names[0] for s in scores if len(s.fit.names) == 1 and nameable(s, s0)][:2]
+    if len(both) == 2 and tuple(both) in index and tuple(both) not in wanted:
+        wanted.append(tuple(both))
+    jobs: list[tuple[tuple[str, ...], list[list[dict[str, float]]], int]] = []
+    for names in wanted:
+        i = index[names]
+        starts = [pairs[i].params]
+        if all(n in singles for n in names):
+            starts.append([singles[n].params[0] for n in names])
+        jobs.append((names, starts, i))
+    return jobs
+
+
 def _run_fits(runner: Runner, data: DiagnosisData, jobs: list[Any], bar: tqdm) -> list[FitResult]:
     out: list[Any] = [None] * len(jobs)
     for k, r in runner.fits(data, jobs):
@@ -174,7 +217,7 @@ def _verdict(
         first, second = (by_name.get(n) for n in p.fit.names)
         if best_single is None or first is None:
             continue
-        if nameable(p, s0) and pair_beats(p, best_single, first, second, g_null):
+        if nameable(p, s0) and pair_beats(p, best_single, first, second, g_null, null):
             if chosen is None or chosen is best_single or p.score < chosen.score:
                 chosen = p
     if chosen is None:
@@ -203,7 +246,7 @@ def _summary(
         text += "; not ruled out: " + ", ".join(f"{a['name']} (better in {pct(a['p_better'])})" for a in alts[:3])
     if seconds:
         names = ", ".join(x["second"] for x in seconds[:3])
-        text += f"; a second effect may be present ({names}: better on top, but little alone)"
+        text += f"; a second effect may be present ({names}: better on top, not shown to act alone)"
     return text
 
 

@@ -119,6 +119,39 @@ class ParamBox:
         return points
 
 
+class _Objective:
+    """Mean calibration gap term of a unit-box point, memoised (a failed replay scores 1e12)."""
+
+    def __init__(self, ev: Evaluator, box: ParamBox) -> None:
+        self.ev, self.box = ev, box
+        self.memo: dict[Spec, float] = {}
+        self.replays0 = ev.replays
+
+    def __call__(self, u: np.ndarray) -> float:
+        spec = self.box.spec(np.asarray(u, dtype=float))
+        if spec not in self.memo:
+            try:
+                self.memo[spec] = self.ev.mean_term(spec, self.ev.data.cal)
+            except (RuntimeError, ValueError, np.linalg.LinAlgError):
+                self.memo[spec] = 1e12  # the replay failed (e.g. IK out of reach): not a candidate
+        return self.memo[spec]
+
+    def finish(self, result: FitResult, u_best: np.ndarray) -> FitResult:
+        """Fill ``result`` with the fit at ``u_best``, its held-out terms and the costs."""
+        spec = self.box.spec(u_best)
+        result.params = [dict(p) for _, p in spec]
+        result.cal_objective = self(u_best)
+        result.ho_terms = self.ev.terms(spec, self.ev.data.ho)
+        return result
+
+    def account(self, result: FitResult, t0: float) -> FitResult:
+        """Record the evaluations, replays and wall time spent."""
+        result.evaluations = len(self.memo)
+        result.replays = self.ev.replays - self.replays0
+        result.wall_s = time.perf_counter() - t0
+        return result
+
+
 def fit_model(
     ev: Evaluator, names: Sequence[str], start: Sequence[dict[str, float]] | None = None, budget: int | None = None
 ) -> FitResult:
@@ -133,19 +166,7 @@ def fit_model(
     """
     t0 = time.perf_counter()
     box = ParamBox(names)
-    cal = ev.data.cal
-    memo: dict[Spec, float] = {}
-    replays0 = ev.replays
-
-    def objective(u: np.ndarray) -> float:
-        spec = box.spec(np.asarray(u, dtype=float))
-        if spec not in memo:
-            try:
-                memo[spec] = ev.mean_term(spec, cal)
-            except (RuntimeError, ValueError, np.linalg.LinAlgError):
-                memo[spec] = 1e12  # the replay failed (e.g. IK out of reach): not a candidate
-        return memo[spec]
-
+    objective = _Objective(ev, box)
     result = FitResult(names=tuple(names), params=box.from_unit(box.to_unit([{}] * len(names))), n_params=box.size)
     try:
         if start is None:
@@ -157,6 +178,9 @@ def fit_model(
         else:
             # Forward selection: the earlier effects stay at their fit; the last one is fitted on top.
             points = box.grid(around=box.to_unit(start), effect=len(names) - 1)
+            guess = _guess(ev, names[-1:])
+            if guess is not None:  # what the data say of the effect on top, the others at their fit
+                points.append(box.to_unit([*start[:-1], *guess]))
             free = np.array([i for i, (k, _) in enumerate(box.entries) if k == len(names) - 1])
         values = [objective(u) for u in points]
         if free.size > 1:
@@ -179,16 +203,39 @@ def fit_model(
         total = budget or EVALS_PER_PARAM * free.size
         ends = [_local_search(objective, u0, total // len(starts), free) for u0 in starts]
         u_best = min(ends, key=objective) if ends else points[int(np.argmin(values))]
-        spec = box.spec(u_best)
-        result.params = [dict(p) for _, p in spec]
-        result.cal_objective = objective(u_best)
-        result.ho_terms = ev.terms(spec, ev.data.ho)
+        objective.finish(result, u_best)
     except Exception as e:  # a fit must not stop the diagnosis
         result.error = f"{type(e).__name__}: {e}"
-    result.evaluations = len(memo)
-    result.replays = ev.replays - replays0
-    result.wall_s = time.perf_counter() - t0
-    return result
+    return objective.account(result, t0)
+
+
+def refit_jointly(
+    ev: Evaluator, names: Sequence[str], starts: Sequence[Sequence[dict[str, float]]], budget: int | None = None
+) -> FitResult:
+    """Refit every parameter of ``names`` together, from the best of ``starts``.
+
+    Forward selection freezes the first effect at its fit alone, which may have absorbed part of the
+    second (two geometric offsets, or friction that a skid model half explains); a joint local search
+    from there lets both settle.
+
+    Args:
+        ev: the evaluator (data + replayer).
+        names: effect names.
+        starts: parameter dicts per effect (e.g. the forward fit and the effects' single fits combined).
+        budget: local-search evaluations (default :data:`EVALS_PER_PARAM` per parameter).
+    """
+    t0 = time.perf_counter()
+    box = ParamBox(names)
+    objective = _Objective(ev, box)
+    result = FitResult(names=tuple(names), params=[dict(p) for p in starts[0]], n_params=box.size)
+    try:
+        points = [box.to_unit(s) for s in starts]
+        u0 = min(points, key=objective)
+        u_best = _local_search(objective, u0, budget or EVALS_PER_PARAM * box.size)
+        objective.finish(result, u_best)
+    except Exception as e:  # a fit must not stop the diagnosis
+        result.error = f"{type(e).__name__}: {e}"
+    return objective.account(result, t0)
 
 
 def _local_search(
@@ -230,7 +277,12 @@ def _local_search(
 
 
 def _guess(ev: Evaluator, names: Sequence[str]) -> list[dict[str, float]] | None:
-    """Starting point read off the data (only single effects that offer one)."""
+    """Starting point read off the data for one effect (only effects that offer one, e.g. a kinematic offset).
+
+    The evidence is the tracker's offset from the nominal replay before contact, which the effects that
+    act only through the cut (force, bone, tool bending) leave alone, so it also serves an effect fitted
+    on top of another.
+    """
     if len(names) != 1:
         return None
     d = ev.data

@@ -11,7 +11,7 @@ from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 from eval.diagnosis.context import DiagnosisData, Evaluator, baseline_job
-from eval.diagnosis.fit import FitResult, fit_model
+from eval.diagnosis.fit import FitResult, fit_model, refit_jointly
 from eval.diagnosis.replay import Replayer
 
 _WORKER: dict[str, Any] = {}
@@ -29,6 +29,11 @@ def _baseline(i: int) -> tuple[int, Any]:
 def _fit(job: tuple[int, tuple[str, ...], list[dict[str, float]] | None]) -> tuple[int, FitResult]:
     k, names, start = job
     return k, fit_model(_WORKER["evaluator"], names, start)
+
+
+def _refit(job: tuple[int, tuple[str, ...], list[list[dict[str, float]]]]) -> tuple[int, FitResult]:
+    k, names, starts = job
+    return k, refit_jointly(_WORKER["evaluator"], names, starts)
 
 
 class Runner:
@@ -57,3 +62,9 @@ class Runner:
     ) -> Iterable[tuple[int, FitResult]]:
         """Fit each ``(names, start)``."""
         return self._map(data, _fit, [(k, names, start) for k, (names, start) in enumerate(models)])
+
+    def refits(
+        self, data: DiagnosisData, models: list[tuple[tuple[str, ...], list[list[dict[str, float]]]]]
+    ) -> Iterable[tuple[int, FitResult]]:
+        """Refit each ``(names, starts)`` with every parameter free (:func:`~eval.diagnosis.fit.refit_jointly`)."""
+        return self._map(data, _refit, [(k, names, starts) for k, (names, starts) in enumerate(models)])

@@ -25,7 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from eval.diagnosis.channels import ALL_CHANNELS, STAGES
+from envs.effects.registry import EFFECTS
+from eval.diagnosis.channels import ALL_CHANNELS, GROUP_OF, STAGES
 from eval.diagnosis.fit import FitResult
 from eval.diagnosis.gap import Terms
 
@@ -42,7 +43,8 @@ PAIR_P_MIN = 0.95
 PAIR_RESIDUAL_SHRINK_MIN = 0.5
 """... removes at least this share of the excess gap the single leaves ..."""
 PAIR_ALONE_MIN = 0.3
-"""... and its second effect alone removes at least this share of what it adds on top of the first."""
+"""... and its second effect alone removes at least this share of what it adds on top of the first (or
+the pair removes the gap where only the second effect's physics reaches: :func:`second_on_own_cells`)."""
 PAIR_TRY_RESIDUAL = 2.0
 """Pairs (the best single plus each other candidate) are tried when the best single leaves a held-out gap
 of at least this many times ``G₀``."""
@@ -210,19 +212,125 @@ def second_stands_alone(pair: ModelScore, first: ModelScore, second: ModelScore 
     return second.before - second.after >= PAIR_ALONE_MIN * added
 
 
+def own_cells(first: str, second: str) -> np.ndarray | None:
+    """(stage, channel) cells where ``second``'s physics reaches and ``first``'s cannot; None if unknown.
+
+    From the effects' declared channel groups (``channels``, and ``channels_before_contact`` for the
+    approach), which tests check against the simulator: e.g. a joint friction reaches the joint angles,
+    which no bone effect moves, and a kinematic offset shows on the tracker before contact, where a tool
+    length error or any bone effect changes nothing.
+    """
+    a, b = EFFECTS.get(first), EFFECTS.get(second)
+    if a is None or b is None:
+        return None
+    mask = np.zeros((len(STAGES), len(ALL_CHANNELS)), dtype=bool)
+    approach = STAGES.index("approach")
+    for c, channel in enumerate(ALL_CHANNELS):
+        group = GROUP_OF[channel]
+        mask[:, c] = group in b.channels and group not in a.channels
+        mask[approach, c] |= group in b.channels_before_contact and group not in a.channels_before_contact
+    return mask
+
+
+@dataclass
+class _OwnCellGaps:
+    """Held-out gaps on a pair's own cells: pooled values and their bootstrap draws (first, pair, null)."""
+
+    first: float
+    pair: float
+    null: float
+    first_draws: np.ndarray
+    pair_draws: np.ndarray
+    null_draws: np.ndarray
+
+
+def _own_cell_gaps(pair: ModelScore, first: ModelScore, null: list[Terms], seed: int = 0) -> _OwnCellGaps | None:
+    mask = own_cells(first.fit.names[0], pair.fit.names[-1]) if len(pair.fit.names) == 2 else None
+    m = len(null)
+    if mask is None or not mask.any() or m == 0 or len(pair.fit.ho_terms) != m or len(first.fit.ho_terms) != m:
+        return None
+
+    def part(terms: list[Terms]) -> tuple[np.ndarray, np.ndarray]:
+        return np.array([t.cell_sum[mask].sum() for t in terms]), np.array([t.cell_n[mask].sum() for t in terms])
+
+    parts = [part(first.fit.ho_terms), part(pair.fit.ho_terms), part(null)]
+    if min(n.sum() for _, n in parts) <= 0:
+        return None
+    idx = np.random.default_rng(seed).integers(0, m, size=(BOOTSTRAP, m))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        draws = [j[idx].sum(1) / n[idx].sum(1) for j, n in parts]
+    f, p, z = (float(j.sum() / n.sum()) for j, n in parts)
+    return _OwnCellGaps(f, p, z, *draws)
+
+
+def second_on_own_cells(pair: ModelScore, first: ModelScore, null: list[Terms], seed: int = 0) -> bool:
+    """Does the pair remove most of the gap ``first`` leaves where only its second effect reaches?
+
+    On the :func:`own_cells` of the pair's second effect, ``first``'s held-out gap must surely exceed
+    the simulator's own level there, and the pair must surely lower it (both in :data:`PAIR_P_MIN` of the
+    bootstrap resamples) by at least :data:`PAIR_RESIDUAL_SHRINK_MIN` of that excess. A second effect
+    hidden behind a much larger first one still shows where the first cannot act; a patch on the first
+    one's form has no such cells.
+    """
+    g = _own_cell_gaps(pair, first, null, seed)
+    if g is None or g.first <= g.null:
+        return False
+    return bool(
+        np.mean(g.first_draws > g.null_draws) >= PAIR_P_MIN
+        and np.mean(g.pair_draws < g.first_draws) >= PAIR_P_MIN
+        and (g.first - g.pair) / (g.first - g.null) >= PAIR_RESIDUAL_SHRINK_MIN
+    )
+
+
+def second_contradicted(pair: ModelScore, first: ModelScore, null: list[Terms], seed: int = 0) -> bool:
+    """Does the pair's second effect surely worsen the gap where only it reaches?
+
+    E.g. an F/T drift fitted on top of a density model to bend the force along the hole (a drift in time
+    looks like a gradient in depth at a steady feed) predicts a drifting force before contact, which the
+    data do not show: the pair's gap there exceeds the first effect's in :data:`PAIR_P_MIN` of the
+    resamples.
+    """
+    g = _own_cell_gaps(pair, first, null, seed)
+    return g is not None and bool(np.mean(g.pair_draws > g.first_draws) >= PAIR_P_MIN)
+
+
+def second_is_real(
+    pair: ModelScore, first: ModelScore, second: ModelScore | None, null: list[Terms] | None = None
+) -> bool:
+    """Is the pair's second effect a second effect rather than a patch on the first one's form?
+
+    Either it explains on its own what it adds (:func:`second_stands_alone`) without being contradicted
+    where only it reaches (:func:`second_contradicted`), or the pair removes the gap where only the
+    second effect's physics reaches (:func:`second_on_own_cells`). Without the null terms only the first
+    test is made.
+    """
+    if null is None:
+        return second_stands_alone(pair, first, second)
+    if second_on_own_cells(pair, first, null):
+        return True
+    return second_stands_alone(pair, first, second) and not second_contradicted(pair, first, null)
+
+
 def pair_beats(
-    pair: ModelScore, best: ModelScore, first: ModelScore, second: ModelScore | None, null_gap: float
+    pair: ModelScore,
+    best: ModelScore,
+    first: ModelScore,
+    second: ModelScore | None,
+    null_gap: float,
+    null: list[Terms] | None = None,
 ) -> bool:
     """Is the pair (``first``'s fit plus ``second``'s effect fitted on top) surely better than ``best``?
 
     ``best`` is the best single: the pair must :func:`pair_improves` on it, and its second effect must be
-    a second effect rather than a patch on the first one's form (:func:`second_stands_alone`).
+    a second effect rather than a patch on the first one's form (:func:`second_is_real`).
     """
-    return pair_improves(pair, best, null_gap) and second_stands_alone(pair, first, second)
+    return pair_improves(pair, best, null_gap) and second_is_real(pair, first, second, null)
 
 
-def possible_second_effects(scores: list[ModelScore], named: ModelScore, null_gap: float) -> list[dict[str, Any]]:
-    """Pairs on the named single effect that improve on it but whose second effect explains little alone.
+def possible_second_effects(
+    scores: list[ModelScore], named: ModelScore, null_gap: float, null: list[Terms] | None = None
+) -> list[dict[str, Any]]:
+    """Pairs on the named single effect that improve on it but whose second effect is not shown to be one.
 
     Such a second effect may be real but hidden behind a much larger first one, or a patch on the first
     one's form: the data cannot tell, so it is reported, not named.
@@ -238,7 +346,7 @@ def possible_second_effects(scores: list[ModelScore], named: ModelScore, null_ga
         if len(s.fit.names) != 2 or s.fit.names[0] != named.fit.names[0]:
             continue
         second = singles.get(s.fit.names[1])
-        if pair_improves(s, named, null_gap) and not second_stands_alone(s, named, second):
+        if pair_improves(s, named, null_gap) and not second_is_real(s, named, second, null):
             p = p_better(s, named)
             out.append({"name": s.name, "second": s.fit.names[1], "heldout_gap_after": s.after, "p_better": p})
     return out
