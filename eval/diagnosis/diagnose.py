@@ -170,7 +170,7 @@ def _refit_jobs(
 
     The ``top`` best-scoring pairs, and the pair of the two best singles that are nameable on their own
     (two effects that each explain the data may be confounded, or both present). Starts: the forward
-    fit, and the two effects' single fits side by side.
+    fit, the other order's forward fit where there is one, and the two effects' single fits side by side.
     """
     if top <= 0:
         return []
@@ -185,6 +185,9 @@ def _refit_jobs(
     for names in wanted:
         i = index[names]
         starts = [pairs[i].params]
+        other = index.get(names[::-1])
+        if other is not None:  # the other order's forward fit
+            starts.append(pairs[other].params[::-1])
         if all(n in singles for n in names):
             starts.append([singles[n].params[0] for n in names])
         jobs.append((names, starts, i))

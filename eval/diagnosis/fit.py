@@ -230,12 +230,41 @@ def refit_jointly(
     result = FitResult(names=tuple(names), params=[dict(p) for p in starts[0]], n_params=box.size)
     try:
         points = [box.to_unit(s) for s in starts]
+        points += _read_first_starts(ev, box, objective, starts[0])
         u0 = min(points, key=objective)
         u_best = _local_search(objective, u0, budget or EVALS_PER_PARAM * box.size)
         objective.finish(result, u_best)
     except Exception as e:  # a fit must not stop the diagnosis
         result.error = f"{type(e).__name__}: {e}"
     return objective.account(result, t0)
+
+
+def _read_first_starts(
+    ev: Evaluator, box: ParamBox, objective: Callable[[np.ndarray], float], start: Sequence[dict[str, float]]
+) -> list[np.ndarray]:
+    """Starts with an effect held at the data's own reading of it and the others fitted around it.
+
+    E.g. a kinematic offset read off the tracker before contact, where a tool-length error or a bone
+    effect changes nothing: the other effect is then fitted with the offset in place, so the joint
+    search starts in the right valley instead of where each effect absorbed part of the other.
+    """
+    out = []
+    for k, name in enumerate(box.names):
+        guess = _guess(ev, [name])
+        if guess is None:
+            continue
+        base = [dict(p) for p in start]
+        base[k] = guess[0]
+        u = box.to_unit(base)
+        for j in range(len(box.names)):
+            if j == k:
+                continue
+            points = box.grid(around=u, effect=j)
+            u = min(points, key=objective)
+            free = np.array([i for i, (e, _) in enumerate(box.entries) if e == j])
+            u = _local_search(objective, u, EVALS_PER_PARAM * free.size, free)
+        out.append(u)
+    return out
 
 
 def _local_search(
