@@ -130,3 +130,10 @@ def test_new_commands_have_help(command, capsys):
     with pytest.raises(SystemExit) as e:
         main([command, "--help"])
     assert e.value.code == 0 and "--out" in capsys.readouterr().out
+
+
+def test_bench_diagnosis_refuses_unknown_case_names(tmp_path, capsys):
+    from eval.cli import main
+
+    assert main(["bench-diagnosis", "--only", "pair-1,pair-99", "--out", str(tmp_path), "--no-progress"]) == 2
+    assert "pair-99" in capsys.readouterr().err and not (tmp_path / "bench.json").exists()

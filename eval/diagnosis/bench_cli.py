@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 from pathlib import Path
@@ -17,6 +18,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--workers", type=int, default=os.cpu_count() or 1, help="cases run in parallel (default: all cores)"
     )
     parser.add_argument("--only", default="", help="comma-separated case names to run (default: all)")
+    parser.add_argument(
+        "--seed-offset",
+        type=int,
+        default=0,
+        help="added to every case's seed: the same cases on other episodes and specimens (default 0)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--ray", action="store_true", help="run the cases as Ray tasks (a local instance by default)")
     parser.add_argument(
@@ -32,8 +39,17 @@ def run(args: argparse.Namespace) -> int:
 
     cases = quick_cases() if args.quick else full_cases()
     if args.only:
-        wanted = {c.strip() for c in args.only.split(",")}
+        wanted = {c.strip() for c in args.only.split(",") if c.strip()}
+        unknown = sorted(wanted - {c.name for c in cases})
+        if unknown:
+            print(
+                f"drillgym bench-diagnosis: unknown case(s) {unknown}; cases: {', '.join(c.name for c in cases)}",
+                file=sys.stderr,
+            )
+            return 2
         cases = [c for c in cases if c.name in wanted]
+    if args.seed_offset:
+        cases = [dataclasses.replace(c, seed=c.seed + args.seed_offset) for c in cases]
     episodes = args.episodes or (6 if args.quick else 12)
     candidates = QUICK_CANDIDATES if args.quick else tuple(EFFECTS)
     rows_of = None
