@@ -4,7 +4,7 @@
 episodes into calibration and held-out halves; replay every episode nominally and with the sim's own
 scatter (null model); test whether there is a gap at all; fit every candidate effect on the
 calibration half and score it on the held-out half; fit pairs of the best candidates when one is not
-enough; name what is surely worth naming (:mod:`eval.diagnosis.rank`).
+enough (forward selection, then the best pairs refitted jointly); name what is surely worth naming (:mod:`eval.diagnosis.rank`).
 """
 
 from __future__ import annotations

@@ -5,7 +5,8 @@ Parameters are searched in a unit box (each one mapped from its physical range):
 combined, plus a reading straight off the data where an effect offers one), then a bounded compass
 search from the best one or two starting points, with a budget of evaluations. Every evaluation replays the calibration episodes (sensor-only
 effects are applied to the cached nominal replays instead). The objective is the mean gap term of
-:mod:`eval.diagnosis.gap`.
+:mod:`eval.diagnosis.gap`. A pair is fitted by forward selection (:func:`fit_model` with ``start``), and
+the best pairs again with every parameter free (:func:`refit_jointly`).
 """
 
 from __future__ import annotations
@@ -137,7 +138,7 @@ class _Objective:
         return self.memo[spec]
 
     def finish(self, result: FitResult, u_best: np.ndarray) -> FitResult:
-        """Fill ``result`` with the fit at ``u_best``, its held-out terms and the costs."""
+        """Fill ``result`` with the fit at ``u_best``, its calibration gap and its held-out terms."""
         spec = self.box.spec(u_best)
         result.params = [dict(p) for _, p in spec]
         result.cal_objective = self(u_best)
