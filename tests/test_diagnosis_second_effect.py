@@ -9,7 +9,14 @@ import numpy as np
 from eval.diagnosis.channels import ALL_CHANNELS, GROUP_OF, STAGES
 from eval.diagnosis.fit import FitResult, fit_model, refit_jointly
 from eval.diagnosis.gap import Terms
-from eval.diagnosis.rank import ModelScore, own_cells, pair_beats, second_contradicted, second_on_own_cells
+from eval.diagnosis.rank import (
+    ModelScore,
+    own_cells,
+    pair_beats,
+    second_contradicted,
+    second_effect_evidence,
+    second_on_own_cells,
+)
 
 EPISODES = 8
 Q = [c for c, ch in enumerate(ALL_CHANNELS) if GROUP_OF[ch] == "q"]
@@ -77,6 +84,10 @@ def test_a_hidden_second_effect_is_named_where_only_it_reaches():
     assert second_on_own_cells(pair, first, null)
     assert pair_beats(pair, first, first, alone, g0, null)
     assert not pair_beats(pair, first, first, alone, g0)  # without the cells: "little alone"
+    evidence = second_effect_evidence(pair, first, alone, null)
+    assert evidence["second"] == "joint_friction" and evidence["own_cells"] and not evidence["alone"]
+    assert evidence["own_groups"] == ["q", "tracker"]  # q throughout, the tracker before contact
+    assert evidence["own_gap_first"] > evidence["own_gap_pair"] >= 0.9 * evidence["own_gap_null"]
     # a patch on the first effect's form removes the same share, but on cells the first reaches too
     patch = _score(("skid_friction", "density_gradient"), _terms(hidden, rng), before, g0)
     patch_alone = _score(("density_gradient",), before_terms, before, g0)

@@ -36,6 +36,7 @@ from eval.diagnosis.rank import (
     pooled,
     possible_second_effects,
     score_models,
+    second_effect_evidence,
 )
 
 MIN_EPISODES = 4
@@ -132,9 +133,15 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     verdict, chosen, location = _verdict(significance, scores, before, data, null)
     named = [] if chosen is None else list(chosen.fit.names)
     alts, seconds = [], []
+    evidence: dict[str, Any] | None = None
     if chosen is not None:
         alts = alternatives(scores, chosen, baseline_score(before))
         seconds = possible_second_effects(scores, chosen, pooled(null), null)
+        if len(chosen.fit.names) == 2:
+            by_name = {s.fit.names[0]: s for s in scores if len(s.fit.names) == 1}
+            first, second = (by_name.get(n) for n in chosen.fit.names)
+            if first is not None:
+                evidence = second_effect_evidence(chosen, first, second, null)
     timings["total_s"] = time.perf_counter() - t0
     result = {
         "verdict": verdict,
@@ -143,6 +150,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
         "effects": [s.to_json() for s in scores],
         "alternatives": alts,
         "possible_second_effects": seconds,
+        "second_effect_evidence": evidence,
         "where": {
             "all_episodes": gap_map(data.baseline_terms, data.null_terms),
             "heldout_after": None if chosen is None else gap_map(chosen.fit.ho_terms, null),

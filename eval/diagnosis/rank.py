@@ -311,6 +311,32 @@ def second_is_real(
     return second_stands_alone(pair, first, second) and not second_contradicted(pair, first, null)
 
 
+def second_effect_evidence(
+    pair: ModelScore, first: ModelScore, second: ModelScore | None, null: list[Terms]
+) -> dict[str, Any]:
+    """How a pair's second effect is shown to be one (the ``second_effect_evidence`` of ``diagnosis.json``).
+
+    Returns:
+        ``second``; ``alone`` (:func:`second_stands_alone`); ``own_cells`` (:func:`second_on_own_cells`);
+        ``contradicted`` (:func:`second_contradicted`); ``own_groups``: the channel groups of those cells,
+        with the held-out gap there of the first effect alone, of the pair and of the simulator
+        (``own_gap_first``, ``own_gap_pair``, ``own_gap_null``; None without such cells).
+    """
+    mask = own_cells(first.fit.names[0], pair.fit.names[-1])
+    g = _own_cell_gaps(pair, first, null)
+    groups = sorted({GROUP_OF[ALL_CHANNELS[c]] for c in np.flatnonzero(mask.any(axis=0))}) if mask is not None else []
+    return {
+        "second": pair.fit.names[-1],
+        "alone": second_stands_alone(pair, first, second),
+        "own_cells": second_on_own_cells(pair, first, null),
+        "contradicted": second_contradicted(pair, first, null),
+        "own_groups": groups,
+        "own_gap_first": None if g is None else g.first,
+        "own_gap_pair": None if g is None else g.pair,
+        "own_gap_null": None if g is None else g.null,
+    }
+
+
 def pair_beats(
     pair: ModelScore,
     best: ModelScore,

@@ -95,6 +95,16 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
             f"{_pct(e['shrink'])} ({_pct(e['ci_low'])} to {_pct(e['ci_high'])}) | {e['p_best']:.2f} | "
             f"{'**yes**' if e['named'] else ''} |"
         )
+    ev = res.get("second_effect_evidence")
+    if ev:
+        how = [w for w, ok in (("it explains alone what it adds", ev["alone"]),) if ok]
+        if ev["own_cells"]:
+            how.append(
+                f"on the {', '.join(ev['own_groups'])} cells only it reaches, the pair brings the gap from "
+                f"{ev['own_gap_first']:.3g} (first effect alone) to {ev['own_gap_pair']:.3g} "
+                f"(simulator: {ev['own_gap_null']:.3g})"
+            )
+        lines += ["", f"Second effect `{ev['second']}`: " + "; ".join(how or ["–"]) + "."]
     lines += ["", "## Where", ""]
     for cell in res["where"]["largest_excess"]:
         lines.append(f"* {cell['channel']} in stage {cell['stage']}: {_pct(cell['share'])} of the excess gap")
