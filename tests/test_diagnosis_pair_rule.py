@@ -3,26 +3,16 @@
 from __future__ import annotations
 
 import numpy as np
+from diagnosis_stubs import stub_score
 
-from eval.diagnosis.fit import FitResult
 from eval.diagnosis.rank import ModelScore, pair_beats
 
 NULL_GAP = 1.0
 
 
 def _score(names: tuple[str, ...], before: float, after: float, draws: float) -> ModelScore:
-    fit = FitResult(names=names, params=[{} for _ in names], n_params=len(names))
     rng = np.random.default_rng(len(names))
-    return ModelScore(
-        fit=fit,
-        before=before,
-        after=after,
-        shrink=(before - after) / (before - NULL_GAP),
-        ci_low=0.0,
-        ci_high=1.0,
-        score=draws,
-        score_draws=draws + rng.normal(0.0, 0.01 * draws, 500),
-    )
+    return stub_score(names, before, after, NULL_GAP, draws + rng.normal(0.0, 0.01 * draws, 500))
 
 
 def test_two_real_effects_that_add_up_are_named_as_a_pair():

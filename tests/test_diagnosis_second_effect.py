@@ -5,9 +5,10 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+from diagnosis_stubs import stub_score
 
 from eval.diagnosis.channels import ALL_CHANNELS, GROUP_OF, STAGES
-from eval.diagnosis.fit import FitResult, fit_model, refit_jointly
+from eval.diagnosis.fit import fit_model, refit_jointly
 from eval.diagnosis.gap import Terms
 from eval.diagnosis.rank import (
     ModelScore,
@@ -38,20 +39,8 @@ def _terms(extra: dict[tuple[int, int], float], rng: np.random.Generator) -> lis
 
 def _score(names: tuple[str, ...], terms: list[Terms], before: float, null_gap: float) -> ModelScore:
     j = np.array([t.j for t in terms])
-    after = j.sum() / sum(t.n for t in terms)
-    rng = np.random.default_rng(7)
-    idx = rng.integers(0, EPISODES, size=(1000, EPISODES))
-    fit = FitResult(names=names, params=[{} for _ in names], n_params=len(names), ho_terms=terms)
-    return ModelScore(
-        fit=fit,
-        before=before,
-        after=after,
-        shrink=(before - after) / (before - null_gap),
-        ci_low=0.0,
-        ci_high=1.0,
-        score=float(j.sum()),
-        score_draws=j[idx].sum(1),
-    )
+    idx = np.random.default_rng(7).integers(0, EPISODES, size=(1000, EPISODES))
+    return stub_score(names, before, j.sum() / sum(t.n for t in terms), null_gap, j[idx].sum(1), terms)
 
 
 def test_own_cells_follow_the_declared_physics():

@@ -4,7 +4,8 @@
 episodes into calibration and held-out halves; replay every episode nominally and with the sim's own
 scatter (null model); test whether there is a gap at all; fit every candidate effect on the
 calibration half and score it on the held-out half; fit pairs of the best candidates when one is not
-enough (forward selection, then the best pairs refitted jointly); name what is surely worth naming (:mod:`eval.diagnosis.rank`).
+enough (forward selection, then the best pairs refitted jointly); name what is surely worth naming
+(:mod:`eval.diagnosis.rank`).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import math
 import os
 import sys
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,6 +39,7 @@ from eval.diagnosis.rank import (
     possible_second_effects,
     score_models,
     second_effect_evidence,
+    singles_by_name,
 )
 
 MIN_EPISODES = 4
@@ -120,10 +123,8 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
             if refits:
                 bar.total += len(refits)
                 bar.set_postfix_str("refitting the best pairs jointly")
-                out: list[Any] = [None] * len(refits)
-                for k, r in runner.refits(data, [(names, starts) for names, starts, _ in refits]):
-                    out[k] = r
-                    bar.update()
+                models = [(names, starts) for names, starts, _ in refits]
+                out = _collect(runner.refits(data, models), len(refits), bar)
                 for (_, _, i), r in zip(refits, out, strict=True):
                     if not r.error and r.cal_objective <= pairs[i].cal_objective:
                         pairs[i] = r
@@ -138,8 +139,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
         alts = alternatives(scores, chosen, baseline_score(before))
         seconds = possible_second_effects(scores, chosen, pooled(null), null)
         if len(chosen.fit.names) == 2:
-            by_name = {s.fit.names[0]: s for s in scores if len(s.fit.names) == 1}
-            first, second = (by_name.get(n) for n in chosen.fit.names)
+            first, second = (singles_by_name(scores).get(n) for n in chosen.fit.names)
             if first is not None:
                 evidence = second_effect_evidence(chosen, first, second, null)
     timings["total_s"] = time.perf_counter() - t0
@@ -182,13 +182,12 @@ def _refit_jobs(
     """
     if top <= 0:
         return []
-    singles = {s.fit.names[0]: s.fit for s in scores if len(s.fit.names) == 1}
+    singles = singles_by_name(scores)
     index = {p.names: i for i, p in enumerate(pairs) if not p.error}
-    wanted: list[tuple[str, ...]] = []
-    wanted.extend([s.fit.names for s in scores if len(s.fit.names) == 2 and s.fit.names in index][:top])
-    both = [s.fit.names[0] for s in scores if len(s.fit.names) == 1 and nameable(s, s0)][:2]
-    if len(both) == 2 and tuple(both) in index and tuple(both) not in wanted:
-        wanted.append(tuple(both))
+    wanted = [tuple(s.fit.names) for s in scores if len(s.fit.names) == 2 and s.fit.names in index][:top]
+    both = tuple(n for n, s in singles.items() if nameable(s, s0))[:2]
+    if len(both) == 2 and both in index and both not in wanted:
+        wanted.append(both)
     jobs: list[tuple[tuple[str, ...], list[list[dict[str, float]]], int]] = []
     for names in wanted:
         i = index[names]
@@ -197,14 +196,19 @@ def _refit_jobs(
         if other is not None:  # the other order's forward fit
             starts.append(pairs[other].params[::-1])
         if all(n in singles for n in names):
-            starts.append([singles[n].params[0] for n in names])
+            starts.append([singles[n].fit.params[0] for n in names])
         jobs.append((names, starts, i))
     return jobs
 
 
 def _run_fits(runner: Runner, data: DiagnosisData, jobs: list[Any], bar: tqdm) -> list[FitResult]:
-    out: list[Any] = [None] * len(jobs)
-    for k, r in runner.fits(data, jobs):
+    return _collect(runner.fits(data, jobs), len(jobs), bar)
+
+
+def _collect(results: Iterable[tuple[int, FitResult]], n: int, bar: tqdm) -> list[FitResult]:
+    """The ``n`` fits of ``(index, fit)`` pairs arriving in any order, in index order (one bar tick each)."""
+    out: list[Any] = [None] * n
+    for k, r in results:
         out[k] = r
         bar.update()
     return out
@@ -222,7 +226,7 @@ def _verdict(
     chosen: ModelScore | None = None
     if best_single is not None and nameable(best_single, s0):
         chosen = best_single
-    by_name = {s.fit.names[0]: s for s in singles}
+    by_name = singles_by_name(singles)
     g_null = pooled(null)
     for p in (s for s in scores if len(s.fit.names) == 2):
         first, second = (by_name.get(n) for n in p.fit.names)

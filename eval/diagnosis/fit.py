@@ -3,10 +3,11 @@
 Parameters are searched in a unit box (each one mapped from its physical range): a coarse grid first
 (one parameter at a time, at fractions of its range from the "off" value, then the best levels
 combined, plus a reading straight off the data where an effect offers one), then a bounded compass
-search from the best one or two starting points, with a budget of evaluations. Every evaluation replays the calibration episodes (sensor-only
-effects are applied to the cached nominal replays instead). The objective is the mean gap term of
-:mod:`eval.diagnosis.gap`. A pair is fitted by forward selection (:func:`fit_model` with ``start``), and
-the best pairs again with every parameter free (:func:`refit_jointly`).
+search from the best one or two starting points, with a budget of evaluations. Every evaluation
+replays the calibration episodes (sensor-only effects are applied to the cached nominal replays
+instead). The objective is the mean gap term of :mod:`eval.diagnosis.gap`. A pair is fitted by
+forward selection (:func:`fit_model` with ``start``), and the best pairs again with every parameter
+free (:func:`refit_jointly`).
 """
 
 from __future__ import annotations
@@ -76,6 +77,10 @@ class ParamBox:
     def size(self) -> int:
         """Number of parameters."""
         return len(self.entries)
+
+    def indices(self, effect: int) -> np.ndarray:
+        """Positions in the vector of effect number ``effect``'s parameters."""
+        return np.array([i for i, (k, _) in enumerate(self.entries) if k == effect])
 
     def to_unit(self, params: Sequence[dict[str, float]]) -> np.ndarray:
         """Unit-box vector of parameter dicts (missing ones at their default)."""
@@ -182,7 +187,7 @@ def fit_model(
             guess = _guess(ev, names[-1:])
             if guess is not None:  # what the data say of the effect on top, the others at their fit
                 points.append(box.to_unit([*start[:-1], *guess]))
-            free = np.array([i for i, (k, _) in enumerate(box.entries) if k == len(names) - 1])
+            free = box.indices(len(names) - 1)
         values = [objective(u) for u in points]
         if free.size > 1:
             combined = points[0].copy()
@@ -262,7 +267,7 @@ def _read_first_starts(
                 continue
             points = box.grid(around=u, effect=j)
             u = min(points, key=objective)
-            free = np.array([i for i, (e, _) in enumerate(box.entries) if e == j])
+            free = box.indices(j)
             u = _local_search(objective, u, EVALS_PER_PARAM * free.size, free)
         out.append(u)
     return out

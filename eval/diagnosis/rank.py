@@ -232,6 +232,11 @@ def own_cells(first: str, second: str) -> np.ndarray | None:
     return mask
 
 
+def singles_by_name(scores: list[ModelScore]) -> dict[str, ModelScore]:
+    """The single-effect models of ``scores``, by effect name."""
+    return {s.fit.names[0]: s for s in scores if len(s.fit.names) == 1}
+
+
 @dataclass
 class _OwnCellGaps:
     """Held-out gaps on a pair's own cells: pooled values and their bootstrap draws (first, pair, null)."""
@@ -243,9 +248,26 @@ class _OwnCellGaps:
     pair_draws: np.ndarray
     null_draws: np.ndarray
 
+    def removed(self) -> bool:
+        """The first effect surely leaves a gap there and the pair surely removes enough of it."""
+        return bool(
+            self.first > self.null
+            and np.mean(self.first_draws > self.null_draws) >= PAIR_P_MIN
+            and np.mean(self.pair_draws < self.first_draws) >= PAIR_P_MIN
+            and (self.first - self.pair) / (self.first - self.null) >= PAIR_RESIDUAL_SHRINK_MIN
+        )
 
-def _own_cell_gaps(pair: ModelScore, first: ModelScore, null: list[Terms], seed: int = 0) -> _OwnCellGaps | None:
-    mask = own_cells(first.fit.names[0], pair.fit.names[-1]) if len(pair.fit.names) == 2 else None
+    def worsened(self) -> bool:
+        """The pair surely makes the gap there larger than the first effect alone."""
+        return bool(np.mean(self.pair_draws > self.first_draws) >= PAIR_P_MIN)
+
+
+def _own_cell_gaps(
+    pair: ModelScore, first: ModelScore, null: list[Terms], mask: np.ndarray | None = None, seed: int = 0
+) -> _OwnCellGaps | None:
+    """Gaps on ``mask`` (default: the :func:`own_cells` of the pair's second effect); None without cells."""
+    if mask is None and len(pair.fit.names) == 2:
+        mask = own_cells(first.fit.names[0], pair.fit.names[-1])
     m = len(null)
     if mask is None or not mask.any() or m == 0 or len(pair.fit.ho_terms) != m or len(first.fit.ho_terms) != m:
         return None
@@ -272,14 +294,8 @@ def second_on_own_cells(pair: ModelScore, first: ModelScore, null: list[Terms], 
     hidden behind a much larger first one still shows where the first cannot act; a patch on the first
     one's form has no such cells.
     """
-    g = _own_cell_gaps(pair, first, null, seed)
-    if g is None or g.first <= g.null:
-        return False
-    return bool(
-        np.mean(g.first_draws > g.null_draws) >= PAIR_P_MIN
-        and np.mean(g.pair_draws < g.first_draws) >= PAIR_P_MIN
-        and (g.first - g.pair) / (g.first - g.null) >= PAIR_RESIDUAL_SHRINK_MIN
-    )
+    g = _own_cell_gaps(pair, first, null, seed=seed)
+    return g is not None and g.removed()
 
 
 def second_contradicted(pair: ModelScore, first: ModelScore, null: list[Terms], seed: int = 0) -> bool:
@@ -290,8 +306,8 @@ def second_contradicted(pair: ModelScore, first: ModelScore, null: list[Terms], 
     data do not show: the pair's gap there exceeds the first effect's in :data:`PAIR_P_MIN` of the
     resamples.
     """
-    g = _own_cell_gaps(pair, first, null, seed)
-    return g is not None and bool(np.mean(g.pair_draws > g.first_draws) >= PAIR_P_MIN)
+    g = _own_cell_gaps(pair, first, null, seed=seed)
+    return g is not None and g.worsened()
 
 
 def second_is_real(
@@ -299,16 +315,15 @@ def second_is_real(
 ) -> bool:
     """Is the pair's second effect a second effect rather than a patch on the first one's form?
 
-    Either it explains on its own what it adds (:func:`second_stands_alone`) without being contradicted
-    where only it reaches (:func:`second_contradicted`), or the pair removes the gap where only the
-    second effect's physics reaches (:func:`second_on_own_cells`). Without the null terms only the first
-    test is made.
+    Either the pair removes the gap where only the second effect's physics reaches
+    (:func:`second_on_own_cells`), or the second effect explains on its own what it adds
+    (:func:`second_stands_alone`) without being contradicted where only it reaches
+    (:func:`second_contradicted`). Without the null terms only the "alone" test is made.
     """
-    if null is None:
-        return second_stands_alone(pair, first, second)
-    if second_on_own_cells(pair, first, null):
+    g = None if null is None else _own_cell_gaps(pair, first, null)
+    if g is not None and g.removed():
         return True
-    return second_stands_alone(pair, first, second) and not second_contradicted(pair, first, null)
+    return second_stands_alone(pair, first, second) and not (g is not None and g.worsened())
 
 
 def second_effect_evidence(
@@ -323,13 +338,13 @@ def second_effect_evidence(
         (``own_gap_first``, ``own_gap_pair``, ``own_gap_null``; None without such cells).
     """
     mask = own_cells(first.fit.names[0], pair.fit.names[-1])
-    g = _own_cell_gaps(pair, first, null)
+    g = None if mask is None else _own_cell_gaps(pair, first, null, mask)
     groups = sorted({GROUP_OF[ALL_CHANNELS[c]] for c in np.flatnonzero(mask.any(axis=0))}) if mask is not None else []
     return {
         "second": pair.fit.names[-1],
         "alone": second_stands_alone(pair, first, second),
-        "own_cells": second_on_own_cells(pair, first, null),
-        "contradicted": second_contradicted(pair, first, null),
+        "own_cells": g is not None and g.removed(),
+        "contradicted": g is not None and g.worsened(),
         "own_groups": groups,
         "own_gap_first": None if g is None else g.first,
         "own_gap_pair": None if g is None else g.pair,
@@ -366,7 +381,7 @@ def possible_second_effects(
     """
     if len(named.fit.names) != 1:
         return []
-    singles = {s.fit.names[0]: s for s in scores if len(s.fit.names) == 1}
+    singles = singles_by_name(scores)
     out = []
     for s in scores:
         if len(s.fit.names) != 2 or s.fit.names[0] != named.fit.names[0]:

@@ -97,7 +97,7 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
         )
     ev = res.get("second_effect_evidence")
     if ev:
-        how = [w for w, ok in (("it explains alone what it adds", ev["alone"]),) if ok]
+        how = ["it explains alone what it adds"] if ev["alone"] else []
         if ev["own_cells"]:
             how.append(
                 f"on the {', '.join(ev['own_groups'])} cells only it reaches, the pair brings the gap from "
