@@ -23,6 +23,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "eval.reproduce",
         "Reproduce Li 2023 (and Zhang 2005's claims): report.md, reproduction.json, figures.",
     ),
+    "calibrate": (
+        "eval.calibration_cli",
+        "Calibrate the entry mechanics on the uncompensated paper run and predict li2023 on each candidate.",
+    ),
     "train": ("training.train", "Train a residual policy (SB3) on top of a compensator; resumable."),
     "bench": (
         "eval.bench",

@@ -1,11 +1,13 @@
 """The simulated cell against independent formulas and Li 2023's figures."""
 
+import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import r_squared, run_zero_action
+from conftest import ENV_ID, r_squared, run_zero_action
 
 from envs.cell import SimCell
 from envs.cell_params import CellParams
+from envs.constants import unscale_action
 from envs.pybullet_world import PyBulletWorld
 from envs.robot.compliance import KTHETA_LI2023_NM_RAD
 from envs.robot.ur5 import FLANGE_FRAME
@@ -127,3 +129,32 @@ def test_calibrated_uncompensated_paper_run_matches_li_over_five_seeds():
     for name, paper in LI2023_UNCOMPENSATED.items():
         mean = float(np.mean([m[name] for m in runs]))
         assert abs(mean - paper) / paper <= CALIBRATION_TOLERANCE[name], (name, mean, paper)
+
+
+def _hole_and_peak_with_constant_offset(offset_uphill_m: float) -> tuple[np.ndarray, float]:
+    """Hole centre at the entry (task x, y; m) and peak lateral force (N), servo held off the plan by a constant."""
+    env = gym.make(ENV_ID)
+    try:
+        env.reset(seed=0)
+        action = unscale_action(env.unwrapped.plan.R_base_task @ np.array([offset_uphill_m, 0.0, 0.0]), 1.0)
+        while True:
+            _, _, terminated, truncated, info = env.step(action)
+            if terminated or truncated:
+                break
+        cell = env.unwrapped.cell
+        centre = np.asarray(cell.hole.centre_at(env.unwrapped.scenario.entry_depth_m), dtype=float)
+        return centre, float(info["metrics"]["lateral_force_max_n"])
+    finally:
+        env.close()
+
+
+def test_a_constant_offset_moves_the_hole_but_not_the_entry_force_on_a_planar_slope():
+    # A plane is invariant under translation along itself: a drill held a constant distance uphill meets
+    # the surface a little earlier and then lives through the same entry, so the hole moves with the
+    # offset and the skid-and-catch force stays. (Why a compensator must vary in time to lower the peak.)
+    offset_m = 0.4e-3
+    c0, f0 = _hole_and_peak_with_constant_offset(0.0)
+    c1, f1 = _hole_and_peak_with_constant_offset(offset_m)
+    assert f1 == pytest.approx(f0, rel=0.02)
+    assert c1[0] - c0[0] == pytest.approx(offset_m, rel=0.05)
+    assert c1[1] == pytest.approx(c0[1], abs=0.02e-3)
