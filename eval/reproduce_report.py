@@ -99,13 +99,16 @@ def write_report(
         "between two points, which arrives after the entry; its correction mostly pre-loads a drill already "
         "held by its hole.",
         "* **Max lateral force**: with KP = 1 it falls; with KP = 4 it rises, because the KP-amplified "
-        "correction arriving in stage 3 bends a drill held by its own hole. In a quasi-static world, holding "
-        "a drill on the axis against the entry unbalance means bearing that unbalance at the flange, so a "
-        "compensator can lower the *peak* force only by keeping the deviation (and the bent-drill load that "
-        "follows it) small without pushing harder than the uncompensated drill ends up pushing. Li's lower "
-        "compensated force (and his paper's own arithmetic: 1.3 N × (1 − 0.385) = 0.80 N, not the 0.7 N "
-        "quoted) point to effects the quasi-static model leaves out (e.g. the dynamics of first contact), "
-        "listed as candidates for the sim-to-real diagnosis.",
+        "correction of the entry skid reaches the robot 1.2-1.8 s after contact (Li's timing), in stages 2-3, "
+        "and bends a drill its own hole already holds. The entry peak itself is the skid-and-catch at first "
+        "contact: on a planar slope it does not depend on where the drill meets the surface (a constant "
+        "uphill offset of 0-0.7 mm moves the hole and leaves the peak within 0.3 %), so only a correction "
+        "that varies during the first 0.1 mm of feed can lower it. Re-calibrating the entry mechanics does "
+        "not change this: of 72 structures (`drillgym calibrate`, docs/physics.md §7), each fitted to the "
+        "uncompensated run, none lowers li2023's peak by more than 8 %, and none that does gives KP the "
+        "effect Li measured. Li's lower compensated force (and his paper's own arithmetic: 1.3 N × (1 − "
+        "0.385) = 0.80 N, not the 0.7 N quoted) point to effects the quasi-static model leaves out (e.g. the "
+        "dynamics of first contact), listed as candidates for the sim-to-real diagnosis.",
         "* **Stable-stage force falls** with every setting (the hole is cut closer to the axis, so the drill "
         "is less bent in it).",
         "",
