@@ -29,6 +29,10 @@ CALIBRATED_METRICS = ("deviation_mean_mm", "lateral_force_max_n")
 """Fitted by the two scale unknowns."""
 CHECKED_METRICS = ("lateral_force_stable_n", "hole_offset_mm")
 """Not fitted: what the calibrated structure predicts for the uncompensated run."""
+METRICS = (*CALIBRATED_METRICS, *CHECKED_METRICS)
+"""Every metric reported, for the uncompensated run and for each li2023 prediction."""
+LI2023_CHECKS = ("deviation_reduction_ge_45pct", "kp1_reduces_less_than_kp4", "force_falls", "hole_offset_falls")
+"""The issue's checks on a prediction, as named by :func:`passes_li2023_checks`."""
 FILTER_SAMPLES = 20
 """F/T samples averaged before the controller's model is fitted (Li's filter: 20 at 100 Hz)."""
 
@@ -54,7 +58,7 @@ class EntryCalibration:
     """Multiplier on the shipped radial and tangential coefficients of cortical bone."""
     stickout_mm: float
     metrics: dict[str, float]
-    iterations: int
+    runs: int
     """Uncompensated runs the fit took."""
     converged: bool
 
@@ -64,7 +68,7 @@ class EntryCalibration:
             **asdict(self.structure),
             "lateral_scale": self.lateral_scale,
             "stickout_mm": self.stickout_mm,
-            "iterations": self.iterations,
+            "runs": self.runs,
             "converged": self.converged,
             **{f"none_{k}": v for k, v in self.metrics.items()},
         }
@@ -104,16 +108,11 @@ def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float
     )
 
 
-def _run(env: Any, spec: str | None, seed: int) -> dict[str, Any]:
-    from controllers.registry import make_controller
-    from eval.bench_episode import run_controller_episode
+def _uncompensated(env: Any, seed: int) -> Any:
+    """One uncompensated episode: an :class:`eval.rollout.EpisodeResult` with the F/T trace."""
     from eval.rollout import run_episode
 
-    if spec is None:
-        res = run_episode(env, None, seed=seed)
-        return {**res.metrics, "trace": res.trace}
-    controller = make_controller(spec)
-    return run_controller_episode(env, controller, seed)
+    return run_episode(env, None, seed=seed)
 
 
 def calibrate_entry(
@@ -140,10 +139,10 @@ def calibrate_entry(
         if key not in seen:
             env = make_env(structure, math.exp(key[0]), math.exp(key[1]))
             try:
-                m = _run(env, None, seed)
+                m = _uncompensated(env, seed).metrics
             finally:
                 env.close()
-            seen[key] = {k: float(m[k]) for k in (*CALIBRATED_METRICS, *CHECKED_METRICS)}
+            seen[key] = {k: float(m[k]) for k in METRICS}
         return seen[key]
 
     def residual(x: np.ndarray) -> np.ndarray:
@@ -160,40 +159,44 @@ def calibrate_entry(
     return EntryCalibration(structure, math.exp(x[0]), math.exp(x[1]), metrics, len(seen), converged)
 
 
-def fit_controller_model_n(env: Any, seed: int) -> float:
-    """li2023's model peak (N) fitted to the filtered F/T force of an uncompensated run of ``env``."""
+def fit_controller_model_n(env: Any, trace: dict[str, np.ndarray]) -> float:
+    """li2023's model peak (N) fitted to the filtered F/T force of an uncompensated ``trace`` of ``env``."""
     from controllers.models import fit_model_peak_n
 
-    m = _run(env, None, seed)
-    force = np.asarray(m["trace"]["ft_force_n"], dtype=float)
+    force = np.asarray(trace["ft_force_n"], dtype=float)
     lateral = np.hypot(force[:, 0], force[:, 1])
     kernel = np.ones(FILTER_SAMPLES) / FILTER_SAMPLES
     filtered = np.convolve(lateral, kernel, mode="full")[: len(lateral)]
     plan = env.unwrapped.plan
-    return fit_model_peak_n(plan, np.asarray(m["trace"]["depth_cmd_m"]), filtered, env.unwrapped.scenario.entry_depth_m)
+    return fit_model_peak_n(plan, np.asarray(trace["depth_cmd_m"]), filtered, env.unwrapped.scenario.entry_depth_m)
 
 
-PREDICTED = {"kp4": "li2023", "kp1": "li2023:kp=1.0", "offline": "li2023:online=false"}
-"""The compensated runs predicted for each calibration (li2023 overrides; the model peak is added)."""
-PREDICTED_METRICS = ("deviation_mean_mm", "lateral_force_max_n", "lateral_force_stable_n", "hole_offset_mm")
+PREDICTED = {"kp4": "", "kp1": "kp=1.0,", "offline": "online=false,"}
+"""The compensated runs predicted for each calibration: li2023 overrides (the fitted model peak is added)."""
 
 
 def predict_li2023(cal: EntryCalibration, seeds: range | list[int]) -> dict[str, float]:
-    """Mean metrics over ``seeds`` of none and the :data:`PREDICTED` li2023 variants, plus the fitted model peak."""
+    """Mean metrics over ``seeds`` of none and the :data:`PREDICTED` li2023 variants, plus the fitted model peak.
+
+    li2023's model is fitted to the uncompensated run of the first seed.
+    """
+    from controllers.registry import make_controller
+    from eval.bench_episode import run_controller_episode
+
     env = make_env(cal.structure, cal.lateral_scale, cal.stickout_mm)
     try:
-        peak = fit_controller_model_n(env, seeds[0])
-        out: dict[str, float] = {"model_peak_n": peak}
-        runs = {
-            "none": None,
-            **{k: f"{v}{':' if ':' not in v else ','}model_peak_force_n={peak:.4f}" for k, v in PREDICTED.items()},
-        }
-        for name, spec in runs.items():
-            rows = [_run(env, spec, s) for s in seeds]
-            for k in PREDICTED_METRICS:
-                out[f"{name}_{k}"] = float(np.mean([r[k] for r in rows]))
+        none = [_uncompensated(env, s) for s in seeds]
+        peak = fit_controller_model_n(env, none[0].trace)
+        results: dict[str, list[dict[str, Any]]] = {"none": [r.metrics for r in none]}
+        for name, overrides in PREDICTED.items():
+            spec = f"li2023:{overrides}model_peak_force_n={peak:.4f}"
+            results[name] = [run_controller_episode(env, make_controller(spec), s) for s in seeds]
     finally:
         env.close()
+    out: dict[str, float] = {"model_peak_n": peak}
+    for name, rows in results.items():
+        for k in METRICS:
+            out[f"{name}_{k}"] = float(np.mean([r[k] for r in rows]))
     return out
 
 

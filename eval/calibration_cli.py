@@ -17,7 +17,14 @@ from pathlib import Path
 from typing import Any
 
 from envs.cell_params import CellParams
-from eval.calibration import EntryStructure, calibrate_entry, passes_li2023_checks, predict_li2023
+from eval.calibration import (
+    LI2023_CHECKS,
+    METRICS,
+    EntryStructure,
+    calibrate_entry,
+    passes_li2023_checks,
+    predict_li2023,
+)
 
 
 def _floats(text: str) -> list[float]:
@@ -60,16 +67,11 @@ def _markdown(rows: list[dict[str, Any]]) -> str:
     )
 
     def quad(r: dict[str, Any], p: str) -> str:
-        keys = ("deviation_mean_mm", "lateral_force_max_n", "lateral_force_stable_n", "hole_offset_mm")
-        return " / ".join(f"{r[f'{p}_{k}']:.3g}" for k in keys)
+        return " / ".join(f"{r[f'{p}_{k}']:.3g}" for k in METRICS)
 
     lines = []
     for r in rows:
-        failed = [
-            k
-            for k in ("deviation_reduction_ge_45pct", "kp1_reduces_less_than_kp4", "force_falls", "hole_offset_falls")
-            if not r[k]
-        ]
+        failed = [k for k in LI2023_CHECKS if not r[k]]
         lines.append(
             f"| {r['skid_relief']:g} | {r['lateral_cut_resistance_n']:g} | {r['guidance_exponent']:g} "
             f"| {r['lateral_scale']:.3f}{'' if r['converged'] else ' (not converged)'} | {r['stickout_mm']:.1f} "
@@ -97,13 +99,13 @@ def run(args: argparse.Namespace) -> int:
         for r, k, g in product(args.skid_relief, args.lateral_cut_resistance_n, args.guidance_exponent)
     ]
     args.out.mkdir(parents=True, exist_ok=True)
-    rows: list[dict[str, Any]] = []
+    rows: list[dict[str, Any]] = [{} for _ in grid]
     csv_path = args.out / "calibration.csv"
     writer = None
     with csv_path.open("w", newline="") as fh, tqdm(total=len(grid), desc="calibrate", unit="model") as bar:
         ctx = mp.get_context("spawn")
         with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx) as pool:
-            futures = [pool.submit(evaluate, s, args.seeds) for s in grid]
+            futures = {pool.submit(evaluate, s, args.seeds): i for i, s in enumerate(grid)}
             for fut in as_completed(futures):
                 row = fut.result()
                 if writer is None:
@@ -111,12 +113,8 @@ def run(args: argparse.Namespace) -> int:
                     writer.writeheader()
                 writer.writerow(row)
                 fh.flush()
-                rows.append(row)
+                rows[futures[fut]] = row  # the table keeps the grid's order
                 bar.update(1)
-    order = {s: i for i, s in enumerate(grid)}
-    rows.sort(
-        key=lambda r: order[EntryStructure(r["skid_relief"], r["lateral_cut_resistance_n"], r["guidance_exponent"])]
-    )
     md = _markdown(rows)
     (args.out / "calibration.md").write_text(md)
     print(md)
