@@ -2,7 +2,8 @@
 
 Each combination of the listed structural constants is calibrated (:func:`eval.calibration.calibrate_entry`)
 and its li2023 predictions are run (:func:`eval.calibration.predict_li2023`). Writes
-``DIR/calibration.csv`` (one row per combination, written as each finishes) and ``DIR/calibration.md``.
+``DIR/calibration.csv`` (one row per combination, written as each finishes), ``DIR/calibration.md`` and
+``DIR/calibration.png`` (:func:`eval.calibration_plot.plot_screen`).
 With the defaults it reproduces the shipped calibration.
 """
 
@@ -115,8 +116,11 @@ def run(args: argparse.Namespace) -> int:
                 fh.flush()
                 rows[futures[fut]] = row  # the table keeps the grid's order
                 bar.update(1)
-    md = _markdown(rows)
+    from eval.calibration_plot import plot_screen
+
+    plot_screen(rows, args.out / "calibration.png")
+    md = _markdown(rows) + "\n![li2023 predictions of every structure](calibration.png)\n"
     (args.out / "calibration.md").write_text(md)
     print(md)
-    print(f"Results: {csv_path} and {args.out / 'calibration.md'}")
+    print(f"Results: {csv_path}, {args.out / 'calibration.md'} and {args.out / 'calibration.png'}")
     return 0

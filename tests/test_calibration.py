@@ -66,6 +66,7 @@ def test_calibrate_command_writes_one_row_per_structure(tmp_path):
         assert float(r["model_peak_n"]) > 0.0
         assert r["force_falls"] in ("True", "False")
     assert (out / "calibration.md").read_text().count("\n| 1 | 40 |") == 2
+    assert (out / "calibration.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_calibrate_command_rejects_a_malformed_list(tmp_path, capsys):
