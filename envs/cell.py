@@ -74,6 +74,8 @@ class SimCell:
             p.lateral_cut_resistance_n,
             p.guidance_exponent,
             p.skid_relief,
+            p.wall_guidance_floor,
+            p.wall_length_m,
         )
         self.C_tool = self.tool.compliance_tool_m_n()
         self._q_start = self._ik_cached(0.0)

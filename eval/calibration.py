@@ -1,8 +1,9 @@
 """Calibration of the entry mechanics on the uncompensated paper run, and what it predicts for li2023.
 
 The tip balance (``docs/physics.md`` §4) has three structural constants: how much of the surface drop a
-sideways tip sees (``skid_relief``), how hard it is to cut the side of the hole (``K_lat``) and how fast
-side guidance grows with the engaged lip share (``guidance_exponent``). For any choice of the three,
+sideways tip sees (``skid_relief``), how hard it is to cut the side of the hole (``K_lat``), how fast
+side guidance grows with the engaged lip share (``guidance_exponent``) and how much of it waits for the
+hole's wall (``wall_guidance_floor``, ``wall_length_m``). For any choice of these,
 :func:`calibrate_entry` fits the two scale unknowns, the lips' lateral (radial + tangential)
 coefficients and the drill stick-out, to Li's uncompensated mean tip deviation and peak lateral force,
 and reports the two remaining uncompensated numbers (stable-stage force, hole offset) as checks.
@@ -23,6 +24,7 @@ import numpy as np
 
 from envs.cell_params import CellParams
 from envs.drilling.bone import BUFFALO_CORTICAL, CANCELLOUS_RATIO, BonePreset
+from envs.scenario import Scenario
 from eval.paper import LI2023_UNCOMPENSATED
 
 CALIBRATED_METRICS = ("deviation_mean_mm", "lateral_force_max_n")
@@ -37,16 +39,23 @@ FILTER_SAMPLES = 20
 """F/T samples averaged before the controller's model is fitted (Li's filter: 20 at 100 Hz)."""
 
 
+_SHIPPED = CellParams()
+
+
 @dataclass(frozen=True)
 class EntryStructure:
-    """The structural constants of the tip balance (see :class:`envs.cell_params.CellParams`)."""
+    """The structural constants of the tip balance (defaults: the shipped ones, :class:`envs.cell_params.CellParams`)."""
 
-    skid_relief: float = 1.0
+    skid_relief: float = _SHIPPED.skid_relief
     """Share of the surface drop a sideways tip sees (1: all of it; < 0 turns the skid into a walk)."""
-    lateral_cut_resistance_n: float = 40.0
+    lateral_cut_resistance_n: float = _SHIPPED.lateral_cut_resistance_n
     """K_lat (N): moving the tip sideways by Δp while advancing Δz takes K_lat · Δp / Δz."""
-    guidance_exponent: float = 2.0
+    guidance_exponent: float = _SHIPPED.guidance_exponent
     """Side guidance grows as (engaged lip share) ** this."""
+    wall_guidance_floor: float = _SHIPPED.wall_guidance_floor
+    """Share of full guidance before the hole has a wall (1: none of the wall model)."""
+    wall_length_m: float = _SHIPPED.wall_length_m
+    """Depth of full-diameter hole over which the wall's guidance builds up (m)."""
 
 
 @dataclass
@@ -99,6 +108,8 @@ def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float
         skid_relief=structure.skid_relief,
         lateral_cut_resistance_n=structure.lateral_cut_resistance_n,
         guidance_exponent=structure.guidance_exponent,
+        wall_guidance_floor=structure.wall_guidance_floor,
+        wall_length_m=structure.wall_length_m,
     )
     return gym.make(
         "drillgym/UR5BoneDrill-v0",
@@ -150,7 +161,7 @@ def calibrate_entry(
         got = np.array([max(m[k], 1e-6) for k in CALIBRATED_METRICS])
         return np.log(got / targets)
 
-    x0 = np.array([0.0, math.log(36.0)])
+    x0 = np.array([0.0, math.log(Scenario().stickout_mm)])
     lo, hi = np.array([-5.0, math.log(10.0)]), np.array([5.0, math.log(100.0)])
     sol = least_squares(residual, x0, bounds=(lo, hi), diff_step=1e-2, max_nfev=max_runs, xtol=1e-4, ftol=1e-6)
     x = sol.x

@@ -47,6 +47,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--lateral-cut-resistance-n", type=_floats, default=[d.lateral_cut_resistance_n], help="K_lat values, N"
     )
     parser.add_argument("--guidance-exponent", type=_floats, default=[d.guidance_exponent], help="comma list")
+    parser.add_argument(
+        "--wall-guidance-floor", type=_floats, default=[d.wall_guidance_floor], help="comma list, each in (0, 1]"
+    )
+    parser.add_argument("--wall-length-mm", type=_floats, default=[d.wall_length_m * 1e3], help="comma list, mm")
     parser.add_argument("--seeds", type=int, default=3, help="seeds of the li2023 predictions (default 3)")
     parser.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
 
@@ -63,8 +67,8 @@ def evaluate(structure: EntryStructure, seeds: int) -> dict[str, Any]:
 
 def _markdown(rows: list[dict[str, Any]]) -> str:
     head = (
-        "| relief | K_lat (N) | exponent | lateral scale | stick-out (mm) | none: dev / peak / stable / hole "
-        "| li2023 KP 4 | KP 1 | offline only | checks |\n|---|---|---|---|---|---|---|---|---|---|\n"
+        "| relief | K_lat (N) | exponent | wall floor | wall (mm) | lateral scale | stick-out (mm) | none: dev / peak / stable / hole "
+        "| li2023 KP 4 | KP 1 | offline only | checks |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n"
     )
 
     def quad(r: dict[str, Any], p: str) -> str:
@@ -75,6 +79,7 @@ def _markdown(rows: list[dict[str, Any]]) -> str:
         failed = [k for k in LI2023_CHECKS if not r[k]]
         lines.append(
             f"| {r['skid_relief']:g} | {r['lateral_cut_resistance_n']:g} | {r['guidance_exponent']:g} "
+            f"| {r['wall_guidance_floor']:g} | {1e3 * r['wall_length_m']:g} "
             f"| {r['lateral_scale']:.3f}{'' if r['converged'] else ' (not converged)'} | {r['stickout_mm']:.1f} "
             f"| {quad(r, 'none')} | {quad(r, 'kp4')} | {quad(r, 'kp1')} | {quad(r, 'offline')} "
             f"| {'all pass' if not failed else 'fails: ' + ', '.join(failed)} |"
@@ -96,8 +101,14 @@ def run(args: argparse.Namespace) -> int:
     if args.seeds < 1 or args.workers < 1:
         raise SystemExit("drillgym calibrate: --seeds and --workers must be >= 1")
     grid = [
-        EntryStructure(r, k, g)
-        for r, k, g in product(args.skid_relief, args.lateral_cut_resistance_n, args.guidance_exponent)
+        EntryStructure(r, k, g, f, w * 1e-3)
+        for r, k, g, f, w in product(
+            args.skid_relief,
+            args.lateral_cut_resistance_n,
+            args.guidance_exponent,
+            args.wall_guidance_floor,
+            args.wall_length_mm,
+        )
     ]
     args.out.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = [{} for _ in grid]

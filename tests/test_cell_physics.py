@@ -158,3 +158,22 @@ def test_a_constant_offset_moves_the_hole_but_not_the_entry_force_on_a_planar_sl
     assert f1 == pytest.approx(f0, rel=0.02)
     assert c1[0] - c0[0] == pytest.approx(offset_m, rel=0.05)
     assert c1[1] == pytest.approx(c0[1], abs=0.02e-3)
+
+
+def test_wall_guidance_rises_from_its_floor_to_full_over_the_wall_length():
+    # Before the drill's full diameter is in there is no hole wall: the lips alone give the floor share of
+    # the side guidance; it then grows linearly to 1 over wall_length_m of full-diameter hole.
+    p = CellParams()
+    solver = SimCell(Scenario(), p).solver
+    full_in = solver._bounds[3]
+    for depth, expected in [
+        (0.0, p.wall_guidance_floor),
+        (full_in, p.wall_guidance_floor),
+        (full_in + 0.5 * p.wall_length_m, 0.5 * (1.0 + p.wall_guidance_floor)),
+        (full_in + p.wall_length_m, 1.0),
+        (full_in + 3.0 * p.wall_length_m, 1.0),
+    ]:
+        solver.depth_local = depth
+        assert solver._wall_factor() == pytest.approx(expected)
+    with pytest.raises(ValueError, match="wall_guidance_floor"):
+        SimCell(Scenario(), CellParams(wall_guidance_floor=0.0))

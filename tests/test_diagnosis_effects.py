@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401
+from envs.cell_params import CellParams
 from envs.constants import SUBSTEPS_PER_STEP
 from envs.effects import CHANNEL_GROUPS, EFFECTS, TraceView, build_effects, parse_effect_spec
+from envs.scenario import Scenario
 
 QUIET = {
     "ft_noise_n": 0.0,
@@ -170,7 +172,7 @@ def test_sensor_only_effect_on_a_trace_matches_the_simulated_one(name):
     base, share = run_open_loop(None)
     sim = channels(SETTINGS[name])
     n = len(base["force"])
-    arm = 0.11 + QUIET.get("stickout_mm", 36.0) * 1e-3
+    arm = CellParams().sensor_to_chuck_m + QUIET.get("stickout_mm", Scenario().stickout_mm) * 1e-3
     view = TraceView((np.arange(n) + 1) * 0.01, base["force"].copy(), base["torque"].copy(), share, arm, 20000.0)
     EFFECTS[name](**parse_effect_spec(SETTINGS[name])[0][1]).apply_to_trace(view)
     assert np.all(

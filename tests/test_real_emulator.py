@@ -9,8 +9,10 @@ import rtde_control
 import rtde_receive
 from real_cell import start_emulator  # noqa: F401  (fixture)
 
+from envs.cell_params import CellParams
 from envs.real.emulator.config import DASHBOARD_PORT
 from envs.real.netft import NetFTCalibration, NetFTClient
+from envs.scenario import Scenario
 
 
 def test_receive_interface_streams_the_full_default_recipe(start_emulator):  # noqa: F811
@@ -63,7 +65,8 @@ def test_control_interface_uploads_its_program_and_commands_move(start_emulator)
         np.testing.assert_allclose(r.getActualTCPPose()[:3], pose[:3], atol=2e-6)
         assert c.servoStop()
         assert c.setTcp([0.0, 0.0, 0.15, 0.0, 0.0, 0.0])
-        expected = [*pose[:2], pose[2] - 0.004]  # 4 mm further down the drill
+        default_tcp_m = CellParams().sensor_to_chuck_m + Scenario().stickout_m
+        expected = [*pose[:2], pose[2] - (0.15 - default_tcp_m)]  # the new TCP is further down the drill
         np.testing.assert_allclose(_settled_tcp(r, expected), expected, atol=2e-6)
         c.stopScript()
         assert not c.isProgramRunning()

@@ -60,6 +60,8 @@ class TipContactSolver:
         lateral_cut_resistance_n: float,
         guidance_exponent: float = 1.0,
         skid_relief: float = 1.0,
+        wall_guidance_floor: float = 1.0,
+        wall_length_m: float = 0.5e-3,
     ) -> None:
         self.table = table
         self.geometry = geometry
@@ -68,6 +70,12 @@ class TipContactSolver:
         self.hole = hole
         self.k_lat_n = lateral_cut_resistance_n
         self.guidance_exponent = guidance_exponent
+        if not 0.0 < wall_guidance_floor <= 1.0 or not wall_length_m > 0.0:
+            raise ValueError(
+                f"wall_guidance_floor={wall_guidance_floor} must be in (0, 1] and wall_length_m={wall_length_m} > 0"
+            )
+        self.wall_floor = wall_guidance_floor
+        self.wall_length_m = wall_length_m
         self.grid = table.depth_m.tolist()
         self._bounds = stage_bounds(geometry, beta_rad)
         self._key: tuple[float, float] = (math.nan, math.nan)
@@ -118,11 +126,18 @@ class TipContactSolver:
             self._fx, self._fy, self._fz, self._mz = (rows[:, i].tolist() for i in range(4))
         self._c = np.asarray(compliance_m_n, dtype=float)
         share = float(np.interp(self.depth_local, self.table.depth_m, self.table.engaged_fraction))
-        self._g = share**self.guidance_exponent
+        self._g = share**self.guidance_exponent * self._wall_factor()
         if self.guidance_hook is not None:
             self._g = self.guidance_hook(share, self._g)
         self._k_cut = self.k_lat_n / max(advance_per_update_m, 1e-7)
         self._variants: dict[int, tuple] = {}
+
+    def _wall_factor(self) -> float:
+        """Share of full guidance the hole's wall gives: the floor until the full diameter is in, 1 a wall later."""
+        if self.wall_floor >= 1.0:
+            return 1.0
+        wall = min(max((self.depth_local - self._bounds[3]) / self.wall_length_m, 0.0), 1.0)
+        return self.wall_floor + (1.0 - self.wall_floor) * wall
 
     def _get_variant(self, v: int) -> tuple:
         """0: free (out of the bone); 1: guided by the bone around the tip (built lazily)."""
