@@ -34,6 +34,12 @@ class CellParams:
     """Side guidance grows as (engaged share of the lips)**this: how soon a skidding tip is caught. Calibrated."""
     skid_relief: float = 1.0
     """How much of the surface drop a sideways tip sees: its engagement depth is z + relief · x tan β. Calibrated."""
+    wall_guidance_floor: float = 1.0
+    """Share of the side guidance the bone gives before the hole has a wall (the full drill diameter just in);
+    it grows linearly to 1 over ``wall_length_m`` more of depth. 1 (shipped): the lips alone guide fully,
+    no wall model (``docs/physics.md`` §7: what a wall-guided entry changes)."""
+    wall_length_m: float = 1.0e-3
+    """Depth of full-diameter hole over which the wall's guidance builds up (m); unused when the floor is 1."""
     effective_diameter_ratio: float = 0.85
     """Drill core bending diameter over nominal diameter (fluted section)."""
     stiffness_nm_rad: np.ndarray = field(default_factory=lambda: KTHETA_LI2023_NM_RAD.copy())

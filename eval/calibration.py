@@ -26,6 +26,7 @@ from envs.cell_params import CellParams
 from envs.drilling.bone import BUFFALO_CORTICAL, CANCELLOUS_RATIO, BonePreset
 from envs.scenario import Scenario
 from eval.paper import LI2023_UNCOMPENSATED
+from eval.summary import mean_ci
 
 CALIBRATED_METRICS = ("deviation_mean_mm", "lateral_force_max_n")
 """Fitted by the two scale unknowns."""
@@ -184,6 +185,8 @@ def fit_controller_model_n(env: Any, trace: dict[str, np.ndarray]) -> float:
 
 PREDICTED = {"kp4": "", "kp1": "kp=1.0,", "offline": "online=false,"}
 """The compensated runs predicted for each calibration: li2023 overrides (the fitted model peak is added)."""
+PAIRED = (("kp4", "none"), ("kp1", "kp4"))
+"""Paired differences (same seeds) reported with their 95 % CI: ``{a}_minus_{b}_{metric}_ci_low/high``."""
 
 
 def predict_li2023(cal: EntryCalibration, seeds: range | list[int]) -> dict[str, float]:
@@ -208,15 +211,23 @@ def predict_li2023(cal: EntryCalibration, seeds: range | list[int]) -> dict[str,
     for name, rows in results.items():
         for k in METRICS:
             out[f"{name}_{k}"] = float(np.mean([r[k] for r in rows]))
+    for a, b in PAIRED:
+        for k in METRICS:
+            diff = [ra[k] - rb[k] for ra, rb in zip(results[a], results[b], strict=True)]
+            _, lo, hi, _ = mean_ci(diff)
+            out[f"{a}_minus_{b}_{k}_ci_low"], out[f"{a}_minus_{b}_{k}_ci_high"] = lo, hi
     return out
 
 
 def passes_li2023_checks(pred: dict[str, float]) -> dict[str, bool]:
-    """Issue-level checks on a prediction: deviation -45 %, KP ordering, force and hole offset fall."""
-    none_dev = pred["none_deviation_mean_mm"]
+    """Issue-level checks on a prediction, as the benchmark judges them.
+
+    Deviation down by ≥ 45 % (means); KP 1 deviating more than KP 4, the peak force and the hole offset
+    falling, each with the 95 % CI of the paired difference excluding 0.
+    """
     return {
-        "deviation_reduction_ge_45pct": pred["kp4_deviation_mean_mm"] <= 0.55 * none_dev,
-        "kp1_reduces_less_than_kp4": pred["kp1_deviation_mean_mm"] > pred["kp4_deviation_mean_mm"],
-        "force_falls": pred["kp4_lateral_force_max_n"] < pred["none_lateral_force_max_n"],
-        "hole_offset_falls": pred["kp4_hole_offset_mm"] < pred["none_hole_offset_mm"],
+        "deviation_reduction_ge_45pct": pred["kp4_deviation_mean_mm"] <= 0.55 * pred["none_deviation_mean_mm"],
+        "kp1_reduces_less_than_kp4": pred["kp1_minus_kp4_deviation_mean_mm_ci_low"] > 0.0,
+        "force_falls": pred["kp4_minus_none_lateral_force_max_n_ci_high"] < 0.0,
+        "hole_offset_falls": pred["kp4_minus_none_hole_offset_mm_ci_high"] < 0.0,
     }

@@ -89,7 +89,8 @@ def _markdown(rows: list[dict[str, Any]]) -> str:
         "Each row: lateral scale and stick-out fitted to Li's uncompensated deviation (0.703 mm) and peak force "
         "(1.3 N); stable-stage force (paper 1.2 N) and hole offset (0.8 mm) are not fitted. li2023's model is "
         "refitted to the calibrated uncompensated F/T force. Metrics: mean tip deviation (mm) / peak lateral "
-        "force (N) / stable-stage force (N) / hole offset (mm), means over the seeds.\n\n"
+        "force (N) / stable-stage force (N) / hole offset (mm), means over the seeds. Checks: "
+        "KP ordering, force and hole-offset falls need the 95 % CI of the paired difference to exclude 0.\n\n"
     )
     return intro + head + "\n".join(lines) + "\n"
 

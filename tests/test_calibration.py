@@ -37,18 +37,15 @@ def test_lateral_scale_multiplies_only_the_radial_and_tangential_coefficients():
         bone_with_lateral_scale(0.0)
 
 
-def test_li2023_checks_flag_a_rising_force_and_a_kp_inversion():
+def test_li2023_checks_need_the_paired_ci_to_exclude_zero():
     pred = {
         "none_deviation_mean_mm": 0.7,
         "kp4_deviation_mean_mm": 0.30,
-        "kp1_deviation_mean_mm": 0.28,
-        "none_lateral_force_max_n": 1.3,
-        "kp4_lateral_force_max_n": 2.0,
-        "none_hole_offset_mm": 0.8,
-        "kp4_hole_offset_mm": 0.3,
+        "kp1_minus_kp4_deviation_mean_mm_ci_low": -0.001,  # KP 1 may not deviate more
+        "kp4_minus_none_lateral_force_max_n_ci_high": 0.01,  # the force may not fall
+        "kp4_minus_none_hole_offset_mm_ci_high": -0.3,
     }
-    checks = passes_li2023_checks(pred)
-    assert checks == {
+    assert passes_li2023_checks(pred) == {
         "deviation_reduction_ge_45pct": True,
         "kp1_reduces_less_than_kp4": False,
         "force_falls": False,
@@ -65,6 +62,9 @@ def test_calibrate_command_writes_one_row_per_structure(tmp_path):
     for r in rows:
         assert float(r["model_peak_n"]) > 0.0
         assert r["force_falls"] in ("True", "False")
+        assert float(r["kp4_minus_none_lateral_force_max_n_ci_low"]) <= float(
+            r["kp4_minus_none_lateral_force_max_n_ci_high"]
+        )
     assert (out / "calibration.md").read_text().count("\n| 1 | 40 |") == 2
     assert (out / "calibration.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

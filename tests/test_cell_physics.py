@@ -160,10 +160,17 @@ def test_a_constant_offset_moves_the_hole_but_not_the_entry_force_on_a_planar_sl
     assert c1[1] == pytest.approx(c0[1], abs=0.02e-3)
 
 
+def test_without_a_wall_model_guidance_is_the_lips_alone():
+    solver = SimCell(Scenario(), CellParams()).solver
+    for depth in (0.0, 1e-3, 5e-3):
+        solver.depth_local = depth
+        assert solver._wall_factor() == 1.0
+
+
 def test_wall_guidance_rises_from_its_floor_to_full_over_the_wall_length():
     # Before the drill's full diameter is in there is no hole wall: the lips alone give the floor share of
     # the side guidance; it then grows linearly to 1 over wall_length_m of full-diameter hole.
-    p = CellParams()
+    p = CellParams(wall_guidance_floor=0.03, wall_length_m=1e-3)
     solver = SimCell(Scenario(), p).solver
     full_in = solver._bounds[3]
     for depth, expected in [
