@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import csv
 import multiprocessing as mp
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from itertools import product
 from pathlib import Path
@@ -95,6 +96,18 @@ def _markdown(rows: list[dict[str, Any]]) -> str:
     return intro + head + "\n".join(lines) + "\n"
 
 
+def _evaluate_all(grid: list[EntryStructure], seeds: int, workers: int) -> Iterator[tuple[int, dict[str, Any]]]:
+    """``(grid index, row)`` as each structure finishes: in this process with one worker, else in a pool."""
+    if workers == 1:
+        for i, structure in enumerate(grid):
+            yield i, evaluate(structure, seeds)
+        return
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+        futures = {pool.submit(evaluate, s, seeds): i for i, s in enumerate(grid)}
+        for fut in as_completed(futures):
+            yield futures[fut], fut.result()
+
+
 def run(args: argparse.Namespace) -> int:
     """Calibrate every combination, write the table, print where it is."""
     from tqdm import tqdm
@@ -116,18 +129,14 @@ def run(args: argparse.Namespace) -> int:
     csv_path = args.out / "calibration.csv"
     writer = None
     with csv_path.open("w", newline="") as fh, tqdm(total=len(grid), desc="calibrate", unit="model") as bar:
-        ctx = mp.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx) as pool:
-            futures = {pool.submit(evaluate, s, args.seeds): i for i, s in enumerate(grid)}
-            for fut in as_completed(futures):
-                row = fut.result()
-                if writer is None:
-                    writer = csv.DictWriter(fh, fieldnames=list(row))
-                    writer.writeheader()
-                writer.writerow(row)
-                fh.flush()
-                rows[futures[fut]] = row  # the table keeps the grid's order
-                bar.update(1)
+        for i, row in _evaluate_all(grid, args.seeds, args.workers):
+            if writer is None:
+                writer = csv.DictWriter(fh, fieldnames=list(row))
+                writer.writeheader()
+            writer.writerow(row)
+            fh.flush()
+            rows[i] = row  # the table keeps the grid's order
+            bar.update(1)
     from eval.calibration_plot import plot_screen
 
     plot_screen(rows, args.out / "calibration.png")

@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 import logging
+import os
+
+# One thread per BLAS / torch pool in each test process: pytest-xdist already runs one process per core, and
+# a second thread would steal the core that a real-time test (the emulated UR pipeline) runs on.
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import gymnasium as gym
 import numpy as np
