@@ -31,7 +31,8 @@ type: $(STAMP)
 	$(VENV)/bin/mypy
 
 pytest: $(STAMP)
-	$(PY) -m pytest -n 2 --dist loadfile
+	$(PY) -m pytest -n 2 --dist loadfile -m "not realtime"
+	$(PY) -m pytest -m realtime
 
 test: lint type pytest
 

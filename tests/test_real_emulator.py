@@ -14,6 +14,8 @@ from envs.real.emulator.config import DASHBOARD_PORT
 from envs.real.netft import NetFTCalibration, NetFTClient
 from envs.scenario import Scenario
 
+pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefile)
+
 
 def test_receive_interface_streams_the_full_default_recipe(start_emulator):  # noqa: F811
     emu = start_emulator()

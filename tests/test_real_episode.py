@@ -35,6 +35,8 @@ from envs.real.robot_link import LinkError
 from eval.logs import EpisodeLogger, build_header, read_episode_log
 from eval.logs.writer import schema_for
 
+pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefile)
+
 ROOT = Path(__file__).resolve().parents[1]
 LI2023_TOL = {  # metric: (relative, absolute); a metric agrees when within either
     "lateral_force_max_n": (0.15, 0.0),

@@ -16,6 +16,8 @@ from controllers import make_controller
 from envs.real.config import SafetyLimits
 from eval.logs import EpisodeLogger, build_header, read_episode_log
 
+pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefile)
+
 DRILLING_STEP = 45
 """The fault comes at this agent step (2.25 s: the drill is in the bone since about 1.8 s)."""
 
