@@ -19,6 +19,19 @@ from eval.rollout import EpisodeResult, run_episode
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 
 
+@pytest.fixture(scope="session", autouse=True)
+def sb3_logdir(tmp_path_factory):
+    """SB3 makes a log folder for every ``learn`` without TensorBoard (in the system temp folder by default):
+    keep the tests' folders inside pytest's own temporary tree."""
+    previous = os.environ.get("SB3_LOGDIR")
+    os.environ["SB3_LOGDIR"] = str(tmp_path_factory.mktemp("sb3"))
+    yield
+    if previous is None:
+        os.environ.pop("SB3_LOGDIR", None)
+    else:
+        os.environ["SB3_LOGDIR"] = previous
+
+
 @pytest.fixture(scope="module")
 def ray_local():
     """One local Ray instance with 2 CPUs per test module (starting Ray takes seconds); skips without Ray."""
