@@ -87,8 +87,10 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     ## Rewards
 
-    Per step: ``-w_dev · deviation_mm - w_force · lateral_force_n - w_smooth · |Δa|²``, with the tip
-    deviation from the planned axis and the true lateral force averaged over the step. Every term is in
+    Per step: ``-w_dev · deviation_mm - w_force · lateral_force_n - w_smooth · |Δa|² - w_peak · Δpeak_n``,
+    with the tip deviation from the planned axis and the true lateral force averaged over the step, and
+    ``Δpeak_n`` how far this step's force raises the episode's running maximum: over an episode the last
+    term sums to ``-w_peak`` times the peak lateral force (off by default, ``w_peak = 0``). Every term is in
     ``info["reward_terms"]``.
 
     ## Starting State
@@ -126,10 +128,10 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     Also ``cell_params`` (:class:`envs.cell_params.CellParams`), ``bone_material`` (a custom
     :class:`envs.drilling.BonePreset` replacing the named ``bone``), the reward weights
     ``reward_deviation_weight`` (per mm), ``reward_force_weight`` (per N), ``reward_smooth_weight``,
-    and ``render_mode`` (``"rgb_array"``). Invalid values raise ``ValueError`` naming the argument,
-    its value and the allowed range. Unmodelled effects for the sim-to-real diagnosis
-    (:mod:`envs.effects`) are switched on with ``env.unwrapped.set_effects([...])`` or
-    ``reset(options={"effects": [...]})``; none are on by default.
+    ``reward_peak_force_weight`` (per N of episode peak), and ``render_mode`` (``"rgb_array"``). Invalid
+    values raise ``ValueError`` naming the argument, its value and the allowed range. Unmodelled effects for
+    the sim-to-real diagnosis (:mod:`envs.effects`) are switched on with ``env.unwrapped.set_effects([...])``
+    or ``reset(options={"effects": [...]})``; none are on by default.
 
     ## Version History
 
@@ -146,6 +148,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         reward_deviation_weight: float = 1.0,
         reward_force_weight: float = 0.1,
         reward_smooth_weight: float = 0.01,
+        reward_peak_force_weight: float = 0.0,
         **scenario_kwargs: Any,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -157,6 +160,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             float(reward_force_weight),
             float(reward_smooth_weight),
         )
+        self.w_peak = float(reward_peak_force_weight)
+        self.peak_lateral_n = 0.0
         self.cell_params = cell_params
         self.bone_material = bone_material
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
@@ -213,6 +218,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.feed_scale = 1.0
         self.pending: deque[tuple[float, np.ndarray, float]] = deque()
         self.prev_action = np.zeros(ACTION_DIM)
+        self.peak_lateral_n = 0.0
         self.recorder.clear()
         self.ft_samples = np.zeros((2, 6))
         self.ft_last = np.zeros(6)
@@ -302,7 +308,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             "deviation": -self.w_dev * dev_mean * 1e3,
             "force": -self.w_force * lat_mean,
             "smooth": -self.w_smooth * float(np.sum((a - self.prev_action) ** 2)),
+            "peak_force": -self.w_peak * max(lat_mean - self.peak_lateral_n, 0.0),
         }
+        self.peak_lateral_n = max(self.peak_lateral_n, lat_mean)
         self.step_terms = terms
         self.prev_action = a
         terminated = self.path.phase == Phase.DONE or self.failure is not None

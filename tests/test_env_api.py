@@ -151,6 +151,27 @@ def test_step_info_has_stage_deflections_and_reward_terms_summing_to_reward(zero
         assert math.isfinite(reward), f"step {i}"
 
 
+def test_peak_force_reward_sums_to_minus_weight_times_the_episode_peak_and_is_off_by_default(zero_episode):
+    _, default_steps = zero_episode
+    assert all(info["reward_terms"]["peak_force"] == 0.0 for *_, info in default_steps[1:])
+    w_peak, w_force = 5.0, 0.5
+    env = gym.make(ENV_ID, reward_peak_force_weight=w_peak, reward_force_weight=w_force)
+    try:
+        steps = run_episode(env)
+    finally:
+        env.close()
+    terms = [info["reward_terms"] for *_, info in steps[1:]]
+    # the force term is -w_force x the step's mean lateral force: recover it independently of the peak term
+    step_force_n = np.array([-t["force"] / w_force for t in terms])
+    peak_terms = np.array([t["peak_force"] for t in terms])
+    assert step_force_n.max() > 0.5, "the uncompensated paper hole should load the drill sideways"
+    assert np.all(peak_terms <= 0.0)
+    np.testing.assert_allclose(peak_terms.sum(), -w_peak * step_force_n.max(), rtol=1e-9)
+    # it is paid only on the steps that raise the running maximum
+    raised = step_force_n > np.maximum.accumulate(np.concatenate([[0.0], step_force_n[:-1]]))
+    assert np.all(peak_terms[~raised] == 0.0) and np.all(peak_terms[raised] < 0.0)
+
+
 def test_stages_appear_in_order_during_paper_scenario(zero_episode):
     _, steps = zero_episode
     infos = [info for *_, info in steps[1:]]

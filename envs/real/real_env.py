@@ -57,7 +57,8 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     ## Rewards
 
-    ``-w_dev · tracker deviation (mm) - w_force · mean lateral F/T force (N) - w_smooth · |Δa|²``; no true tip
+    ``-w_dev · tracker deviation (mm) - w_force · mean lateral F/T force (N) - w_smooth · |Δa|² - w_peak · Δpeak_n``
+    (``Δpeak_n``: how far the mean lateral F/T force raises the episode's running maximum); no true tip
     on a real cell. Terms in ``info["reward_terms"]``.
 
     ## Starting State
@@ -109,6 +110,7 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         reward_deviation_weight: float = 1.0,
         reward_force_weight: float = 0.1,
         reward_smooth_weight: float = 0.01,
+        reward_peak_force_weight: float = 0.0,
         **scenario_kwargs: Any,
     ) -> None:
         if isinstance(tracker, bool):
@@ -122,6 +124,8 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.servo_params = servo_params or ServoParams()
         self.dry_run = bool(dry_run)
         self.weights = (float(reward_deviation_weight), float(reward_force_weight), float(reward_smooth_weight))
+        self.w_peak = float(reward_peak_force_weight)
+        self.peak_lateral_n = 0.0
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = observation_space()  # type: ignore[assignment]
         self.recorder = EpisodeRecorder()
@@ -196,6 +200,7 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         )
         self.streams = EpisodeStreams(self.recorder, self.devices, self.servo, geo, t0, bias, marker)
         self.prev_action = np.zeros(ACTION_DIM)
+        self.peak_lateral_n = 0.0
         self.metrics: dict[str, float] | None = None
         self.step_terms: dict[str, float] = {}
         self.servo.start()
@@ -238,7 +243,9 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             "deviation": -w_dev * sample.tracker_lateral_m * 1e3,
             "force": -w_force * sample.lateral_force_mean_n,
             "smooth": -w_smooth * float(np.sum((a - self.prev_action) ** 2)),
+            "peak_force": -self.w_peak * max(sample.lateral_force_mean_n - self.peak_lateral_n, 0.0),
         }
+        self.peak_lateral_n = max(self.peak_lateral_n, sample.lateral_force_mean_n)
         self.prev_action = a
         terminated = self.servo.fault is not None or sample.path_done
         truncated = not terminated and sample.t_s >= self.max_time_s
