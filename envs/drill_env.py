@@ -161,7 +161,6 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             float(reward_smooth_weight),
         )
         self.w_peak = float(reward_peak_force_weight)
-        self.peak_lateral_n = 0.0
         self.cell_params = cell_params
         self.bone_material = bone_material
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)

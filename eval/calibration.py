@@ -36,8 +36,6 @@ METRICS = (*CALIBRATED_METRICS, *CHECKED_METRICS)
 """Every metric reported, for the uncompensated run and for each li2023 prediction."""
 LI2023_CHECKS = ("deviation_reduction_ge_45pct", "kp1_reduces_less_than_kp4", "force_falls", "hole_offset_falls")
 """The issue's checks on a prediction, as named by :func:`passes_li2023_checks`."""
-FILTER_SAMPLES = 20
-"""F/T samples averaged before the controller's model is fitted (Li's filter: 20 at 100 Hz)."""
 
 
 _SHIPPED = CellParams()
@@ -105,16 +103,9 @@ def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float
 
     import envs  # noqa: F401  (registers the ids)
 
-    cell = CellParams(
-        skid_relief=structure.skid_relief,
-        lateral_cut_resistance_n=structure.lateral_cut_resistance_n,
-        guidance_exponent=structure.guidance_exponent,
-        wall_guidance_floor=structure.wall_guidance_floor,
-        wall_length_m=structure.wall_length_m,
-    )
     return gym.make(
         "drillgym/UR5BoneDrill-v0",
-        cell_params=cell,
+        cell_params=CellParams(**asdict(structure)),
         bone_material=bone_with_lateral_scale(lateral_scale),
         stickout_mm=stickout_mm,
     )
@@ -174,11 +165,10 @@ def calibrate_entry(
 def fit_controller_model_n(env: Any, trace: dict[str, np.ndarray]) -> float:
     """li2023's model peak (N) fitted to the filtered F/T force of an uncompensated ``trace`` of ``env``."""
     from controllers.models import fit_model_peak_n
+    from envs.metrics import FORCE_FILTER_SAMPLES, moving_average
 
     force = np.asarray(trace["ft_force_n"], dtype=float)
-    lateral = np.hypot(force[:, 0], force[:, 1])
-    kernel = np.ones(FILTER_SAMPLES) / FILTER_SAMPLES
-    filtered = np.convolve(lateral, kernel, mode="full")[: len(lateral)]
+    filtered = moving_average(np.hypot(force[:, 0], force[:, 1]), FORCE_FILTER_SAMPLES)
     plan = env.unwrapped.plan
     return fit_model_peak_n(plan, np.asarray(trace["depth_cmd_m"]), filtered, env.unwrapped.scenario.entry_depth_m)
 

@@ -27,6 +27,7 @@ from eval.calibration import (
     passes_li2023_checks,
     predict_li2023,
 )
+from eval.paper import LI2023_UNCOMPENSATED
 
 
 def _floats(text: str) -> list[float]:
@@ -85,10 +86,12 @@ def _markdown(rows: list[dict[str, Any]]) -> str:
             f"| {quad(r, 'none')} | {quad(r, 'kp4')} | {quad(r, 'kp1')} | {quad(r, 'offline')} "
             f"| {'all pass' if not failed else 'fails: ' + ', '.join(failed)} |"
         )
+    li = LI2023_UNCOMPENSATED
     intro = (
         "# Entry-mechanics calibration and li2023 predictions\n\n"
-        "Each row: lateral scale and stick-out fitted to Li's uncompensated deviation (0.703 mm) and peak force "
-        "(1.3 N); stable-stage force (paper 1.2 N) and hole offset (0.8 mm) are not fitted. li2023's model is "
+        f"Each row: lateral scale and stick-out fitted to Li's uncompensated deviation ({li['deviation_mean_mm']:g} mm) "
+        f"and peak force ({li['lateral_force_max_n']:g} N); stable-stage force (paper {li['lateral_force_stable_n']:g} N) "
+        f"and hole offset ({li['hole_offset_mm']:g} mm) are not fitted. li2023's model is "
         "refitted to the calibrated uncompensated F/T force. Metrics: mean tip deviation (mm) / peak lateral "
         "force (N) / stable-stage force (N) / hole offset (mm), means over the seeds. Checks: "
         "KP ordering, force and hole-offset falls need the 95 % CI of the paired difference to exclude 0.\n\n"

@@ -11,9 +11,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-LI2023_KP_GAP_MM = 0.587 - 0.305
+from eval.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
+
+LI2023_KP_GAP_MM = LI2023_COMPENSATED["deviation_mean_mm_kp1"] - LI2023_COMPENSATED["deviation_mean_mm"]
 """Li's deviation at KP 1 minus KP 4 (mm)."""
-LI2023_FORCE_CHANGE_PCT = 100.0 * (0.7 / 1.3 - 1.0)
+LI2023_FORCE_CHANGE_PCT = 100.0 * (
+    LI2023_COMPENSATED["lateral_force_max_n"] / LI2023_UNCOMPENSATED["lateral_force_max_n"] - 1.0
+)
 """Li's change of the peak lateral force with compensation (%)."""
 
 

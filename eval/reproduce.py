@@ -17,6 +17,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from eval.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
 from eval.reproduce_experiments import (
     KP_SWEEP,
     Condition,
@@ -31,15 +32,15 @@ SHIPPED_POLICY = Path(__file__).resolve().parents[1] / "training" / "policies" /
 """The residual policy shipped with the project (shown beside the paper's controllers when present)."""
 
 PAPER = {
-    "dev_none": 0.703,
-    "dev_kp1": 0.587,
-    "dev_kp4": 0.305,
-    "force_max_none": 1.3,
-    "force_max_comp": 0.7,
-    "force_stable_none": 1.2,
-    "force_stable_comp": 0.3,
-    "hole_none": 0.8,
-    "hole_comp": 0.2,
+    "dev_none": LI2023_UNCOMPENSATED["deviation_mean_mm"],
+    "dev_kp1": LI2023_COMPENSATED["deviation_mean_mm_kp1"],
+    "dev_kp4": LI2023_COMPENSATED["deviation_mean_mm"],
+    "force_max_none": LI2023_UNCOMPENSATED["lateral_force_max_n"],
+    "force_max_comp": LI2023_COMPENSATED["lateral_force_max_n"],
+    "force_stable_none": LI2023_UNCOMPENSATED["lateral_force_stable_n"],
+    "force_stable_comp": LI2023_COMPENSATED["lateral_force_stable_n"],
+    "hole_none": LI2023_UNCOMPENSATED["hole_offset_mm"],
+    "hole_comp": LI2023_COMPENSATED["hole_offset_mm"],
 }
 
 

@@ -107,9 +107,10 @@ def write_report(
         "changes this little: of 72 structures (`drillgym calibrate`, docs/physics.md §7), each fitted to the "
         "uncompensated run, none lowers li2023's peak by more than 8 %, and none that does gives KP the "
         "effect Li measured. With the optional hole-wall guidance, 13 of 72 calibrated structures predict "
-        "every direction Li reports, but the peak falls by 7 % at most. Li's lower compensated force (and his paper's own arithmetic: 1.3 N × (1 − "
-        "0.385) = 0.80 N, not the 0.7 N quoted) point to effects the quasi-static model leaves out (e.g. the "
-        "dynamics of first contact), listed as candidates for the sim-to-real diagnosis.",
+        "every direction Li reports, but the peak falls by 7 % at most. Li's lower compensated force (and his "
+        "paper's own arithmetic: 1.3 N × (1 − 0.385) = 0.80 N, not the 0.7 N quoted) point to effects the "
+        "quasi-static model leaves out (e.g. the dynamics of first contact), listed as candidates for the "
+        "sim-to-real diagnosis.",
         "* **Stable-stage force falls** with every setting (the hole is cut closer to the axis, so the drill "
         "is less bent in it).",
         "",

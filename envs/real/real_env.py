@@ -123,9 +123,10 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.limits = safety_limits or SafetyLimits()
         self.servo_params = servo_params or ServoParams()
         self.dry_run = bool(dry_run)
-        self.weights = (float(reward_deviation_weight), float(reward_force_weight), float(reward_smooth_weight))
-        self.w_peak = float(reward_peak_force_weight)
-        self.peak_lateral_n = 0.0
+        self.weights = tuple(
+            float(w)
+            for w in (reward_deviation_weight, reward_force_weight, reward_smooth_weight, reward_peak_force_weight)
+        )
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = observation_space()  # type: ignore[assignment]
         self.recorder = EpisodeRecorder()
@@ -238,12 +239,12 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.servo.command(corr, scale)
         sample = self.streams.advance(CONTROL_DT_S)
         self.rtde_tcp_base, self.tracker_reading = self.streams.tcp_base, self.streams.tracker_reading
-        w_dev, w_force, w_smooth = self.weights
+        w_dev, w_force, w_smooth, w_peak = self.weights
         self.step_terms = {
             "deviation": -w_dev * sample.tracker_lateral_m * 1e3,
             "force": -w_force * sample.lateral_force_mean_n,
             "smooth": -w_smooth * float(np.sum((a - self.prev_action) ** 2)),
-            "peak_force": -self.w_peak * max(sample.lateral_force_mean_n - self.peak_lateral_n, 0.0),
+            "peak_force": -w_peak * max(sample.lateral_force_mean_n - self.peak_lateral_n, 0.0),
         }
         self.peak_lateral_n = max(self.peak_lateral_n, sample.lateral_force_mean_n)
         self.prev_action = a
