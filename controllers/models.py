@@ -21,10 +21,10 @@ from envs.plan import DrillPlan
 from envs.robot.compliance import KTHETA_LI2023_NM_RAD, JointCompliance
 from envs.robot.ur5 import TCP_FRAME, UR5Kinematics
 
-LI2023_MODEL_PEAK_N = 0.80
+LI2023_MODEL_PEAK_N = 1.20
 """Peak unbalanced force of the controller's model at β 30°, 0.5 mm/s (N), fitted by least squares to
 the lateral F/T force of uncompensated trial holes over the unbalanced stages (``fit_model_peak_n``;
-5 seeds of the paper scenario give 0.785-0.823 N, mean 0.80 N). Li fits his model to his uncompensated
+5 seeds of the paper scenario give 1.15-1.27 N, mean 1.20 N). Li fits his model to his uncompensated
 experiment the same way (Fig. 9: model and measurement agree in stages 1-2)."""
 
 

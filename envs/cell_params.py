@@ -26,18 +26,18 @@ class CellParams:
     """F/T sensor face to the chuck along the tool axis: sensor, adapter and spindle body (m)."""
     tracker_marker_flange_m: tuple[float, float, float] = (0.05, 0.0, 0.06)
     """Tracker marker position in the flange frame (m): on the spindle body."""
-    lateral_cut_resistance_n: float = 40.0
+    lateral_cut_resistance_n: float = 100.0
     """K_lat: sideways force per unit of lateral-to-axial cut ratio, i.e. moving the tip sideways by Δp
     while advancing Δz takes K_lat · Δp / Δz (N). Sets how fast a locked-in deviation relaxes:
     over K_lat / k_tool of depth. Calibrated."""
     guidance_exponent: float = 2.0
     """Side guidance grows as (engaged share of the lips)**this: how soon a skidding tip is caught. Calibrated."""
-    skid_relief: float = 1.0
+    skid_relief: float = 0.15
     """How much of the surface drop a sideways tip sees: its engagement depth is z + relief · x tan β. Calibrated."""
-    wall_guidance_floor: float = 1.0
+    wall_guidance_floor: float = 0.03
     """Share of the side guidance the bone gives before the hole has a wall (the full drill diameter just in);
-    it grows linearly to 1 over ``wall_length_m`` more of depth. 1 (shipped): the lips alone guide fully,
-    no wall model (``docs/physics.md`` §7: what a wall-guided entry changes)."""
+    it grows linearly to 1 over ``wall_length_m`` more of depth. 1: the lips alone guide fully (no wall
+    model). Calibrated (``docs/physics.md`` §4, §7)."""
     wall_length_m: float = 1.0e-3
     """Depth of full-diameter hole over which the wall's guidance builds up (m); unused when the floor is 1."""
     effective_diameter_ratio: float = 0.85

@@ -112,7 +112,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     | feed_mm_s | 0.5 | (0, 3] | mm/s | nominal feed rate |
     | spindle_rpm | 20000 | [1000, 60000] | rpm | spindle speed |
     | drill_diameter_mm | 1.5 | [0.5, 6] | mm | twist-drill diameter (118° point, 2 lips) |
-    | stickout_mm | 36 | [10, 100] | mm | drill free length from the chuck (calibrated) |
+    | stickout_mm | 37.9 | [10, 100] | mm | drill free length from the chuck (calibrated) |
     | depth_mm | 6 | [2, 30] | mm | target depth past the entry point |
     | cortical_thickness_mm | 8 | [0.3, 40] | mm | cortical layer thickness over the cancellous core |
     | bone | buffalo_femur | presets | - | specimen preset (``envs.drilling.BONE_PRESETS``) |

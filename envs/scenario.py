@@ -40,7 +40,7 @@ class Scenario:
     feed_mm_s: float = 0.5
     spindle_rpm: float = 20000.0
     drill_diameter_mm: float = 1.5
-    stickout_mm: float = 36.0
+    stickout_mm: float = 37.9
     depth_mm: float = 6.0
     cortical_thickness_mm: float = 8.0
     bone: str = "buffalo_femur"

@@ -6,6 +6,7 @@ import pytest
 
 from envs.cell_params import CellParams
 from envs.drilling.bone import BUFFALO_CORTICAL
+from envs.scenario import Scenario
 from eval.calibration import (
     EntryStructure,
     bone_with_lateral_scale,
@@ -17,13 +18,12 @@ from eval.paper import LI2023_UNCOMPENSATED
 
 
 def test_calibrating_the_shipped_structure_recovers_the_shipped_scales():
-    # The shipped coefficients (scale 1) and 36 mm stick-out were fitted by an earlier grid search on the
-    # same two targets; the fixed-point fit must land on them within its 2 % metric tolerance.
-    d = CellParams()
-    cal = calibrate_entry(EntryStructure(d.skid_relief, d.lateral_cut_resistance_n, d.guidance_exponent))
+    # The shipped coefficients (scale 1) and stick-out were fitted by the same fixed-point fit on the same
+    # two targets (over 10 seeds); on one seed it must land on them within its 2 % metric tolerance.
+    cal = calibrate_entry(EntryStructure())
     assert cal.converged
     assert cal.lateral_scale == pytest.approx(1.0, rel=0.05)
-    assert cal.stickout_mm == pytest.approx(36.0, rel=0.03)
+    assert cal.stickout_mm == pytest.approx(Scenario().stickout_mm, rel=0.03)
     for name in ("deviation_mean_mm", "lateral_force_max_n"):
         assert cal.metrics[name] == pytest.approx(LI2023_UNCOMPENSATED[name], rel=0.02)
 
@@ -65,7 +65,9 @@ def test_calibrate_command_writes_one_row_per_structure(tmp_path):
         assert float(r["kp4_minus_none_lateral_force_max_n_ci_low"]) <= float(
             r["kp4_minus_none_lateral_force_max_n_ci_high"]
         )
-    assert (out / "calibration.md").read_text().count("\n| 1 | 40 |") == 2
+    d = CellParams()  # the structure's other constants are the shipped ones
+    row_start = f"\n| {d.skid_relief:g} | {d.lateral_cut_resistance_n:g} |"
+    assert (out / "calibration.md").read_text().count(row_start) == 2
     assert (out / "calibration.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

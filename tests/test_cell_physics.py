@@ -160,8 +160,8 @@ def test_a_constant_offset_moves_the_hole_but_not_the_entry_force_on_a_planar_sl
     assert c1[1] == pytest.approx(c0[1], abs=0.02e-3)
 
 
-def test_without_a_wall_model_guidance_is_the_lips_alone():
-    solver = SimCell(Scenario(), CellParams()).solver
+def test_with_a_wall_floor_of_one_guidance_is_the_lips_alone():
+    solver = SimCell(Scenario(), CellParams(wall_guidance_floor=1.0)).solver
     for depth in (0.0, 1e-3, 5e-3):
         solver.depth_local = depth
         assert solver._wall_factor() == 1.0

@@ -70,12 +70,12 @@ class BonePreset:
 # Calibrated on Li 2023's uncompensated run (buffalo cortical bone, 1.5 mm drill, 20,000 rpm,
 # 0.5 mm/s, beta 30 deg): see docs/physics.md for the fit and its plausibility checks.
 BUFFALO_CORTICAL = BoneMaterial(
-    k_tc_pa=2.55e9,
+    k_tc_pa=1.18e9,
     k_fc_pa=2.46e9,
-    k_rc_pa=6.20e9,
-    k_te_n_m=1.64e3,
+    k_rc_pa=2.87e9,
+    k_te_n_m=0.759e3,
     k_fe_n_m=1.58e3,
-    k_re_n_m=3.99e3,
+    k_re_n_m=1.85e3,
     k_chisel_n_m=10e3,
 )
 """Cortical buffalo bone, calibrated (Li 2023's specimen)."""
@@ -100,6 +100,15 @@ BONE_PRESETS: dict[str, BonePreset] = {
     )
 }
 """Named specimens. Hardness factors are relative to buffalo cortex (literature thrust ratios)."""
+
+
+def nominal_hardness(name: str) -> float:
+    """Preset ``name``'s cortical hardness relative to buffalo cortex (-): what the plan's bone type tells a controller.
+
+    Raises:
+        ValueError: unknown name (the message lists the known ones).
+    """
+    return get_bone_preset(name).cortical.k_fc_pa / BUFFALO_CORTICAL.k_fc_pa
 
 
 def get_bone_preset(name: str, density_scale: float = 1.0) -> BonePreset:
