@@ -28,6 +28,9 @@ def test_combine_adds_the_scaled_residual_and_clips():
     np.testing.assert_allclose(out, [0.7, -1.0, 0.25, 0.1], atol=1e-6)  # feed untouched by a 3-d residual
     out4 = combine(base, np.array([0.0, 0.0, 0.0, -1.0]), 0.5)
     np.testing.assert_allclose(out4[3], -0.4, atol=1e-6)
+    # a feed residual only slows the base's feed: a positive one leaves it as it is
+    out4_up = combine(base, np.array([0.0, 0.0, 0.0, 1.0]), 0.5)
+    np.testing.assert_allclose(out4_up[3], base[3], atol=1e-7)
     # the residual is clipped to [-1, 1] before scaling, the sum to the action box
     np.testing.assert_allclose(combine(base, np.array([9.0, 9.0, 9.0]), 1.0)[:3], [1.0, 0.1, 1.0], atol=1e-6)
 
@@ -270,11 +273,16 @@ def test_bad_randomisation_ranges_are_rejected_with_a_clear_message(ranges, mess
         TrainConfig(dr_ranges=ranges)
 
 
-def test_plan_features_are_what_the_plan_says_in_si_units():
-    env = ResidualWrapper(gym.make(ENV_ID, beta_deg=20.0, feed_mm_s=0.8, stickout_mm=33.0), observe_plan=True)
-    obs, _ = env.reset(seed=0)
-    np.testing.assert_allclose(
-        obs[PLAN_KEY], [np.radians(20.0), 0.8e-3, 33e-3, env.unwrapped.plan.cortical_thickness_m], rtol=1e-6
+@pytest.mark.parametrize(
+    ("bone", "hardness"), [("buffalo_femur", 1.0), ("porcine_femur", 0.75), ("sawbones_20pcf", 0.6)]
+)
+def test_plan_features_are_what_the_plan_says_in_si_units(bone, hardness):
+    env = ResidualWrapper(
+        gym.make(ENV_ID, beta_deg=20.0, feed_mm_s=0.8, stickout_mm=33.0, bone=bone), observe_plan=True
     )
+    obs, _ = env.reset(seed=0)
+    thickness_m = env.unwrapped.plan.cortical_thickness_m
+    # the hardness is the named preset's nominal one (the BONE_PRESETS table), not the episode's drawn specimen
+    np.testing.assert_allclose(obs[PLAN_KEY], [np.radians(20.0), 0.8e-3, 33e-3, thickness_m, hardness], rtol=1e-6)
     assert env.observation_space[PLAN_KEY].contains(obs[PLAN_KEY])
     env.close()

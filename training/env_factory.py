@@ -17,7 +17,7 @@ from training.domain_randomization import (
     merged_ranges,
     validation_scenarios,
 )
-from training.residual_wrapper import ResidualWrapper
+from training.residual_wrapper import ResidualWrapper, plan_support
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 
@@ -33,6 +33,7 @@ def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:
         cfg.observe_prev_residual,
         cfg.observe_plan,
         cfg.residual_mode,
+        plan_support(merged_ranges(cfg.dr_ranges)),
     )
 
 

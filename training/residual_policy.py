@@ -14,8 +14,16 @@ import numpy as np
 from controllers.base import Controller
 from controllers.registry import make_controller
 from envs.plan import DrillPlan
+from training.domain_randomization import merged_ranges
 from training.policy_bundle import load_bundle
-from training.residual_wrapper import BASE_ACTION_KEY, PLAN_KEY, PREV_RESIDUAL_KEY, combine, plan_features
+from training.residual_wrapper import (
+    BASE_ACTION_KEY,
+    PLAN_KEY,
+    PREV_RESIDUAL_KEY,
+    combine,
+    plan_features,
+    plan_support,
+)
 
 
 class ResidualPolicyController(Controller):
@@ -37,6 +45,7 @@ class ResidualPolicyController(Controller):
         prev = spaces.get(PREV_RESIDUAL_KEY)
         self._prev_shape = None if prev is None else prev.shape
         self._observes_plan = PLAN_KEY in spaces
+        self._plan_support = plan_support(merged_ranges(self.config.dr_ranges))
 
     def set_plan(self, plan: DrillPlan) -> None:
         """The base controller gets the plan too."""
@@ -59,7 +68,7 @@ class ResidualPolicyController(Controller):
         if self._observes_plan:
             if self.plan is None:
                 raise RuntimeError("this residual policy observes the plan: call set_plan(plan) first")
-            aug[PLAN_KEY] = plan_features(self.plan)
+            aug[PLAN_KEY] = np.clip(plan_features(self.plan), *self._plan_support).astype(np.float32)
         if self.bundle.normalizer is not None:
             aug = self.bundle.normalizer(aug)
         residual, _ = self.bundle.model.predict(aug, deterministic=True)

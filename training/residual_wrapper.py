@@ -8,6 +8,7 @@ does: the policy starts from the baseline.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -16,11 +17,14 @@ from gymnasium import spaces
 
 from controllers import Controller, make_controller
 from envs.constants import ACTION_DIM
+from envs.drilling.bone import nominal_hardness
+from eval.suites import TRAINING_BONES
 
 BASE_ACTION_KEY = "base_action"
 PLAN_KEY = "plan"
-"""Planned interaction angle (rad), feed (m/s), drill stick-out (m) and cortical thickness (m): what the
-cell knows before drilling (the plan from imaging and the tool measured on the bench)."""
+"""Planned interaction angle (rad), feed (m/s), drill stick-out (m), cortical thickness (m) and the named
+bone type's nominal hardness (-): what the cell knows before drilling (the plan from imaging, the
+specimen the surgeon names and the tool measured on the bench)."""
 PREV_RESIDUAL_KEY = "residual_prev"
 """The policy's own previous residual (zero at an episode start): the controller knows what it sent, and
 with it a memoryless policy can hold or integrate a correction."""
@@ -39,14 +43,44 @@ def check_mode(mode: str) -> None:
         raise ValueError(f"residual mode {mode!r}; choose from {RESIDUAL_MODES}")
 
 
-PLAN_HIGH = np.array([np.pi / 2, 5e-3, 0.1, 0.05], dtype=np.float32)
+PLAN_HIGH = np.array([np.pi / 2, 5e-3, 0.1, 0.05, 3.0], dtype=np.float32)
 """Upper bounds of the plan features (their lower bounds are 0)."""
 
 
 def plan_features(plan: Any) -> np.ndarray:
-    """``[beta_rad, feed_m_s, stickout_m, cortical_thickness_m]`` of a :class:`envs.plan.DrillPlan`."""
-    values = [plan.beta_rad, plan.feed_m_s, plan.stickout_m, plan.cortical_thickness_m]
+    """``[beta_rad, feed_m_s, stickout_m, cortical_thickness_m, bone_hardness]`` of a :class:`envs.plan.DrillPlan`.
+
+    ``bone_hardness`` is the planned bone type's nominal cortical hardness relative to buffalo cortex
+    (:func:`envs.drilling.bone.nominal_hardness`): the surgeon names the specimen, not its true hardness.
+    """
+    values = [plan.beta_rad, plan.feed_m_s, plan.stickout_m, plan.cortical_thickness_m, nominal_hardness(plan.bone)]
     return np.clip(np.array(values, dtype=np.float32), 0.0, PLAN_HIGH)
+
+
+_PLAN_RANGE_KEYS = (
+    ("beta_deg", np.pi / 180.0),
+    ("feed_mm_s", 1e-3),
+    ("stickout_mm", 1e-3),
+    ("cortical_thickness_mm", 1e-3),
+)
+"""Training-range name and its factor to the plan feature's SI unit, in feature order."""
+
+
+def plan_support(
+    ranges: Mapping[str, tuple[float, float]], bones: Sequence[str] = TRAINING_BONES
+) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest and highest plan features of a policy trained inside ``ranges`` (user units) on ``bones``.
+
+    A feature whose range is not given keeps its full bounds (0 to :data:`PLAN_HIGH`).
+    """
+    low = np.zeros(PLAN_HIGH.shape, dtype=np.float32)
+    high = PLAN_HIGH.copy()
+    for i, (name, to_si) in enumerate(_PLAN_RANGE_KEYS):
+        if name in ranges:
+            low[i], high[i] = (np.float32(v * to_si) for v in ranges[name])
+    hardness = [nominal_hardness(b) for b in bones]
+    low[-1], high[-1] = min(hardness), max(hardness)
+    return low, high
 
 
 def residual_dims(residual_feed: bool, axes: str = "lateral") -> int:
@@ -67,7 +101,8 @@ def combine(
 
     With ``R_base_task`` the first two residual entries are task x and y (across the drill) and are
     turned into base axes; without it the first three are base x, y, z. A last extra entry, if any,
-    is the feed residual (always added); otherwise the feed is the base's.
+    is the feed residual: only its negative part is added, so it can slow the base's feed (down to
+    2^(-2 · scale) of it) but never drill faster than the base; otherwise the feed is the base's.
     """
     out = np.asarray(base_action, dtype=np.float64).copy()
     r = np.clip(np.asarray(residual, dtype=np.float64).reshape(-1), -1.0, 1.0)
@@ -80,7 +115,7 @@ def combine(
     else:
         out[:3] += scale * (r[:3] * out[:3] if mode == "gain" else r[:3])
     if r.size > n_xyz:
-        out[3] += scale * r[n_xyz]
+        out[3] += scale * min(r[n_xyz], 0.0)
     return np.clip(out, -1.0, 1.0).astype(np.float32)
 
 
@@ -91,12 +126,18 @@ class ResidualWrapper(gym.Wrapper):
         env: the drilling env (sim or real: only ``env.unwrapped.plan`` and the observation are used).
         base: the base controller or its spec (default ``"li2023"``, the paper's best setting).
         scale: residual action ±1 maps to ± ``scale`` of the env's action range (0.5: ±1 mm).
-        residual_feed: let the residual change the feed override too (off: the base's feed is kept).
+        residual_feed: let the residual slow the base's feed too, never speed it up (off: the base's feed is
+            kept). Slowing is a force limiter, as in controlled material-removal-rate drilling; a faster
+            feed would also shorten the episode and with it the summed deviation penalty, a shortcut that
+            does not lower the mean deviation.
         axes: ``"lateral"`` (default): the residual moves the tip across the drill only (task x, y), as the
             compensators do; ``"xyz"``: along the three base axes (it can then plunge the drill).
         observe_prev_residual: add the policy's previous residual to the observation (``residual_prev``).
-        observe_plan: add the plan's angle, feed, stick-out and cortical thickness (``plan``).
+        observe_plan: add the plan's angle, feed, stick-out, cortical thickness and bone hardness (``plan``).
         mode: ``"add"`` or ``"gain"`` (:data:`RESIDUAL_MODES`).
+        plan_support: ``(low, high)`` plan features (:func:`plan_support`): the plan the policy sees is
+            clamped to them, so that outside its training ranges it acts as at their nearest edge
+            instead of extrapolating (None: no clamping).
     """
 
     def __init__(
@@ -109,6 +150,7 @@ class ResidualWrapper(gym.Wrapper):
         observe_prev_residual: bool = False,
         observe_plan: bool = False,
         mode: str = "add",
+        plan_support: tuple[np.ndarray, np.ndarray] | None = None,
     ):
         super().__init__(env)
         check_mode(mode)
@@ -130,6 +172,7 @@ class ResidualWrapper(gym.Wrapper):
             extra[PLAN_KEY] = spaces.Box(0.0, PLAN_HIGH, dtype=np.float32)
         self.observe_prev_residual = observe_prev_residual
         self.observe_plan = observe_plan
+        self.plan_support = plan_support
         self._plan = np.zeros(PLAN_HIGH.shape, dtype=np.float32)
         self.observation_space = spaces.Dict({**obs_space.spaces, **extra})
         self._base_action = np.zeros(ACTION_DIM, dtype=np.float32)
@@ -153,6 +196,8 @@ class ResidualWrapper(gym.Wrapper):
         plan = self.env.unwrapped.plan  # type: ignore[attr-defined]
         self.base.set_plan(plan)
         self._plan = plan_features(plan)
+        if self.plan_support is not None:
+            self._plan = np.clip(self._plan, *self.plan_support).astype(np.float32)
         self._R = plan.R_base_task if self.axes == "lateral" else None
         return self._augment(obs, True), info
 
