@@ -9,9 +9,17 @@ import pytest
 import envs  # noqa: F401
 from controllers import make_controller
 from training.config import TrainConfig, load_config
+from training.domain_randomization import merged_ranges
 from training.env_factory import make_train_vec_env
 from training.model import build_model
-from training.residual_wrapper import BASE_ACTION_KEY, PLAN_KEY, PREV_RESIDUAL_KEY, ResidualWrapper, combine
+from training.residual_wrapper import (
+    BASE_ACTION_KEY,
+    PLAN_KEY,
+    PREV_RESIDUAL_KEY,
+    ResidualWrapper,
+    combine,
+    plan_support,
+)
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 SHIPPED = Path(__file__).resolve().parents[1] / "training" / "policies" / "residual_li2023_sac.zip"
@@ -286,3 +294,25 @@ def test_plan_features_are_what_the_plan_says_in_si_units(bone, hardness):
     np.testing.assert_allclose(obs[PLAN_KEY], [np.radians(20.0), 0.8e-3, 33e-3, thickness_m, hardness], rtol=1e-6)
     assert env.observation_space[PLAN_KEY].contains(obs[PLAN_KEY])
     env.close()
+
+
+def test_the_plan_outside_the_training_ranges_is_clamped_to_their_edges():
+    # 48 mm of drill and Sawbones (hardness 0.6) lie outside 30-42 mm and the training bones' 0.75-1.0;
+    # beta 20 deg and feed 0.8 mm/s lie inside and pass unchanged
+    support = plan_support(merged_ranges({"stickout_mm": [30.0, 42.0]}))
+    env = ResidualWrapper(
+        gym.make(ENV_ID, beta_deg=20.0, feed_mm_s=0.8, stickout_mm=48.0, bone="sawbones_20pcf"),
+        observe_plan=True,
+        plan_support=support,
+    )
+    obs, _ = env.reset(seed=0)
+    thickness_m = env.unwrapped.plan.cortical_thickness_m
+    np.testing.assert_allclose(obs[PLAN_KEY], [np.radians(20.0), 0.8e-3, 42e-3, thickness_m, 0.75], rtol=1e-6)
+    env.close()
+
+
+def test_the_shipped_policy_clamps_the_plan_as_its_training_did():
+    ctl = make_controller(f"residual:{SHIPPED}")
+    low, high = ctl._plan_support
+    assert low[2] == pytest.approx(30e-3) and high[2] == pytest.approx(42e-3)  # stick-out (m)
+    assert low[4] == pytest.approx(0.75) and high[4] == pytest.approx(1.0)  # porcine .. buffalo
