@@ -68,7 +68,7 @@ class ResidualPolicyController(Controller):
         if self._observes_plan:
             if self.plan is None:
                 raise RuntimeError("this residual policy observes the plan: call set_plan(plan) first")
-            aug[PLAN_KEY] = np.clip(plan_features(self.plan), *self._plan_support).astype(np.float32)
+            aug[PLAN_KEY] = plan_features(self.plan, self._plan_support)
         if self.bundle.normalizer is not None:
             aug = self.bundle.normalizer(aug)
         residual, _ = self.bundle.model.predict(aug, deterministic=True)

@@ -47,14 +47,16 @@ PLAN_HIGH = np.array([np.pi / 2, 5e-3, 0.1, 0.05, 3.0], dtype=np.float32)
 """Upper bounds of the plan features (their lower bounds are 0)."""
 
 
-def plan_features(plan: Any) -> np.ndarray:
+def plan_features(plan: Any, support: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """``[beta_rad, feed_m_s, stickout_m, cortical_thickness_m, bone_hardness]`` of a :class:`envs.plan.DrillPlan`.
 
     ``bone_hardness`` is the planned bone type's nominal cortical hardness relative to buffalo cortex
     (:func:`envs.drilling.bone.nominal_hardness`): the surgeon names the specimen, not its true hardness.
+    With ``support`` (:func:`plan_support`) the features are clamped to it instead of to their full bounds.
     """
     values = [plan.beta_rad, plan.feed_m_s, plan.stickout_m, plan.cortical_thickness_m, nominal_hardness(plan.bone)]
-    return np.clip(np.array(values, dtype=np.float32), 0.0, PLAN_HIGH)
+    low, high = (0.0, PLAN_HIGH) if support is None else support
+    return np.clip(np.array(values, dtype=np.float32), low, high).astype(np.float32)
 
 
 _PLAN_RANGE_KEYS = (
@@ -195,9 +197,7 @@ class ResidualWrapper(gym.Wrapper):
         obs, info = self.env.reset(**kwargs)
         plan = self.env.unwrapped.plan  # type: ignore[attr-defined]
         self.base.set_plan(plan)
-        self._plan = plan_features(plan)
-        if self.plan_support is not None:
-            self._plan = np.clip(self._plan, *self.plan_support).astype(np.float32)
+        self._plan = plan_features(plan, self.plan_support)
         self._R = plan.R_base_task if self.axes == "lateral" else None
         return self._augment(obs, True), info
 
