@@ -1,4 +1,9 @@
-"""Controller specs: ``name[:field=value,...]`` -> a configured controller."""
+"""Controller specs: ``name[:field=value,...]`` -> a configured controller.
+
+Every spec also takes the slow-entry fields (:data:`controllers.feed_schedule.SCHEDULE_FIELDS`), which
+put an entry feed schedule on top of the controller, and a name may be a preset (:data:`PRESETS`): a
+named spec whose fields a user's own fields override.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +12,9 @@ from collections.abc import Callable
 from typing import Any
 
 from controllers.base import Controller
+from controllers.feed_schedule import SCHEDULE_FIELDS, EntryFeedSchedule, SlowEntry
 from controllers.li2023 import Li2023Config, Li2023Controller
+from controllers.li2023_cmrr import Li2023CmrrConfig, Li2023CmrrController
 from controllers.none import NoCompensation, NoCompensationConfig
 from controllers.zhang2005 import Zhang2005Config, Zhang2005Controller
 
@@ -15,8 +22,15 @@ CONTROLLERS: dict[str, tuple[Callable[[Any], Controller], type]] = {
     "none": (NoCompensation, NoCompensationConfig),
     "li2023": (Li2023Controller, Li2023Config),
     "zhang2005": (Zhang2005Controller, Zhang2005Config),
+    "li2023_cmrr": (Li2023CmrrController, Li2023CmrrConfig),
 }
 """name -> (class, config dataclass)."""
+
+PRESETS: dict[str, str] = {
+    "li2023_slow_entry": "li2023:entry_feed_scale=0.45,entry_depth_mm=1.25",
+}
+"""Named specs. ``li2023_slow_entry`` is the strongest classical baseline: li2023 with a slow entry tuned
+on the paper and sweep suites (``docs/controllers.md``, ``drillgym tune-entry``)."""
 
 
 def parse_spec(spec: str) -> tuple[str, dict[str, str]]:
@@ -50,6 +64,9 @@ def _convert(field: dataclasses.Field, raw: str) -> Any:
 def make_controller(spec: str) -> Controller:
     """Build a controller from a spec; unknown names or fields raise ``ValueError`` listing the options."""
     name, overrides = parse_spec(spec)
+    if name in PRESETS:
+        name, preset = parse_spec(PRESETS[name])
+        overrides = {**preset, **overrides}
     if name == "residual":
         try:
             from training.residual_policy import load_residual_controller
@@ -57,15 +74,31 @@ def make_controller(spec: str) -> Controller:
             raise ValueError("residual:PATH needs training.residual_policy, which this install lacks") from e
         return load_residual_controller(spec.partition(":")[2])
     if name not in CONTROLLERS:
-        raise ValueError(f"unknown controller {name!r}; choose from {sorted(CONTROLLERS)} or residual:PATH")
+        raise ValueError(
+            f"unknown controller {name!r}; choose from {sorted([*CONTROLLERS, *PRESETS])} or residual:PATH"
+        )
     cls, cfg_cls = CONTROLLERS[name]
+    schedule = {k: overrides.pop(k) for k in SCHEDULE_FIELDS if k in overrides}
+    controller = cls(_build(name, cfg_cls, overrides))
+    if schedule:
+        entry = _build(name, EntryFeedSchedule, schedule)
+        if entry.active:
+            return SlowEntry(controller, entry)
+    return controller
+
+
+def _build(name: str, cfg_cls: type, overrides: dict[str, str]) -> Any:
+    """``cfg_cls`` with the overrides converted to its fields' types; clear errors for unknown or bad fields."""
     fields = {f.name: f for f in dataclasses.fields(cfg_cls)}
     kwargs = {}
     for key, raw in overrides.items():
         if key not in fields:
-            raise ValueError(f"{name} has no parameter {key!r}; parameters: {sorted(fields)}")
+            raise ValueError(f"{name} has no parameter {key!r}; parameters: {sorted([*fields, *SCHEDULE_FIELDS])}")
         try:
             kwargs[key] = _convert(fields[key], raw)
         except ValueError as e:
             raise ValueError(f"{name}: {key}={raw!r}: {e}") from e
-    return cls(cfg_cls(**kwargs))
+    try:
+        return cfg_cls(**kwargs)
+    except ValueError as e:
+        raise ValueError(f"{name}: {e}") from e

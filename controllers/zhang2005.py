@@ -53,6 +53,9 @@ class Zhang2005Config:
     """Integral gain of the feed PI ((mm/s)/(N·s)); the thrust rises ~4 N per mm/s in cortical bone."""
     cmrr_start_margin_mm: float = 0.5
     """CMRR engages this far past full engagement of the planned entry (mm)."""
+    feed_scale_max: float = 2.0**FEED_OVERRIDE_LOG2_MAX
+    """Highest feed the PI may command, relative to the plan's feed (default: the action's limit, 4;
+    1 makes the CMRR a pure force limiter that only ever slows the feed)."""
     max_correction_m: float = MAX_CORRECTION_M
     """Clip on the correction per axis (m)."""
 
@@ -63,6 +66,9 @@ class Zhang2005Config:
             raise ValueError(f"joint_stiffness_nm_rad={self.joint_stiffness_nm_rad} must be 6 positive values")
         if self.thrust_ref_n <= 0 or not math.isfinite(self.thrust_ref_n):
             raise ValueError(f"thrust_ref_n={self.thrust_ref_n} must be a positive number of newtons")
+        top = 2.0**FEED_OVERRIDE_LOG2_MAX
+        if not (math.isfinite(self.feed_scale_max) and 2.0**-FEED_OVERRIDE_LOG2_MAX <= self.feed_scale_max <= top):
+            raise ValueError(f"feed_scale_max={self.feed_scale_max} must be in [{1 / top:g}, {top:g}]")
 
 
 class Zhang2005Controller(Controller):
@@ -129,7 +135,7 @@ class Zhang2005Controller(Controller):
         cfg = self.config
         error = cfg.thrust_ref_n - thrust_n
         lo = self.feed_nominal_mm_s * 2.0**-FEED_OVERRIDE_LOG2_MAX
-        hi = self.feed_nominal_mm_s * 2.0**FEED_OVERRIDE_LOG2_MAX
+        hi = self.feed_nominal_mm_s * cfg.feed_scale_max
         proportional = self.feed_nominal_mm_s + cfg.kp_feed_mm_s_per_n * error
         # anti-windup: the integrator never pushes the feed past its limits
         self.integral_mm_s = min(

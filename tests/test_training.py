@@ -43,6 +43,20 @@ def test_combine_adds_the_scaled_residual_and_clips():
     np.testing.assert_allclose(combine(base, np.array([9.0, 9.0, 9.0]), 1.0)[:3], [1.0, 0.1, 1.0], atol=1e-6)
 
 
+def test_a_nominal_feed_ceiling_lets_the_residual_undo_a_base_slowdown_but_not_pass_the_plan_feed():
+    slowed = np.array([0.0, 0.0, 0.0, -0.6], np.float32)  # base at 2^-1.2 of the plan's feed
+    up = combine(slowed, np.array([0.0, 0.0, 1.0]), 0.5, np.eye(3), feed_ceiling="nominal")
+    np.testing.assert_allclose(up[3], -0.1, atol=1e-6)  # sped up by the whole residual
+    capped = combine(slowed, np.array([0.0, 0.0, 1.0]), 1.0, np.eye(3), feed_ceiling="nominal")
+    np.testing.assert_allclose(capped[3], 0.0, atol=1e-7)  # never past the plan's feed
+    down = combine(slowed, np.array([0.0, 0.0, -1.0]), 0.5, np.eye(3), feed_ceiling="nominal")
+    np.testing.assert_allclose(down[3], -1.0, atol=1e-6)
+    fast = np.array([0.0, 0.0, 0.0, 0.3], np.float32)  # a base above the plan's feed is its own ceiling
+    np.testing.assert_allclose(combine(fast, np.array([0.0, 0.0, 1.0]), 0.5, np.eye(3), feed_ceiling="nominal")[3], 0.3)
+    with pytest.raises(ValueError, match="feed ceiling"):
+        combine(fast, np.zeros(3), 0.5, np.eye(3), feed_ceiling="faster")
+
+
 def test_a_gain_residual_scales_the_base_correction_per_task_axis():
     from envs.cell_params import R_BASE_TASK
 

@@ -27,6 +27,9 @@ class TrainConfig:
     lateral correction by ``1 + residual_scale · residual`` (see :data:`training.residual_wrapper.RESIDUAL_MODES`)."""
     residual_feed: bool = False
     """Let the residual change the feed (off: compare at the base's feed, as Li does)."""
+    residual_feed_ceiling: str = "base"
+    """How fast the feed residual may drill: ``base`` (never faster than the base) or ``nominal`` (it may undo a
+    base's slowing, up to the plan's feed; :data:`training.residual_wrapper.FEED_CEILINGS`)."""
     residual_axes: str = "lateral"
     """``lateral``: the residual moves the tip across the drill only; ``xyz``: along the base axes too."""
     observe_prev_residual: bool = False
@@ -85,7 +88,7 @@ class TrainConfig:
         from training.domain_randomization import check_ranges
         from training.residual_wrapper import check_mode
 
-        check_mode(self.residual_mode)
+        check_mode(self.residual_mode, self.residual_feed_ceiling)
         check_ranges(self.dr_ranges)
         if self.total_timesteps < 1 or self.n_envs < 1:
             raise ValueError("total_timesteps and n_envs must be >= 1")

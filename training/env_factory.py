@@ -34,6 +34,7 @@ def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:
         cfg.observe_plan,
         cfg.residual_mode,
         plan_support(merged_ranges(cfg.dr_ranges)),
+        cfg.residual_feed_ceiling,
     )
 
 

@@ -75,7 +75,14 @@ class ResidualPolicyController(Controller):
         residual = np.clip(np.asarray(residual, dtype=np.float32).reshape(-1), -1.0, 1.0)
         self._prev_residual = residual
         R = self.plan.R_base_task if self.config.residual_axes == "lateral" and self.plan is not None else None
-        return combine(base_action, residual, self.config.residual_scale, R, self.config.residual_mode)
+        return combine(
+            base_action,
+            residual,
+            self.config.residual_scale,
+            R,
+            self.config.residual_mode,
+            self.config.residual_feed_ceiling,
+        )
 
     def describe(self) -> dict[str, Any]:
         """Name, file and training configuration."""

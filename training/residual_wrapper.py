@@ -31,16 +31,22 @@ with it a memoryless policy can hold or integrate a correction."""
 
 
 RESIDUAL_AXES = ("lateral", "xyz")
+FEED_CEILINGS = ("base", "nominal")
+"""How fast a feed residual may drill: ``base``: never faster than the base controller (it can only slow
+it); ``nominal``: never faster than the plan's feed or the base, whichever is faster (over a base that
+slows the feed, it may undo that slowing, up to the plan's feed)."""
 RESIDUAL_MODES = ("add", "gain")
 """``add``: the residual adds a correction (± ``scale`` of the action range); ``gain``: it scales the base's
 own correction by ``1 + scale · residual`` per axis (it can strengthen, weaken or cancel what the base
 does, never add a correction where the base has none)."""
 
 
-def check_mode(mode: str) -> None:
-    """Raise ``ValueError`` unless ``mode`` is one of :data:`RESIDUAL_MODES`."""
+def check_mode(mode: str, feed_ceiling: str = "base") -> None:
+    """Raise ``ValueError`` unless ``mode`` is one of :data:`RESIDUAL_MODES` and ``feed_ceiling`` of :data:`FEED_CEILINGS`."""
     if mode not in RESIDUAL_MODES:
         raise ValueError(f"residual mode {mode!r}; choose from {RESIDUAL_MODES}")
+    if feed_ceiling not in FEED_CEILINGS:
+        raise ValueError(f"residual feed ceiling {feed_ceiling!r}; choose from {FEED_CEILINGS}")
 
 
 PLAN_HIGH = np.array([np.pi / 2, 5e-3, 0.1, 0.05, 3.0], dtype=np.float32)
@@ -98,25 +104,30 @@ def combine(
     scale: float,
     R_base_task: np.ndarray | None = None,
     mode: str = "add",
+    feed_ceiling: str = "base",
 ) -> np.ndarray:
     """``clip(base + scale · residual)`` (mode ``add``) or ``clip(base · (1 + scale · residual))`` (``gain``).
 
     With ``R_base_task`` the first two residual entries are task x and y (across the drill) and are
     turned into base axes; without it the first three are base x, y, z. A last extra entry, if any,
-    is the feed residual: only its negative part is added, so it can slow the base's feed (down to
-    2^(-2 · scale) of it) but never drill faster than the base; otherwise the feed is the base's.
+    is the feed residual. With ``feed_ceiling="base"`` only its negative part is added, so it can slow the
+    base's feed (down to 2^(-2 · scale) of it) but never drill faster than the base; with ``"nominal"`` it is
+    added whole (× 2^(±2 · scale)) and the sum capped at the plan's feed or the base's, whichever is faster.
+    Without it the feed is the base's.
     """
     out = np.asarray(base_action, dtype=np.float64).copy()
     r = np.clip(np.asarray(residual, dtype=np.float64).reshape(-1), -1.0, 1.0)
     n_xyz = 2 if R_base_task is not None else 3
-    check_mode(mode)
+    check_mode(mode, feed_ceiling)
     if R_base_task is not None:
         lateral = np.asarray(R_base_task)[:, :2]
         step = r[:2] * (lateral.T @ out[:3]) if mode == "gain" else r[:2]
         out[:3] += scale * (lateral @ step)
     else:
         out[:3] += scale * (r[:3] * out[:3] if mode == "gain" else r[:3])
-    if r.size > n_xyz:
+    if r.size > n_xyz and feed_ceiling == "nominal":
+        out[3] = min(out[3] + scale * r[n_xyz], max(out[3], 0.0))
+    elif r.size > n_xyz:
         out[3] += scale * min(r[n_xyz], 0.0)
     return np.clip(out, -1.0, 1.0).astype(np.float32)
 
@@ -137,6 +148,7 @@ class ResidualWrapper(gym.Wrapper):
         observe_prev_residual: add the policy's previous residual to the observation (``residual_prev``).
         observe_plan: add the plan's angle, feed, stick-out, cortical thickness and bone hardness (``plan``).
         mode: ``"add"`` or ``"gain"`` (:data:`RESIDUAL_MODES`).
+        feed_ceiling: how fast the feed residual may drill (:data:`FEED_CEILINGS`).
         plan_support: ``(low, high)`` plan features (:func:`plan_support`): the plan the policy sees is
             clamped to them, so that outside its training ranges it acts as at their nearest edge
             instead of extrapolating (None: no clamping).
@@ -153,10 +165,12 @@ class ResidualWrapper(gym.Wrapper):
         observe_plan: bool = False,
         mode: str = "add",
         plan_support: tuple[np.ndarray, np.ndarray] | None = None,
+        feed_ceiling: str = "base",
     ):
         super().__init__(env)
-        check_mode(mode)
+        check_mode(mode, feed_ceiling)
         self.mode = mode
+        self.feed_ceiling = feed_ceiling
         if not 0.0 < scale <= 2.0:
             raise ValueError(f"scale={scale} must be in (0, 2]")
         self.base = make_controller(base) if isinstance(base, str) else base
@@ -208,7 +222,7 @@ class ResidualWrapper(gym.Wrapper):
             raise ValueError(f"residual action must have shape {self.action_space.shape}, got {residual.shape}")
         if not np.all(np.isfinite(residual)):
             raise ValueError(f"residual action {residual.tolist()} contains NaN or inf")
-        total = combine(self._base_action, residual, self.scale, self._R, self.mode)
+        total = combine(self._base_action, residual, self.scale, self._R, self.mode, self.feed_ceiling)
         self._prev_residual = np.clip(residual, -1.0, 1.0).astype(np.float32)
         obs, reward, terminated, truncated, info = self.env.step(total)
         info = {**info, "base_action": self._base_action.copy(), "residual_action": residual.astype(np.float32)}

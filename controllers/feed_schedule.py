@@ -1,0 +1,94 @@
+"""A slow entry on top of any controller: its feed scaled down over the first part of the hole.
+
+On an inclined surface the drill's lips meet the bone on one side first, and the unbalanced chip force
+of that one-sided cut pushes the tip down the slope until the hole wall guides it (``docs/physics.md``
+§7). The chip force grows with the chip thickness, i.e. with the feed, so drilling the entry slowly
+lowers the skid force, and with it the entry deviation and the peak lateral force, at the cost of a
+little drill time. This is the classical "slow entry" of drilling practice: a feed schedule in the
+nominal depth, applied on top of the base controller's own feed (which it multiplies).
+
+Any spec takes it: ``li2023:entry_feed_scale=0.5,entry_depth_mm=0.5`` is ``li2023`` with half its feed
+over the first 0.5 mm of nominal depth (:func:`controllers.registry.make_controller`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from controllers.base import Controller
+from envs.constants import FEED_OVERRIDE_LOG2_MAX
+from envs.plan import DrillPlan
+
+
+@dataclass
+class EntryFeedSchedule:
+    """Feed multiplier over the entry of the hole (1.0: no schedule)."""
+
+    entry_feed_scale: float = 1.0
+    """Multiplier of the base controller's feed while the nominal depth is below ``entry_depth_mm`` (-)."""
+    entry_depth_mm: float = 0.0
+    """Nominal depth past the planned entry point (task z) up to which the entry feed applies (mm)."""
+
+    def __post_init__(self) -> None:
+        lo = 2.0**-FEED_OVERRIDE_LOG2_MAX
+        if not (math.isfinite(self.entry_feed_scale) and lo <= self.entry_feed_scale <= 1.0):
+            raise ValueError(
+                f"entry_feed_scale={self.entry_feed_scale} must be in [{lo:g}, 1] (a slow entry never speeds up)"
+            )
+        if not (math.isfinite(self.entry_depth_mm) and 0.0 <= self.entry_depth_mm <= 20.0):
+            raise ValueError(f"entry_depth_mm={self.entry_depth_mm} must be in [0, 20] mm")
+
+    @property
+    def active(self) -> bool:
+        """Whether the schedule changes anything."""
+        return self.entry_feed_scale < 1.0 and self.entry_depth_mm > 0.0
+
+    def feed_action_offset(self, path_depth_m: float) -> float:
+        """What the schedule adds to the action's feed entry at this nominal depth (m): log2 of the multiplier / 2."""
+        if path_depth_m < self.entry_depth_mm * 1e-3:
+            return math.log2(self.entry_feed_scale) / FEED_OVERRIDE_LOG2_MAX
+        return 0.0
+
+
+SCHEDULE_FIELDS = ("entry_feed_scale", "entry_depth_mm")
+"""Spec fields every controller accepts (they build an :class:`EntryFeedSchedule`)."""
+
+
+class SlowEntry(Controller):
+    """A base controller whose feed is multiplied by the schedule's factor over the entry.
+
+    The lateral correction is the base's, unchanged; so is the feed past the entry depth.
+    """
+
+    name = "slow_entry"
+
+    def __init__(self, base: Controller, schedule: EntryFeedSchedule) -> None:
+        super().__init__()
+        self.base = base
+        self.schedule = schedule
+        self.config = base.config
+
+    def set_plan(self, plan: DrillPlan) -> None:
+        """The base controller gets the plan too."""
+        self.base.set_plan(plan)
+        super().set_plan(plan)
+
+    def reset(self) -> None:
+        """Reset the base controller."""
+        self.base.reset()
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """The base's action with the entry's feed multiplier applied."""
+        action = np.array(self.base.act(obs), dtype=np.float32)
+        action[3] = np.clip(action[3] + self.schedule.feed_action_offset(float(obs["path_depth_m"][0])), -1.0, 1.0)
+        return action
+
+    def describe(self) -> dict[str, Any]:
+        """The base's description with the schedule's fields added to its configuration."""
+        desc = self.base.describe()
+        desc["config"] = {**desc["config"], **{k: getattr(self.schedule, k) for k in SCHEDULE_FIELDS}}
+        return desc

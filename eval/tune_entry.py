@@ -1,0 +1,193 @@
+"""``drillgym tune-entry``: tune a slow entry on top of a base controller, on the paper and sweep suites.
+
+A grid of entry feed multipliers × entry depths (:mod:`controllers.feed_schedule`) is run on every
+scenario of the tuning suites (default ``paper`` and ``sweep``, never ``heldout``, which stays for
+judging learnt policies) over the same seeds as the base alone. The rule that picks the best schedule
+is fixed before running:
+
+* objective: the mean deviation, averaged over the suites (each suite's scenarios pooled, each suite
+  weighing the same), lowest wins;
+* constraints, each against the base on the same episodes: the peak lateral force of every suite not
+  higher (pooled mean), and the drill time on the paper suite at most ``--max-time-increase`` longer.
+
+Outputs in ``--out``: ``episodes.csv`` (every episode), ``grid.csv`` (one row per candidate),
+``tune_entry.md`` and ``tune_entry.png`` (objective over the grid, the chosen cell marked).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from eval.suites import SUITES
+
+TUNING_SUITES = ("paper", "sweep")
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from e
+    if not values:
+        raise argparse.ArgumentTypeError("expected at least one number")
+    return values
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """CLI arguments."""
+    parser.add_argument("--base", default="li2023", help="base controller spec (default li2023)")
+    parser.add_argument(
+        "--scales", type=_floats, default=[0.25, 0.35, 0.5, 0.7], help="entry feed multipliers (default %(default)s)"
+    )
+    parser.add_argument(
+        "--depths-mm", type=_floats, default=[0.25, 0.5, 1.0, 1.5, 2.0], help="entry depths, mm (default %(default)s)"
+    )
+    parser.add_argument("--suites", default=",".join(TUNING_SUITES), help="tuning suites (default paper,sweep)")
+    parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 per scenario (default 5)")
+    parser.add_argument(
+        "--max-time-increase", type=float, default=0.3, help="allowed drill-time increase on paper (default 0.3)"
+    )
+    parser.add_argument("--workers", type=int, default=1, help="parallel worker processes (default 1)")
+    parser.add_argument("--out", type=Path, default=Path("results/tune_entry"), help="output folder")
+
+
+def candidate_specs(base: str, scales: list[float], depths_mm: list[float]) -> list[str]:
+    """The base alone, then the base with each (multiplier, depth) schedule, as controller specs."""
+    sep = "," if ":" in base else ":"
+    return [base] + [f"{base}{sep}entry_feed_scale={s:g},entry_depth_mm={d:g}" for s in scales for d in depths_mm]
+
+
+def grid_table(episodes: pd.DataFrame, base: str, suites: list[str], max_time_increase: float) -> pd.DataFrame:
+    """One row per candidate: per-suite pooled means, the objective, the constraints, ``feasible``."""
+    per = episodes.groupby(["controller", "suite"])[["deviation_mean_mm", "lateral_force_max_n", "drill_time_s"]]
+    means = per.mean()
+    rows = []
+    for spec in episodes["controller"].unique():
+        row: dict[str, Any] = {"controller": spec}
+        for suite in suites:
+            for metric in ("deviation_mean_mm", "lateral_force_max_n", "drill_time_s"):
+                row[f"{suite}_{metric}"] = float(means.loc[(spec, suite), metric])
+        rows.append(row)
+    grid = pd.DataFrame(rows).set_index("controller")
+    grid["objective_mm"] = grid[[f"{s}_deviation_mean_mm" for s in suites]].mean(axis=1)
+    ok = pd.Series(True, index=grid.index)
+    reference: dict[Any, Any] = grid.loc[base].to_dict()
+    for suite in suites:
+        col = f"{suite}_lateral_force_max_n"
+        ok &= grid[col] <= float(reference[col]) + 1e-12
+    if "paper" in suites:
+        ok &= grid["paper_drill_time_s"] <= (1.0 + max_time_increase) * float(reference["paper_drill_time_s"])
+    grid["feasible"] = ok
+    return grid.reset_index()
+
+
+def best_candidate(grid: pd.DataFrame) -> str:
+    """The feasible candidate with the lowest objective (the base itself is always a candidate)."""
+    feasible = grid[grid["feasible"]]
+    if feasible.empty:
+        feasible = grid.iloc[:1]
+    return str(feasible.sort_values("objective_mm").iloc[0]["controller"])
+
+
+def run(args: argparse.Namespace) -> int:
+    """Entry point of ``drillgym tune-entry``."""
+    from controllers import make_controller
+    from eval.bench import run_jobs
+    from eval.bench_episode import EpisodeJob
+    from eval.bench_report import episodes_frame
+    from eval.suites import suite_scenarios
+
+    suites = [s.strip() for s in args.suites.split(",") if s.strip()]
+    try:
+        unknown = [s for s in suites if s not in SUITES]
+        if unknown or not suites:
+            raise ValueError(f"unknown suite(s) {unknown}; choose from {', '.join(SUITES)}")
+        if "heldout" in suites:
+            raise ValueError("the heldout suite judges learnt policies; tune on paper and sweep only")
+        if args.seeds < 1 or args.workers < 1:
+            raise ValueError("--seeds and --workers must be >= 1")
+        specs = candidate_specs(args.base, args.scales, args.depths_mm)
+        for spec in specs:
+            make_controller(spec)
+    except ValueError as e:
+        print(f"drillgym tune-entry: error: {e}", file=sys.stderr)
+        return 2
+    jobs = [
+        EpisodeJob(suite, sc.name, sc.kwargs, spec, seed)
+        for suite in suites
+        for sc in suite_scenarios(suite)
+        for spec in specs
+        for seed in range(args.seeds)
+    ]
+    rows = run_jobs(jobs, args.workers, desc="tune-entry")
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    episodes = episodes_frame(rows)
+    episodes.to_csv(out / "episodes.csv", index=False)
+    failed = episodes[episodes["error"].fillna("") != ""]
+    if len(failed):
+        print(f"drillgym tune-entry: {len(failed)} episodes failed; see episodes.csv", file=sys.stderr)
+        return 1
+    grid = grid_table(episodes, args.base, suites, args.max_time_increase)
+    grid.to_csv(out / "grid.csv", index=False)
+    best = best_candidate(grid)
+    _write_markdown(out, grid, best, args)
+    _plot(out / "tune_entry.png", grid, args, best)
+    (out / "best.json").write_text(json.dumps({"best": best, "suites": suites, "seeds": args.seeds}, indent=2))
+    print((out / "tune_entry.md").read_text())
+    print(f"Results: {out.resolve()}/ (grid.csv, episodes.csv, tune_entry.md, tune_entry.png)")
+    return 0
+
+
+def _write_markdown(out: Path, grid: pd.DataFrame, best: str, args: argparse.Namespace) -> None:
+    cols = [c for c in grid.columns if c != "controller"]
+    lines = [
+        f"# Slow-entry tuning on `{args.base}`",
+        "",
+        f"Suites {args.suites}, seeds 0..{args.seeds - 1}, the same episodes for every candidate. Objective: "
+        "mean deviation averaged over the suites; feasible: peak lateral force not above the base's on any "
+        f"suite and paper drill time at most +{args.max_time_increase:.0%}.",
+        "",
+        f"**Chosen: `{best}`**",
+        "",
+        "| controller | " + " | ".join(cols) + " |",
+        "|---|" + "---|" * len(cols),
+    ]
+    for r in grid.sort_values("objective_mm").itertuples(index=False):
+        values = [f"{v:.4g}" if isinstance(v, float) else str(v) for v in r[1:]]
+        lines.append(f"| `{r[0]}` | " + " | ".join(values) + " |")
+    (out / "tune_entry.md").write_text("\n".join(lines) + "\n")
+
+
+def _plot(path: Path, grid: pd.DataFrame, args: argparse.Namespace, best: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    values = grid["objective_mm"].to_numpy()[1:].reshape(len(args.scales), len(args.depths_mm))
+    feasible = grid["feasible"].to_numpy()[1:].reshape(values.shape)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    im = ax.imshow(values, cmap="viridis_r", aspect="auto")
+    for i in range(values.shape[0]):
+        for j in range(values.shape[1]):
+            spec = grid["controller"].iloc[1 + i * values.shape[1] + j]
+            text = f"{values[i, j]:.3f}" + ("" if feasible[i, j] else "\n(force/time)")
+            ax.text(j, i, text, ha="center", va="center", fontsize=7, color="red" if spec == best else "white")
+    ax.set_xticks(np.arange(len(args.depths_mm)), [f"{d:g}" for d in args.depths_mm])
+    ax.set_yticks(np.arange(len(args.scales)), [f"{s:g}" for s in args.scales])
+    ax.set_xlabel("entry depth (mm)")
+    ax.set_ylabel("entry feed multiplier (-)")
+    base = float(grid["objective_mm"].iloc[0])
+    ax.set_title(f"mean deviation (mm) on {args.suites}; {args.base} alone: {base:.3f}", fontsize=9)
+    fig.colorbar(im, ax=ax)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
