@@ -25,9 +25,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--suite", default="paper", help=f"scenario suite: {', '.join(SUITES)} (default paper)")
     parser.add_argument(
         "--controllers",
-        default="none,li2023",
+        default="none,li2023,li2023_slow_entry",
         help="comma-separated controller specs, the first is the baseline, e.g. none,li2023,li2023:kp=1.0,ki=0.5 "
-        "(a field=value item continues the spec before it; default none,li2023)",
+        "(a field=value item continues the spec before it; li2023_slow_entry is the strongest classical baseline; "
+        "default none,li2023,li2023_slow_entry)",
     )
     parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 per scenario and controller (default 5)")
     parser.add_argument("--out", type=Path, default=Path("results/bench"), help="output folder (default results/bench)")

@@ -27,7 +27,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "eval.calibration_cli",
         "Calibrate the entry mechanics on the uncompensated paper run and predict li2023 on each candidate.",
     ),
-    "train": ("training.train", "Train a residual policy (SB3) on top of a compensator; resumable."),
+    "tune-entry": (
+        "eval.tune_entry",
+        "Tune a slow entry (feed schedule) on top of a controller on the paper and sweep suites; pick the best.",
+    ),
+    "train": (
+        "eval.train_seeds",
+        "Train a residual policy (SB3) on top of a compensator; resumable; --seeds: several seeds and their report.",
+    ),
     "bench": (
         "eval.bench",
         "Benchmark controllers on a scenario suite over seeds: metrics with confidence intervals, paired differences, plots, logs.",

@@ -55,8 +55,9 @@ def write_report(
         f"Seeds 0-{n - 1} for every compared condition (paired by seed); means with 95% confidence intervals "
         "(Student t). Scenario: β 30°, 0.5 mm/s, 20,000 rpm, 1.5 mm two-lip drill, buffalo cortical bone "
         "(Li Table 2). Kind: **calibration** = fitted to this paper number; **prediction** = not fitted; "
-        "**check** = physics or identification test; **learned** = the shipped residual policy (not in the "
-        "paper). Regenerate with `drillgym reproduce`.",
+        "**check** = physics or identification test; **baseline** = a classical controller beyond the paper "
+        "(`li2023_slow_entry`, the strongest hand-made baseline, `docs/controllers.md`); **learned** = the shipped "
+        "residual policy (not in the paper). Regenerate with `drillgym reproduce`.",
         "",
         "| quantity | unit | paper | sim [95% CI] | rel. err | kind |",
         "|---|---|---|---|---|---|",

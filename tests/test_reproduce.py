@@ -20,7 +20,10 @@ def test_reproduce_quick_writes_report_rows_and_figures(tmp_path, capsys):
         if r["paper"]:
             assert abs(r["rel_err"] - (r["sim"] - r["paper"]) / r["paper"]) < 1e-9
     kinds = {r["kind"] for r in rows}
-    assert {"calibration", "prediction", "check"} <= kinds <= {"calibration", "prediction", "check", "learned"}
+    assert (
+        {"calibration", "prediction", "check"} <= kinds <= {"calibration", "prediction", "check", "baseline", "learned"}
+    )
+    assert "mean tip deviation, li2023_slow_entry (best classical baseline)" in names
     report = (tmp_path / "report.md").read_text()
     assert "## Calibration" in report and "prediction" in report
     for png in (

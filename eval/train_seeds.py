@@ -1,0 +1,166 @@
+"""``drillgym train``: one residual training run, or ``--seeds 0,1,2,3,4``: the same configuration on each seed.
+
+Without ``--seeds`` this is :mod:`training.train` unchanged. With it, every seed trains in its own process
+(``--jobs`` at a time; each run is the single-seed command with ``--seed N --out OUT/seedN``, so any seed's
+policy is reproduced by that command alone), then every policy and every baseline are benchmarked on the
+same episodes (``--eval-suites``, ``--eval-seeds`` seeds per scenario) and :mod:`eval.seed_report` writes the
+across-seed report: per-seed checks, interquartile means with stratified-bootstrap CIs and the
+probability of improvement over each baseline (``seed_report.md``, ``.json``, ``.png``).
+
+A seed whose ``OUT/seedN/policy.zip`` already exists is not trained again (``--retrain`` forces it): a killed
+multi-seed run is continued by running the same command.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+from training import train
+
+POLICY_LABEL = "policy"
+
+
+def _seeds(text: str) -> list[int]:
+    try:
+        seeds = [int(s) for s in text.split(",") if s.strip()]
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"--seeds expects comma-separated integers, got {text!r}") from e
+    if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0:
+        raise argparse.ArgumentTypeError(f"--seeds {text!r}: give distinct non-negative integers, e.g. 0,1,2,3,4")
+    return seeds
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The single-run arguments of :mod:`training.train` plus the multi-seed ones."""
+    train.add_arguments(parser)
+    group = parser.add_argument_group("several training seeds (--seeds)")
+    group.add_argument("--seeds", type=_seeds, default=None, help="train each of these seeds, e.g. 0,1,2,3,4")
+    group.add_argument("--jobs", type=int, default=2, help="training runs at a time (default 2)")
+    group.add_argument("--retrain", action="store_true", help="train seeds that already have a policy again")
+    group.add_argument(
+        "--baselines",
+        default="li2023,li2023_slow_entry",
+        help="baseline controller specs to judge the policies against (default li2023,li2023_slow_entry)",
+    )
+    group.add_argument(
+        "--best-baseline", default="li2023_slow_entry", help="the strongest baseline (default li2023_slow_entry)"
+    )
+    group.add_argument("--reference", default="li2023", help="the paper's compensator (default li2023)")
+    group.add_argument("--eval-suites", default="paper,heldout", help="suites to judge on (default paper,heldout)")
+    group.add_argument("--eval-seeds", type=int, default=20, help="episode seeds per scenario (default 20)")
+    group.add_argument("--workers", type=int, default=2, help="benchmark worker processes (default 2)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Single run (no ``--seeds``) or train several seeds, benchmark them and write the seed report."""
+    if args.seeds is None:
+        return train.run(args)
+    try:
+        baselines = _check(args)
+    except ValueError as e:
+        print(f"drillgym train: error: {e}", file=sys.stderr)
+        return 2
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    failed = train_seeds(args, out)
+    if failed:
+        print(f"drillgym train: seeds {failed} failed; see their train.log", file=sys.stderr)
+        return 1
+    return judge(args, out, baselines)
+
+
+def _check(args: argparse.Namespace) -> list[str]:
+    from controllers import make_controller
+    from eval.bench import split_controller_specs
+
+    if args.resume or args.export or args.sweep is not None:
+        raise ValueError("--seeds cannot be combined with --resume, --export or --sweep")
+    if args.jobs < 1 or args.workers < 1 or args.eval_seeds < 2:
+        raise ValueError("--jobs and --workers must be >= 1, --eval-seeds >= 2")
+    if args.config is not None and not args.config.exists():
+        raise ValueError(f"--config {args.config}: no such file")
+    baselines = split_controller_specs(args.baselines)
+    for spec in {*baselines, args.best_baseline, args.reference}:
+        make_controller(spec)
+    missing = {args.best_baseline, args.reference} - set(baselines)
+    if missing:
+        raise ValueError(f"--baselines {args.baselines!r} must include {sorted(missing)}")
+    return baselines
+
+
+def seed_command(args: argparse.Namespace, seed: int, out: Path) -> list[str]:
+    """The single-seed ``drillgym train`` command of one seed (what reproduces its policy)."""
+    cmd = [sys.executable, "-m", "eval.cli", "train", "--out", str(out), "--seed", str(seed)]
+    if args.config is not None:
+        cmd += ["--config", str(args.config)]
+    for flag, value in (("--timesteps", args.timesteps), ("--n-envs", args.n_envs)):
+        if value is not None:
+            cmd += [flag, str(value)]
+    return [*cmd, "--torch-threads", str(args.torch_threads)]
+
+
+def train_seeds(args: argparse.Namespace, out: Path) -> list[int]:
+    """Train the seeds that lack a policy, ``--jobs`` at a time; the seeds whose run failed."""
+    todo = [s for s in args.seeds if args.retrain or not (out / f"seed{s}" / "policy.zip").exists()]
+    for s in sorted(set(args.seeds) - set(todo)):
+        print(f"seed {s}: {out / f'seed{s}' / 'policy.zip'} exists, not trained again (--retrain to force)")
+
+    def one(seed: int) -> tuple[int, int, float]:
+        folder = out / f"seed{seed}"
+        folder.mkdir(parents=True, exist_ok=True)
+        t0 = time.perf_counter()
+        with open(folder / "train.log", "w") as log:
+            rc = subprocess.run(seed_command(args, seed, folder), stdout=log, stderr=subprocess.STDOUT).returncode
+        wall = time.perf_counter() - t0
+        print(f"seed {seed}: exit {rc} after {wall / 60:.1f} min ({folder / 'train.log'})", flush=True)
+        return seed, rc, wall
+
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        results = list(pool.map(one, todo))
+    if todo:
+        print(f"trained {len(todo)} seeds in {(time.perf_counter() - t0) / 60:.1f} min, {args.jobs} at a time")
+    return [seed for seed, rc, _ in results if rc != 0]
+
+
+def judge(args: argparse.Namespace, out: Path, baselines: list[str]) -> int:
+    """Benchmark every seed's policy and the baselines on the same episodes; write the seed report."""
+    import pandas as pd
+
+    from eval.bench import run_jobs
+    from eval.bench_episode import EpisodeJob
+    from eval.bench_report import episodes_frame
+    from eval.seed_report import write_seed_report
+    from eval.suites import suite_scenarios
+
+    suites = [s.strip() for s in args.eval_suites.split(",") if s.strip()]
+    policies = {f"seed{s}": f"residual:{out / f'seed{s}' / 'policy.zip'}" for s in args.seeds}
+    specs = [*baselines, *policies.values()]
+    jobs = [
+        EpisodeJob(suite, sc.name, sc.kwargs, spec, seed)
+        for suite in suites
+        for sc in suite_scenarios(suite)
+        for spec in specs
+        for seed in range(args.eval_seeds)
+    ]
+    frame = episodes_frame(run_jobs(jobs, args.workers, desc="judge seeds"))
+    run_of = {spec: run for run, spec in policies.items()}
+    frame.insert(0, "run", [run_of.get(c, "") for c in frame["controller"]])
+    frame["controller"] = [POLICY_LABEL if c in run_of else c for c in frame["controller"]]
+    frame.to_csv(out / "seed_episodes.csv", index=False)
+    errors = frame[frame["error"].fillna("") != ""]
+    if len(errors):
+        print(f"drillgym train: {len(errors)} evaluation episodes failed; see seed_episodes.csv", file=sys.stderr)
+        return 1
+    report: dict[str, Any] = write_seed_report(
+        pd.DataFrame(frame), out, best_baseline=args.best_baseline, reference=args.reference
+    )
+    print((out / "seed_report.md").read_text())
+    print(f"Results: {out.resolve()}/ (seed_report.md, seed_report.json, seed_report.png, seed_episodes.csv)")
+    return 0 if report else 1
