@@ -23,6 +23,11 @@ from envs.real.poses import matrix_to_rotvec
 from envs.real.robot_link import LinkError, RobotLink, RobotState
 from envs.task import DrillPath, Phase
 
+REFUSAL_STATE_WAIT_S = 0.05
+"""After a refused ``servoL``, how long to watch the RTDE state for a safety stop behind it (s): 6 RTDE cycles."""
+REFUSAL_POLL_S = 0.002
+"""Poll period of that watch (s)."""
+
 BLIND_FAULTS = ("link_lost", "rtde_stale")
 """Faults after which no blocking command is tried (see :meth:`ServoLoop._try_stop`)."""
 MAX_CYCLES = 10_000_000
@@ -157,7 +162,7 @@ class ServoLoop:
                 ok = self.link.servo_l(np.concatenate([target, self.geo.tool_rotvec]))
                 self.stats.servo_call_max_s = max(self.stats.servo_call_max_s, time.perf_counter() - t_call)
                 if not ok:
-                    self._fail(safety.Fault("servo_refused", "the controller refused servoL", t))
+                    self._fail(self._refusal_cause(t))
                     streaming = False
                     return
                 streaming = True
@@ -183,6 +188,27 @@ class ServoLoop:
             if streaming:
                 self.stats.stop_result = self._try_stop()
             self.ended.set()
+
+    def _refusal_cause(self, t_s: float) -> safety.Fault:
+        """Why the controller refused ``servoL``: a safety stop if the next RTDE states show one, else ``servo_refused``.
+
+        A protective stop refuses the servo program at once, but the RTDE state that reports it can arrive
+        a cycle or two after the state this cycle read; the root cause is the stop, not the refusal.
+        """
+        deadline = time.monotonic() + REFUSAL_STATE_WAIT_S
+        while True:
+            try:
+                state = self.link.state()
+            except LinkError:
+                break
+            self.state = state
+            fault = safety.check_safety_bits(state.safety_status_bits, t_s)
+            if fault is not None:
+                return safety.Fault(fault.reason, f"{fault.message} (servoL was refused)", t_s)
+            if time.monotonic() >= deadline:
+                break
+            time.sleep(REFUSAL_POLL_S)
+        return safety.Fault("servo_refused", "the controller refused servoL", t_s)
 
     def _count_gap(self, gap_s: float) -> None:
         period = self.servo.period_s
