@@ -68,9 +68,13 @@ def run(args: argparse.Namespace) -> int:
         return 2
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
-    failed = train_seeds(args, out)
+    try:
+        failed = train_seeds(args, out)
+    except ValueError as e:
+        print(f"drillgym train: error: {e}", file=sys.stderr)
+        return 2
     if failed:
-        print(f"drillgym train: seeds {failed} failed; see their train.log", file=sys.stderr)
+        print(f"drillgym train: seeds {failed} failed; see {out}/seed<N>.log", file=sys.stderr)
         return 1
     return judge(args, out, baselines)
 
@@ -102,23 +106,30 @@ def seed_command(args: argparse.Namespace, seed: int, out: Path) -> list[str]:
     for flag, value in (("--timesteps", args.timesteps), ("--n-envs", args.n_envs)):
         if value is not None:
             cmd += [flag, str(value)]
+    if args.retrain:
+        cmd.append("--overwrite")
     return [*cmd, "--torch-threads", str(args.torch_threads)]
 
 
 def train_seeds(args: argparse.Namespace, out: Path) -> list[int]:
     """Train the seeds that lack a policy, ``--jobs`` at a time; the seeds whose run failed."""
     todo = [s for s in args.seeds if args.retrain or not (out / f"seed{s}" / "policy.zip").exists()]
+    unfinished = [s for s in todo if (out / f"seed{s}").exists() and not args.retrain]
+    if unfinished:
+        raise ValueError(
+            f"seeds {unfinished} have a run folder but no policy.zip (a killed run?): continue each with "
+            f"drillgym train --out {out}/seed<N> --resume, or start them over with --retrain"
+        )
     for s in sorted(set(args.seeds) - set(todo)):
         print(f"seed {s}: {out / f'seed{s}' / 'policy.zip'} exists, not trained again (--retrain to force)")
 
     def one(seed: int) -> tuple[int, int, float]:
         folder = out / f"seed{seed}"
-        folder.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
-        with open(folder / "train.log", "w") as log:
+        with open(out / f"seed{seed}.log", "w") as log:
             rc = subprocess.run(seed_command(args, seed, folder), stdout=log, stderr=subprocess.STDOUT).returncode
         wall = time.perf_counter() - t0
-        print(f"seed {seed}: exit {rc} after {wall / 60:.1f} min ({folder / 'train.log'})", flush=True)
+        print(f"seed {seed}: exit {rc} after {wall / 60:.1f} min ({out / f'seed{seed}.log'})", flush=True)
         return seed, rc, wall
 
     t0 = time.perf_counter()

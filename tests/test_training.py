@@ -330,3 +330,19 @@ def test_the_shipped_policy_clamps_the_plan_as_its_training_did():
     low, high = ctl._plan_support
     assert low[2] == pytest.approx(30e-3) and high[2] == pytest.approx(42e-3)  # stick-out (m)
     assert low[4] == pytest.approx(0.75) and high[4] == pytest.approx(1.0)  # porcine .. buffalo
+
+
+def test_resuming_nothing_and_overwriting_a_run_by_accident_are_errors(tmp_path, capsys):
+    from eval.cli import main
+
+    empty = tmp_path / "empty"
+    assert main(["train", "--out", str(empty), "--resume"]) == 2
+    assert "nothing to resume" in capsys.readouterr().err
+    held = tmp_path / "held"
+    (held / "checkpoints").mkdir(parents=True)
+    (held / "config.yaml").write_text("algo: sac\n")
+    assert main(["train", "--out", str(held)]) == 2
+    err = capsys.readouterr().err
+    assert "already holds a training run" in err and "--overwrite" in err and "--resume" in err
+    assert main(["train", "--out", str(held), "--resume", "--overwrite"]) == 2
+    assert (held / "config.yaml").read_text() == "algo: sac\n"  # nothing was touched

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", type=Path, default=None, help="YAML overrides of training.config.TrainConfig")
     parser.add_argument("--out", type=Path, required=True, help="run folder (checkpoints, logs, policy)")
     parser.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in --out")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="start over in an --out that already holds a run (its files are replaced)",
+    )
     parser.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
     parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
     parser.add_argument("--seed", type=int, default=None, help="override seed")
@@ -53,6 +59,23 @@ def latest_checkpoint(folder: Path) -> tuple[Path, int] | None:
         if m and (best is None or int(m.group(1)) > best[1]):
             best = (p, int(m.group(1)))
     return best
+
+
+RUN_ARTEFACTS = ("config.yaml", "checkpoints", "model.zip", "policy.zip", "best")
+"""What marks a folder as holding a training run."""
+
+
+def check_run_folder(out: Path, resume: bool, overwrite: bool) -> None:
+    """Refuse to resume nothing or to overwrite a run by accident (``ValueError`` saying what to do)."""
+    if resume and overwrite:
+        raise ValueError("--resume and --overwrite contradict each other")
+    if resume and latest_checkpoint(out / "checkpoints") is None:
+        raise ValueError(f"nothing to resume in {out}: no checkpoints/rl_model_<steps>_steps.zip")
+    held = [name for name in RUN_ARTEFACTS if (out / name).exists()]
+    if not resume and not overwrite and held:
+        raise ValueError(
+            f"{out} already holds a training run ({', '.join(held)}): --resume continues it, --overwrite starts over"
+        )
 
 
 def _export(out: Path, cfg: Any, model: Any, evaluation: Any, wall_s: float, export: Path | None) -> None:
@@ -107,6 +130,11 @@ def run(args: argparse.Namespace) -> int:
     if getattr(args, "torch_threads", None):
         torch.set_num_threads(max(int(args.torch_threads), 1))
     out: Path = args.out
+    try:
+        check_run_folder(out, args.resume, getattr(args, "overwrite", False))
+    except ValueError as e:
+        print(f"drillgym train: error: {e}", file=sys.stderr)
+        return 2
     if args.resume and (out / "config.yaml").exists():
         cfg = load_config(out / "config.yaml", overrides)
     else:
@@ -115,8 +143,6 @@ def run(args: argparse.Namespace) -> int:
     (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
     ckpt_dir = out / "checkpoints"
     ckpt = latest_checkpoint(ckpt_dir) if args.resume else None
-    if args.resume and ckpt is None:
-        print(f"--resume: no checkpoint in {ckpt_dir}; starting fresh")
 
     venv = make_train_vec_env(cfg)
     if cfg.normalize_obs:
