@@ -592,8 +592,8 @@ def _seed_tables(report: dict[str, Any]) -> list[str]:
     ]
     rows = []
     for r in report["per_seed"]:
-        d = [_ci(r[f"{p}_mean"], r[f"{p}_low"], r[f"{p}_high"]) for p in ("paper_deviation", "paper_force")]
-        held = _ci(r["heldout_deviation_mean"], r["heldout_deviation_low"], r["heldout_deviation_high"])
+        d = [_ci(r[f"{p}_mean"], r[f"{p}_low"], r[f"{p}_high"], 3) for p in ("paper_deviation", "paper_force")]
+        held = _ci(r["heldout_deviation_mean"], r["heldout_deviation_low"], r["heldout_deviation_high"], 3)
         worse = ", ".join(r["heldout_worse_scenarios"]) or ("none" if r["heldout_deviation_n"] else "n/a")
         rel = _num(r["paper_deviation_vs_reference_pct"], 1)
         rows.append([r["run"], *d, rel, held, worse, _num(r["paper_time_vs_best_pct"], 1)])
@@ -613,7 +613,7 @@ def _aggregate_tables(report: dict[str, Any]) -> list[str]:
             cells = []
             for s in suites:
                 e = report["aggregate"][s][metric]["by_controller"].get(c)
-                cells.append("n/a" if e is None else _ci(e["iqm"], e["low"], e["high"]))
+                cells.append("n/a" if e is None else _ci(e["iqm"], e["low"], e["high"], 3))
             rows.append([c, *cells])
         lines += [f"### {metric} ({unit})", "", *_table(["controller", *suites], rows), ""]
         dropped = {s: report["aggregate"][s][metric]["dropped_tasks"] for s in suites}
