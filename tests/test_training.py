@@ -266,6 +266,18 @@ def test_validation_scenarios_are_held_in_and_visited_once_per_evaluation():
     env.close()
 
 
+def test_the_paper_validation_episode_is_the_paper_scenario_even_after_other_draws():
+    from envs.scenario import Scenario
+    from training.domain_randomization import ScenarioCycle, validation_scenarios
+
+    scenarios = validation_scenarios(3)
+    env = ScenarioCycle(gym.make(ENV_ID), scenarios, seeds=[1, 2, 3])
+    for _ in range(4):  # paper, draw, draw, paper again
+        env.reset()
+    assert env.unwrapped.scenario == Scenario()
+    env.close()
+
+
 def test_extra_randomisation_ranges_reach_training_and_validation_draws():
     from training.domain_randomization import DomainRandomization, merged_ranges, validation_scenarios
 

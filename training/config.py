@@ -79,10 +79,16 @@ class TrainConfig:
     fixed draws inside the training ranges, one episode each (the best model is picked on these)."""
     checkpoint_freq: int = 20_000
     """Agent steps between checkpoints."""
+    model_selection: str = "reward"
+    """Which saved model becomes ``policy.zip``: ``reward`` (SB3's best mean validation reward) or
+    ``deviation`` (the lowest validation deviation among the models that beat the base without a higher peak
+    force or +30 % drill time: :mod:`training.selection`)."""
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
             raise ValueError(f"algo={self.algo!r}; choose from {ALGOS}")
+        if self.model_selection not in ("reward", "deviation"):
+            raise ValueError(f"model_selection={self.model_selection!r}; choose reward or deviation")
         if self.eval_scenarios not in ("paper", "validation"):
             raise ValueError(f"eval_scenarios={self.eval_scenarios!r}; choose paper or validation")
         from training.domain_randomization import check_ranges

@@ -115,6 +115,8 @@ class ScenarioCycle(gym.Wrapper):
         self.scenarios = [dict(s) for s in scenarios]
         self.seeds = None if seeds is None else [int(x) for x in seeds]
         self.episode = 0
+        # a listed scenario changes the env's own scenario, not the previous episode's: {} is the env's own
+        self._initial = dict(env.unwrapped.scenario.to_dict())  # type: ignore[attr-defined]
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         """Reset with the next scenario of the list (and its seed, if the cycle has seeds)."""
@@ -123,5 +125,6 @@ class ScenarioCycle(gym.Wrapper):
         self.episode += 1
         if self.seeds is not None:
             seed = self.seeds[k]
-        obs, info = self.env.reset(seed=seed, options={**(options or {}), "scenario": scenario})
+        full = {**self._initial, **scenario}
+        obs, info = self.env.reset(seed=seed, options={**(options or {}), "scenario": full})
         return obs, {**info, "scenario": dict(scenario)}

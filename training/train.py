@@ -28,7 +28,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--overwrite",
         action="store_true",
-        help="start over in an --out that already holds a run (its files are replaced)",
+        help="start over in an --out that already holds a run (its files are removed)",
+    )
+    parser.add_argument(
+        "--select-only",
+        action="store_true",
+        help="no training: score the saved models of --out on the validation episodes and export the one "
+        "model_selection picks (training.selection)",
     )
     parser.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
     parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
@@ -63,6 +69,32 @@ def latest_checkpoint(folder: Path) -> tuple[Path, int] | None:
 
 RUN_ARTEFACTS = ("config.yaml", "checkpoints", "model.zip", "policy.zip", "best")
 """What marks a folder as holding a training run."""
+RUN_FILES = (
+    *RUN_ARTEFACTS,
+    "candidates",
+    "eval",
+    "tb",
+    "vecnormalize.pkl",
+    "summary.json",
+    "selection.csv",
+    "selection.json",
+    "training_curves.png",
+    "policy.json",
+    "policy.vecnormalize.pkl",
+)
+"""Everything a run writes into its folder (``--overwrite`` removes these, nothing else)."""
+
+
+def clear_run(out: Path) -> None:
+    """Remove a previous run's files from ``out`` (``--overwrite``)."""
+    import shutil
+
+    for name in RUN_FILES:
+        p = out / name
+        if p.is_dir():
+            shutil.rmtree(p)
+        elif p.exists():
+            p.unlink()
 
 
 def check_run_folder(out: Path, resume: bool, overwrite: bool) -> None:
@@ -78,16 +110,22 @@ def check_run_folder(out: Path, resume: bool, overwrite: bool) -> None:
         )
 
 
+def _prepare_folder(args: argparse.Namespace) -> bool:
+    """Check ``--out`` against ``--resume``/``--overwrite`` (clearing it for ``--overwrite``); False on an error."""
+    try:
+        check_run_folder(args.out, args.resume, getattr(args, "overwrite", False))
+    except ValueError as e:
+        print(f"drillgym train: error: {e}", file=sys.stderr)
+        return False
+    if getattr(args, "overwrite", False):
+        clear_run(args.out)
+    return True
+
+
 def _export(out: Path, cfg: Any, model: Any, evaluation: Any, wall_s: float, export: Path | None) -> None:
-    """Write ``summary.json`` and the curves; bundle the best model as ``out/policy.zip`` (and ``export``).
-
-    The best model goes with the observation normaliser it was evaluated with.
-    """
-    from training.callbacks import BEST_NORMALIZER
+    """Write ``summary.json`` and the curves; bundle the selected model as ``out/policy.zip`` (and ``export``)."""
     from training.plots import plot_curves
-    from training.policy_bundle import save_bundle
 
-    best_zip = out / "best" / "best_model.zip"
     summary = {
         "timesteps": int(model.num_timesteps),
         "wall_time_s": wall_s,
@@ -95,17 +133,54 @@ def _export(out: Path, cfg: Any, model: Any, evaluation: Any, wall_s: float, exp
         "curve": evaluation.curve,
         "best_policy_reward": float(evaluation.best_mean_reward),
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
     episodes = "paper scenario" if cfg.eval_scenarios == "paper" else f"{cfg.eval_episodes} validation episodes"
     plot_curves(evaluation.curve, out / "training_curves.png", episodes)
-    best_norm = out / "best" / BEST_NORMALIZER
+    export_selected(out, cfg, summary, export)
+
+
+def export_selected(out: Path, cfg: Any, summary: dict[str, Any], export: Path | None) -> None:
+    """Bundle the model that ``cfg.model_selection`` picks as ``out/policy.zip`` (and ``export``).
+
+    ``reward``: SB3's best-reward model with the observation normaliser it was evaluated with (the final
+    model if there is none); ``deviation``: :func:`training.selection.select`'s choice.
+    """
+    from training.callbacks import BEST_NORMALIZER
+    from training.policy_bundle import save_bundle
+
+    best_zip, best_norm = out / "best" / "best_model.zip", out / "best" / BEST_NORMALIZER
     if best_zip.exists() and (best_norm.exists() or not cfg.normalize_obs):
         source, norm = best_zip, best_norm
     else:
         source, norm = out / "model.zip", out / "vecnormalize.pkl"
+    if cfg.model_selection == "deviation":
+        from training.selection import chosen_model, select
+
+        print(f"selecting among the saved models of {out} on {cfg.eval_episodes} validation episodes:")
+        selection = select(out, cfg)
+        source, chosen_norm = chosen_model(out, selection)
+        norm = chosen_norm if chosen_norm is not None else norm
+        summary = {**summary, "selection": {k: selection[k] for k in ("chosen", "rule")}}
+        print(f"selected: {selection['chosen']} ({selection['rule']})")
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
     save_bundle(source, norm, cfg, {"training": summary}, out / "policy.zip")
     if export is not None:
         save_bundle(source, norm, cfg, {"training": summary}, export)
+
+
+def select_only(args: argparse.Namespace) -> int:
+    """``--select-only``: apply the configuration's model selection to a finished run and export its choice."""
+    out: Path = args.out
+    summary_path = out / "summary.json"
+    if not summary_path.exists():
+        print(f"drillgym train: error: {out} holds no finished run (no summary.json)", file=sys.stderr)
+        return 2
+    cfg = load_config(args.config if args.config is not None else out / "config.yaml")
+    (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+    summary = json.loads(summary_path.read_text())
+    summary.pop("selection", None)
+    export_selected(out, cfg, summary, args.export)
+    print(f"policy: {(out / 'policy.zip').resolve()}")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -114,6 +189,8 @@ def run(args: argparse.Namespace) -> int:
         from training import sweep
 
         return sweep.run(args)
+    if getattr(args, "select_only", False):
+        return select_only(args)
     import torch
     from stable_baselines3.common.callbacks import CheckpointCallback
     from stable_baselines3.common.vec_env import VecNormalize
@@ -130,15 +207,9 @@ def run(args: argparse.Namespace) -> int:
     if getattr(args, "torch_threads", None):
         torch.set_num_threads(max(int(args.torch_threads), 1))
     out: Path = args.out
-    try:
-        check_run_folder(out, args.resume, getattr(args, "overwrite", False))
-    except ValueError as e:
-        print(f"drillgym train: error: {e}", file=sys.stderr)
+    if not _prepare_folder(args):
         return 2
-    if args.resume and (out / "config.yaml").exists():
-        cfg = load_config(out / "config.yaml", overrides)
-    else:
-        cfg = load_config(args.config, overrides)
+    cfg = load_config(out / "config.yaml" if args.resume else args.config, overrides)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
     ckpt_dir = out / "checkpoints"
