@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from training import train
+from training.config import load_config, resolve_config
 
 POLICY_LABEL = "policy"
 
@@ -87,8 +88,9 @@ def _check(args: argparse.Namespace) -> list[str]:
         raise ValueError("--seeds cannot be combined with --resume, --export or --sweep")
     if args.jobs < 1 or args.workers < 1 or args.eval_seeds < 2:
         raise ValueError("--jobs and --workers must be >= 1, --eval-seeds >= 2")
-    if args.config is not None and not args.config.exists():
-        raise ValueError(f"--config {args.config}: no such file")
+    if args.config is not None:
+        args.config = resolve_config(args.config)
+        load_config(args.config)
     baselines = split_controller_specs(args.baselines)
     for spec in {*baselines, args.best_baseline, args.reference}:
         make_controller(spec)

@@ -358,3 +358,23 @@ def test_resuming_nothing_and_overwriting_a_run_by_accident_are_errors(tmp_path,
     assert "already holds a training run" in err and "--overwrite" in err and "--resume" in err
     assert main(["train", "--out", str(held), "--resume", "--overwrite"]) == 2
     assert (held / "config.yaml").read_text() == "algo: sac\n"  # nothing was touched
+
+
+def test_shipped_policies_and_configs_are_found_by_name_from_any_directory(tmp_path, monkeypatch):
+    from training.config import load_config
+    from training.policy_bundle import NAMED_POLICIES, resolve_policy
+
+    monkeypatch.chdir(tmp_path)
+    assert resolve_policy("shipped").exists()
+    for name in NAMED_POLICIES:
+        assert resolve_policy(name).exists(), name
+    c = make_controller("residual:shipped")
+    assert Path(c.describe()["config"]["path"]).is_absolute()
+    assert (
+        load_config("smoke").total_timesteps
+        == load_config(Path(SHIPPED).parents[1] / "configs" / "smoke.yaml").total_timesteps
+    )
+    with pytest.raises(ValueError, match="shipped config: .*smoke"):
+        load_config("smok")
+    with pytest.raises(FileNotFoundError, match="shipped policies by name"):
+        make_controller("residual:nosuch.zip")

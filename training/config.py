@@ -104,10 +104,30 @@ class TrainConfig:
         return dataclasses.asdict(self)
 
 
+CONFIG_DIR = Path(__file__).resolve().parent / "configs"
+"""The training configurations shipped with the package (``--config NAME`` finds ``NAME.yaml`` here)."""
+
+
+def resolve_config(path: Path | str) -> Path:
+    """A YAML path, or the name of a shipped configuration (``smoke``, ``residual_sac``, ...)."""
+    p = Path(path)
+    if p.exists():
+        return p
+    named = CONFIG_DIR / f"{p.stem}.yaml"
+    if p.parent == Path(".") and named.exists():
+        return named
+    names = ", ".join(sorted(q.stem for q in CONFIG_DIR.glob("*.yaml")))
+    raise ValueError(f"training config {str(path)!r} not found (a YAML path, or a shipped config: {names})")
+
+
 def load_config(path: Path | None, overrides: dict[str, Any] | None = None) -> TrainConfig:
-    """Defaults, then the YAML file's keys, then ``overrides``; unknown keys raise ``ValueError``."""
+    """Defaults, then the YAML file's keys (a path or a shipped config's name), then ``overrides``.
+
+    Unknown keys raise ``ValueError``.
+    """
     data: dict[str, Any] = {}
     if path is not None:
+        path = resolve_config(path)
         loaded = yaml.safe_load(Path(path).read_text()) or {}
         if not isinstance(loaded, dict):
             raise ValueError(f"{path}: expected a mapping of TrainConfig fields, got {type(loaded).__name__}")

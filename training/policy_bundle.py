@@ -20,6 +20,21 @@ from stable_baselines3.common.running_mean_std import RunningMeanStd
 from training.config import TrainConfig
 from training.model import ALGO_CLASSES
 
+POLICY_DIR = Path(__file__).resolve().parent / "policies"
+"""The policies shipped with the package."""
+NAMED_POLICIES = {"li2023_sac": "residual_li2023_sac.zip"}
+"""Shipped policies by name (``residual:NAME``), from any working directory."""
+SHIPPED = "li2023_sac"
+"""The headline shipped policy: ``residual:shipped``."""
+
+
+def resolve_policy(text: str) -> Path:
+    """A policy name (``shipped`` or one of :data:`NAMED_POLICIES`) or a path -> the bundle's ``.zip`` path."""
+    name = SHIPPED if text == "shipped" else text
+    if name in NAMED_POLICIES:
+        return POLICY_DIR / NAMED_POLICIES[name]
+    return Path(text)
+
 
 @dataclass
 class ObsNormalizer:
@@ -73,9 +88,10 @@ def save_bundle(
 
 def load_bundle(path: Path | str) -> PolicyBundle:
     """Load a bundle; clear errors for a missing or mismatched file."""
-    zip_path, pkl_path, json_path = bundle_paths(Path(path))
+    zip_path, pkl_path, json_path = bundle_paths(resolve_policy(str(path)))
     if not zip_path.exists():
-        raise FileNotFoundError(f"residual policy {zip_path} does not exist")
+        names = ", ".join(["shipped", *NAMED_POLICIES])
+        raise FileNotFoundError(f"residual policy {zip_path} does not exist (shipped policies by name: {names})")
     if not json_path.exists():
         raise FileNotFoundError(f"residual policy {zip_path} has no {json_path.name} (config and summary) beside it")
     meta = json.loads(json_path.read_text())

@@ -15,7 +15,7 @@ from controllers.base import Controller
 from controllers.registry import make_controller
 from envs.plan import DrillPlan
 from training.domain_randomization import merged_ranges
-from training.policy_bundle import load_bundle
+from training.policy_bundle import load_bundle, resolve_policy
 from training.residual_wrapper import (
     BASE_ACTION_KEY,
     PLAN_KEY,
@@ -37,7 +37,7 @@ class ResidualPolicyController(Controller):
     def __init__(self, path: Path | str) -> None:
         super().__init__()
         _single_thread_inference()
-        self.path = Path(path)
+        self.path = resolve_policy(str(path))
         self.bundle = load_bundle(self.path)
         self.base = make_controller(self.bundle.config.base)
         self.config = self.bundle.config

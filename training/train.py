@@ -110,16 +110,20 @@ def check_run_folder(out: Path, resume: bool, overwrite: bool) -> None:
         )
 
 
-def _prepare_folder(args: argparse.Namespace) -> bool:
-    """Check ``--out`` against ``--resume``/``--overwrite`` (clearing it for ``--overwrite``); False on an error."""
+def _prepare(args: argparse.Namespace, overrides: dict[str, Any]) -> Any:
+    """The run's configuration, or None after printing the error.
+
+    Checks ``--out`` against ``--resume`` and ``--overwrite`` first, and clears it for ``--overwrite``.
+    """
     try:
         check_run_folder(args.out, args.resume, getattr(args, "overwrite", False))
+        cfg = load_config(args.out / "config.yaml" if args.resume else args.config, overrides)
     except ValueError as e:
         print(f"drillgym train: error: {e}", file=sys.stderr)
-        return False
+        return None
     if getattr(args, "overwrite", False):
         clear_run(args.out)
-    return True
+    return cfg
 
 
 def _export(out: Path, cfg: Any, model: Any, evaluation: Any, wall_s: float, export: Path | None) -> None:
@@ -207,9 +211,9 @@ def run(args: argparse.Namespace) -> int:
     if getattr(args, "torch_threads", None):
         torch.set_num_threads(max(int(args.torch_threads), 1))
     out: Path = args.out
-    if not _prepare_folder(args):
+    cfg = _prepare(args, overrides)
+    if cfg is None:
         return 2
-    cfg = load_config(out / "config.yaml" if args.resume else args.config, overrides)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
     ckpt_dir = out / "checkpoints"
