@@ -374,7 +374,7 @@ def test_shipped_policies_and_configs_are_found_by_name_from_any_directory(tmp_p
         load_config("smoke").total_timesteps
         == load_config(Path(SHIPPED).parents[1] / "configs" / "smoke.yaml").total_timesteps
     )
-    with pytest.raises(ValueError, match="shipped config: .*smoke"):
+    with pytest.raises(ValueError, match=r"shipped config: .*smoke"):
         load_config("smok")
     with pytest.raises(FileNotFoundError, match="shipped policies by name"):
         make_controller("residual:nosuch.zip")
