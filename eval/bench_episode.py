@@ -51,6 +51,19 @@ class EpisodeJob:
         return (self.suite, self.scenario, self.controller, self.seed)
 
 
+def grid_jobs(suites: list[str], specs: list[str], seeds: int) -> list[EpisodeJob]:
+    """Every (suite scenario, controller spec, seed 0..seeds-1) episode, without logs."""
+    from eval.suites import suite_scenarios
+
+    return [
+        EpisodeJob(suite, sc.name, sc.kwargs, spec, seed)
+        for suite in suites
+        for sc in suite_scenarios(suite)
+        for spec in specs
+        for seed in range(seeds)
+    ]
+
+
 _envs: OrderedDict[str, gym.Env] = OrderedDict()
 _controllers: dict[str, Controller] = {}
 

@@ -30,7 +30,8 @@ from eval.calibration import (
 from eval.paper import LI2023_UNCOMPENSATED
 
 
-def _floats(text: str) -> list[float]:
+def comma_floats(text: str) -> list[float]:
+    """``"0.1,0.2"`` -> ``[0.1, 0.2]`` (an argparse type: a clear error for anything else)."""
     try:
         values = [float(v) for v in text.split(",") if v.strip()]
     except ValueError as e:
@@ -44,15 +45,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options."""
     d = CellParams()
     parser.add_argument("--out", type=Path, required=True, help="output directory")
-    parser.add_argument("--skid-relief", type=_floats, default=[d.skid_relief], help="comma list (default: shipped)")
+    parser.add_argument("--skid-relief", type=comma_floats, default=[d.skid_relief], help="comma list (default: shipped)")
     parser.add_argument(
-        "--lateral-cut-resistance-n", type=_floats, default=[d.lateral_cut_resistance_n], help="K_lat values, N"
+        "--lateral-cut-resistance-n", type=comma_floats, default=[d.lateral_cut_resistance_n], help="K_lat values, N"
     )
-    parser.add_argument("--guidance-exponent", type=_floats, default=[d.guidance_exponent], help="comma list")
+    parser.add_argument("--guidance-exponent", type=comma_floats, default=[d.guidance_exponent], help="comma list")
     parser.add_argument(
-        "--wall-guidance-floor", type=_floats, default=[d.wall_guidance_floor], help="comma list, each in (0, 1]"
+        "--wall-guidance-floor", type=comma_floats, default=[d.wall_guidance_floor], help="comma list, each in (0, 1]"
     )
-    parser.add_argument("--wall-length-mm", type=_floats, default=[d.wall_length_m * 1e3], help="comma list, mm")
+    parser.add_argument("--wall-length-mm", type=comma_floats, default=[d.wall_length_m * 1e3], help="comma list, mm")
     parser.add_argument("--seeds", type=int, default=3, help="seeds of the li2023 predictions (default 3)")
     parser.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
 

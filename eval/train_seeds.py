@@ -147,22 +147,14 @@ def judge(args: argparse.Namespace, out: Path, baselines: list[str]) -> int:
     import pandas as pd
 
     from eval.bench import run_jobs
-    from eval.bench_episode import EpisodeJob
+    from eval.bench_episode import grid_jobs
     from eval.bench_report import episodes_frame
     from eval.seed_report import write_seed_report
-    from eval.suites import suite_scenarios
 
     suites = [s.strip() for s in args.eval_suites.split(",") if s.strip()]
     policies = {f"seed{s}": f"residual:{out / f'seed{s}' / 'policy.zip'}" for s in args.seeds}
     specs = [*baselines, *policies.values()]
-    jobs = [
-        EpisodeJob(suite, sc.name, sc.kwargs, spec, seed)
-        for suite in suites
-        for sc in suite_scenarios(suite)
-        for spec in specs
-        for seed in range(args.eval_seeds)
-    ]
-    frame = episodes_frame(run_jobs(jobs, args.workers, desc="judge seeds"))
+    frame = episodes_frame(run_jobs(grid_jobs(suites, specs, args.eval_seeds), args.workers, desc="judge seeds"))
     run_of = {spec: run for run, spec in policies.items()}
     frame.insert(0, "run", [run_of.get(c, "") for c in frame["controller"]])
     frame["controller"] = [POLICY_LABEL if c in run_of else c for c in frame["controller"]]

@@ -24,29 +24,20 @@ from typing import Any
 
 import pandas as pd
 
+from eval.calibration_cli import comma_floats
 from eval.suites import SUITES
 
 TUNING_SUITES = ("paper", "sweep")
-
-
-def _floats(text: str) -> list[float]:
-    try:
-        values = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from e
-    if not values:
-        raise argparse.ArgumentTypeError("expected at least one number")
-    return values
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI arguments."""
     parser.add_argument("--base", default="li2023", help="base controller spec (default li2023)")
     parser.add_argument(
-        "--scales", type=_floats, default=[0.25, 0.35, 0.5, 0.7], help="entry feed multipliers (default %(default)s)"
+        "--scales", type=comma_floats, default=[0.25, 0.35, 0.5, 0.7], help="entry feed multipliers (default %(default)s)"
     )
     parser.add_argument(
-        "--depths-mm", type=_floats, default=[0.25, 0.5, 1.0, 1.5, 2.0], help="entry depths, mm (default %(default)s)"
+        "--depths-mm", type=comma_floats, default=[0.25, 0.5, 1.0, 1.5, 2.0], help="entry depths, mm (default %(default)s)"
     )
     parser.add_argument("--suites", default=",".join(TUNING_SUITES), help="tuning suites (default paper,sweep)")
     parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 per scenario (default 5)")
@@ -99,9 +90,8 @@ def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym tune-entry``."""
     from controllers import make_controller
     from eval.bench import run_jobs
-    from eval.bench_episode import EpisodeJob
+    from eval.bench_episode import grid_jobs
     from eval.bench_report import episodes_frame
-    from eval.suites import suite_scenarios
 
     suites = [s.strip() for s in args.suites.split(",") if s.strip()]
     try:
@@ -118,14 +108,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as e:
         print(f"drillgym tune-entry: error: {e}", file=sys.stderr)
         return 2
-    jobs = [
-        EpisodeJob(suite, sc.name, sc.kwargs, spec, seed)
-        for suite in suites
-        for sc in suite_scenarios(suite)
-        for spec in specs
-        for seed in range(args.seeds)
-    ]
-    rows = run_jobs(jobs, args.workers, desc="tune-entry")
+    rows = run_jobs(grid_jobs(suites, specs, args.seeds), args.workers, desc="tune-entry")
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     episodes = episodes_frame(rows)
