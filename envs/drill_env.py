@@ -15,6 +15,7 @@ from envs.cell_params import CellParams
 from envs.constants import (
     ACTION_DIM,
     CONTROL_DT_S,
+    MAX_EPISODE_STEPS,
     PHYSICS_DT_S,
     RTDE_RATE_HZ,
     SUBSTEPS_PER_STEP,
@@ -31,6 +32,9 @@ from envs.robot.ur5 import TRACKER_FRAME
 from envs.scenario import Scenario
 from envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
 from envs.task import DrillPath, Phase
+
+RESET_OPTIONS = frozenset({"scenario", "effects"})
+"""Keys ``reset(options=...)`` accepts."""
 
 
 class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
@@ -102,7 +106,14 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     Terminated when the retract is complete (``info["metrics"]`` holds the episode metrics) or when
     the measured force exceeds ``force_limit_n`` (``info["failure"] = "force_limit"``). Truncated by the
-    registration time limit (4000 steps) or at three times the nominal duration.
+    registration time limit (4000 steps, which the env applies itself too) or at three times the nominal
+    duration; the episode metrics are in ``info["metrics"]`` then too, with ``info["metrics_truncated"] =
+    True`` (they describe the part drilled). A shorter limit of your own (``gym.make(...,
+    max_episode_steps=N)``) truncates outside the env: read ``env.unwrapped.episode_metrics()`` then.
+
+    ``reset(options=...)`` takes ``{"scenario": {...}}`` (scenario arguments from the table below, changed
+    from this episode on) and ``{"effects": [...]}`` (unmodelled effects, :mod:`envs.effects`); other keys
+    are an error.
 
     ## Arguments
 
@@ -193,6 +204,12 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         :meth:`set_effects`).
         """
         super().reset(seed=seed)
+        unknown = sorted(set(options or {}) - RESET_OPTIONS)
+        if unknown:
+            raise ValueError(
+                f"reset(options=...): unknown key(s) {unknown}; allowed: {sorted(RESET_OPTIONS)} "
+                '(scenario arguments go inside options={"scenario": {...}})'
+            )
         if options and "effects" in options:
             self.set_effects(options["effects"])
         if options and "scenario" in options:
@@ -224,6 +241,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.ft_mean = np.zeros(6)
         self.failure: str | None = None
         self.metrics: dict[str, float] | None = None
+        self.truncated = False
+        self.steps = 0
         self.marker_start_base = self.cell.marker_base_m(self.cell.q_motor_rad)
         self.s_start_m = self.path.s_m
         self.tracker_stamp = -1.0
@@ -313,7 +332,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.step_terms = terms
         self.prev_action = a
         terminated = self.path.phase == Phase.DONE or self.failure is not None
-        truncated = (not terminated) and self.t_s >= self.max_time_s
+        self.steps += 1
+        at_limit = self.t_s >= self.max_time_s or self.steps >= MAX_EPISODE_STEPS
+        truncated = self.truncated = (not terminated) and at_limit
         if terminated or truncated:
             self.metrics = self.episode_metrics()
         return self._observation(), float(sum(terms.values())), terminated, truncated, self._info()
@@ -403,6 +424,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         }
         if self.metrics is not None:
             info["metrics"] = dict(self.metrics)
+            info["metrics_truncated"] = self.truncated
         return info
 
     @property

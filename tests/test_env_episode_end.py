@@ -1,0 +1,43 @@
+"""Episode end and reset options: metrics on every ending, unknown reset options rejected."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401
+from envs.constants import MAX_EPISODE_STEPS
+
+ENV_ID = "drillgym/UR5BoneDrill-v0"
+
+
+def test_a_time_limit_truncation_still_reports_the_episode_metrics_flagged_as_truncated():
+    env = gym.make(ENV_ID, feed_mm_s=0.25, depth_mm=30.0)  # 480 s at a quarter feed: past the 4000-step limit
+    env.reset(seed=0)
+    slowest = np.array([0.0, 0.0, 0.0, -1.0], np.float32)
+    steps, done = 0, False
+    while not done:
+        _, _, terminated, truncated, info = env.step(slowest)
+        steps, done = steps + 1, terminated or truncated
+    assert truncated and not terminated and steps == MAX_EPISODE_STEPS
+    assert info["metrics_truncated"] is True and np.isfinite(info["metrics"]["deviation_mean_mm"])
+    env.close()
+
+
+def test_a_complete_episode_is_not_flagged_as_truncated():
+    env = gym.make(ENV_ID)
+    env.reset(seed=0)
+    done, info = False, {}
+    while not done:
+        _, _, terminated, truncated, info = env.step(np.zeros(4, np.float32))
+        done = terminated or truncated
+    assert terminated and info["metrics_truncated"] is False
+    env.close()
+
+
+def test_unknown_reset_options_are_rejected_naming_the_allowed_ones():
+    env = gym.make(ENV_ID)
+    with pytest.raises(ValueError, match=r"unknown key\(s\) \['beta_deg'\].*\['effects', 'scenario'\]"):
+        env.reset(seed=0, options={"beta_deg": 10})
+    env.reset(seed=0, options={"scenario": {"beta_deg": 10}})
+    assert env.unwrapped.scenario.beta_deg == 10
+    env.close()
