@@ -37,6 +37,34 @@ RESET_OPTIONS = frozenset({"scenario", "effects"})
 """Keys ``reset(options=...)`` accepts."""
 
 
+ENV_ARGUMENTS = (
+    "render_mode",
+    "cell_params",
+    "bone_material",
+    "reward_deviation_weight",
+    "reward_force_weight",
+    "reward_smooth_weight",
+    "reward_peak_force_weight",
+)
+"""The env's own keyword arguments, beside the scenario's (:class:`envs.scenario.Scenario`)."""
+
+
+def _check_arguments(scenario_kwargs: dict[str, Any]) -> None:
+    """``TypeError`` naming every accepted argument and the closest one for each unknown name."""
+    import difflib
+    from dataclasses import fields
+
+    known = sorted([*ENV_ARGUMENTS, *(f.name for f in fields(Scenario))])
+    unknown = sorted(set(scenario_kwargs) - set(known))
+    if not unknown:
+        return
+    hints = []
+    for name in unknown:
+        close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+        hints.append(f"{name!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+    raise TypeError(f"unknown argument(s) {', '.join(hints)}; accepted: {', '.join(known)}")
+
+
 class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     """A UR5 with compliant joints drilling an inclined bone surface: Li et al. 2023's experiment.
 
@@ -164,6 +192,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode={render_mode!r} is not supported; allowed: {self.metadata['render_modes']}")
+        _check_arguments(scenario_kwargs)
         self.scenario = Scenario.from_kwargs(**scenario_kwargs)
         self.render_mode = render_mode
         self.w_dev, self.w_force, self.w_smooth = (

@@ -41,3 +41,9 @@ def test_unknown_reset_options_are_rejected_naming_the_allowed_ones():
     env.reset(seed=0, options={"scenario": {"beta_deg": 10}})
     assert env.unwrapped.scenario.beta_deg == 10
     env.close()
+
+
+def test_an_unknown_argument_names_the_closest_one_and_every_accepted_one():
+    with pytest.raises(TypeError, match=r"'reward_forc_weight' \(did you mean 'reward_force_weight'\?\)") as e:
+        gym.make(ENV_ID, reward_forc_weight=1.0)
+    assert "render_mode" in str(e.value) and "beta_deg" in str(e.value)
