@@ -45,7 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options."""
     d = CellParams()
     parser.add_argument("--out", type=Path, required=True, help="output directory")
-    parser.add_argument("--skid-relief", type=comma_floats, default=[d.skid_relief], help="comma list (default: shipped)")
+    parser.add_argument(
+        "--skid-relief", type=comma_floats, default=[d.skid_relief], help="comma list (default: shipped)"
+    )
     parser.add_argument(
         "--lateral-cut-resistance-n", type=comma_floats, default=[d.lateral_cut_resistance_n], help="K_lat values, N"
     )

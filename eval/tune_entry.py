@@ -34,10 +34,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI arguments."""
     parser.add_argument("--base", default="li2023", help="base controller spec (default li2023)")
     parser.add_argument(
-        "--scales", type=comma_floats, default=[0.25, 0.35, 0.5, 0.7], help="entry feed multipliers (default %(default)s)"
+        "--scales",
+        type=comma_floats,
+        default=[0.25, 0.35, 0.5, 0.7],
+        help="entry feed multipliers (default %(default)s)",
     )
     parser.add_argument(
-        "--depths-mm", type=comma_floats, default=[0.25, 0.5, 1.0, 1.5, 2.0], help="entry depths, mm (default %(default)s)"
+        "--depths-mm",
+        type=comma_floats,
+        default=[0.25, 0.5, 1.0, 1.5, 2.0],
+        help="entry depths, mm (default %(default)s)",
     )
     parser.add_argument("--suites", default=",".join(TUNING_SUITES), help="tuning suites (default paper,sweep)")
     parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 per scenario (default 5)")
