@@ -45,6 +45,8 @@ ENV_ARGUMENTS = (
     "reward_force_weight",
     "reward_smooth_weight",
     "reward_peak_force_weight",
+    "render_width_px",
+    "render_height_px",
 )
 """The env's own keyword arguments, beside the scenario's (:class:`envs.scenario.Scenario`)."""
 
@@ -167,7 +169,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     Also ``cell_params`` (:class:`envs.cell_params.CellParams`), ``bone_material`` (a custom
     :class:`envs.drilling.BonePreset` replacing the named ``bone``), the reward weights
     ``reward_deviation_weight`` (per mm), ``reward_force_weight`` (per N), ``reward_smooth_weight``,
-    ``reward_peak_force_weight`` (per N of episode peak), and ``render_mode`` (``"rgb_array"``). Invalid
+    ``reward_peak_force_weight`` (per N of episode peak), ``render_mode`` (``"rgb_array"``) and the frame
+    size ``render_width_px``, ``render_height_px`` (320 × 240 by default). Invalid
     values raise ``ValueError`` naming the argument, its value and the allowed range. Unmodelled effects for
     the sim-to-real diagnosis (:mod:`envs.effects`) are switched on with ``env.unwrapped.set_effects([...])``
     or ``reset(options={"effects": [...]})``; none are on by default.
@@ -188,10 +191,16 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         reward_force_weight: float = 0.1,
         reward_smooth_weight: float = 0.01,
         reward_peak_force_weight: float = 0.0,
+        render_width_px: int = 320,
+        render_height_px: int = 240,
         **scenario_kwargs: Any,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode={render_mode!r} is not supported; allowed: {self.metadata['render_modes']}")
+        for name, px in (("render_width_px", render_width_px), ("render_height_px", render_height_px)):
+            if not isinstance(px, int) or not 16 <= px <= 4096:
+                raise ValueError(f"{name}={px!r} must be an integer number of pixels in [16, 4096]")
+        self.render_size_px = (render_width_px, render_height_px)
         _check_arguments(scenario_kwargs)
         self.scenario = Scenario.from_kwargs(**scenario_kwargs)
         self.render_mode = render_mode
@@ -479,7 +488,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             self.scenario.stickout_m,
             self.scenario.drill_diameter_m,
         )
-        return self.world.render(self.cell.entry_base_m)
+        return self.world.render(self.cell.entry_base_m, *self.render_size_px)
 
     def close(self) -> None:
         """Release the PyBullet client."""

@@ -47,3 +47,13 @@ def test_an_unknown_argument_names_the_closest_one_and_every_accepted_one():
     with pytest.raises(TypeError, match=r"'reward_forc_weight' \(did you mean 'reward_force_weight'\?\)") as e:
         gym.make(ENV_ID, reward_forc_weight=1.0)
     assert "render_mode" in str(e.value) and "beta_deg" in str(e.value)
+
+
+def test_render_frames_have_the_asked_size_and_bad_sizes_are_errors():
+    env = gym.make(ENV_ID, render_mode="rgb_array", render_width_px=64, render_height_px=48)
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (48, 64, 3) and frame.dtype == np.uint8 and frame.std() > 0
+    env.close()
+    with pytest.raises(ValueError, match="render_width_px=0"):
+        gym.make(ENV_ID, render_width_px=0)
