@@ -75,3 +75,24 @@ def test_a_run_exports_the_selected_model_and_select_only_repeats_the_choice(tmp
     assert main(["train", "--out", str(out), "--select-only"]) == 0
     again = json.loads((out / "selection.json").read_text())
     assert again["chosen"] == first["chosen"] and again["candidates"] == first["candidates"]
+
+
+def test_extra_paper_episodes_are_the_paper_scenario_on_their_own_seeds():
+    from training.config import TrainConfig
+    from training.selection import PAPER_SELECTION_SEED, validation_episodes
+
+    episodes = validation_episodes(TrainConfig(eval_episodes=3, selection_paper_episodes=2))
+    assert len(episodes) == 5 and episodes[3:] == [({}, PAPER_SELECTION_SEED), ({}, PAPER_SELECTION_SEED + 1)]
+    assert min(seed for _, seed in episodes) > 1000  # never the benchmark's seeds 0..N-1
+
+
+def test_a_paper_episode_after_a_draw_is_scored_in_the_paper_scenario():
+    from controllers import make_controller
+    from training.config import TrainConfig
+    from training.selection import score
+
+    cfg = TrainConfig()
+    draw = {"beta_deg": 15.0, "feed_mm_s": 1.0, "stickout_mm": 30.0}
+    after = score(make_controller("none"), cfg, [(draw, 1), ({}, 2)])
+    alone = score(make_controller("none"), cfg, [({}, 2)])
+    assert after["deviation_mean_mm"][1] == alone["deviation_mean_mm"][0]

@@ -79,6 +79,9 @@ class TrainConfig:
     fixed draws inside the training ranges, one episode each (the best model is picked on these)."""
     checkpoint_freq: int = 20_000
     """Agent steps between checkpoints."""
+    selection_paper_episodes: int = 0
+    """``model_selection: deviation`` also scores this many paper-scenario episodes (their own seeds, never the
+    benchmark's 0..N-1) beside the validation draws: the paper scenario has one episode among the draws."""
     model_selection: str = "reward"
     """Which saved model becomes ``policy.zip``: ``reward`` (SB3's best mean validation reward) or
     ``deviation`` (the lowest validation deviation among the models that beat the base without a higher peak
@@ -87,6 +90,8 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
             raise ValueError(f"algo={self.algo!r}; choose from {ALGOS}")
+        if self.selection_paper_episodes < 0:
+            raise ValueError(f"selection_paper_episodes={self.selection_paper_episodes} must be >= 0")
         if self.model_selection not in ("reward", "deviation"):
             raise ValueError(f"model_selection={self.model_selection!r}; choose reward or deviation")
         if self.eval_scenarios not in ("paper", "validation"):

@@ -70,10 +70,18 @@ def candidates(run: Path) -> list[Candidate]:
     return out
 
 
+PAPER_SELECTION_SEED = VALIDATION_SEED + 100_000
+"""First seed of the extra paper-scenario selection episodes (far from the benchmark's seeds 0..N-1)."""
+
+
 def validation_episodes(cfg: TrainConfig) -> list[tuple[dict[str, Any], int]]:
-    """The (scenario, seed) pairs of the training's evaluations."""
+    """The (scenario, seed) pairs of the training's evaluations, plus ``cfg.selection_paper_episodes`` paper ones."""
     scenarios = validation_scenarios(cfg.eval_episodes, ranges=merged_ranges(cfg.dr_ranges))
-    return [(sc, VALIDATION_SEED + i) for i, sc in enumerate(scenarios)]
+    episodes = [(sc, VALIDATION_SEED + i) for i, sc in enumerate(scenarios)]
+    paper: list[tuple[dict[str, Any], int]] = [
+        ({}, PAPER_SELECTION_SEED + i) for i in range(cfg.selection_paper_episodes)
+    ]
+    return episodes + paper
 
 
 def score(controller: Controller, cfg: TrainConfig, episodes: list[tuple[dict[str, Any], int]]) -> dict[str, list]:
@@ -82,9 +90,10 @@ def score(controller: Controller, cfg: TrainConfig, episodes: list[tuple[dict[st
 
     out: dict[str, list] = {"deviation_mean_mm": [], "lateral_force_max_n": [], "drill_time_s": []}
     env = gym.make(ENV_ID, **cfg.env_kwargs)
+    own = env.unwrapped.scenario.to_dict()  # type: ignore[attr-defined]
     try:
         for scenario, seed in episodes:
-            obs, _ = env.reset(seed=seed, options={"scenario": scenario})
+            obs, _ = env.reset(seed=seed, options={"scenario": {**own, **scenario}})
             controller.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
             start, done, info = True, False, dict[str, Any]()
             while not done:
