@@ -38,7 +38,7 @@ from scipy import stats
 
 from controllers import Controller, make_controller
 from training.config import TrainConfig
-from training.domain_randomization import VALIDATION_SEED, merged_ranges, validation_scenarios
+from training.domain_randomization import VALIDATION_SEED, ScenarioCycle, merged_ranges, validation_scenarios
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 MAX_TIME_RATIO = 1.3
@@ -89,11 +89,11 @@ def score(controller: Controller, cfg: TrainConfig, episodes: list[tuple[dict[st
     import envs  # noqa: F401  (registers the ids)
 
     out: dict[str, list] = {"deviation_mean_mm": [], "lateral_force_max_n": [], "drill_time_s": []}
-    env = gym.make(ENV_ID, **cfg.env_kwargs)
-    own = env.unwrapped.scenario.to_dict()  # type: ignore[attr-defined]
+    scenarios, seeds = [sc for sc, _ in episodes], [seed for _, seed in episodes]
+    env = ScenarioCycle(gym.make(ENV_ID, **cfg.env_kwargs), scenarios, seeds)
     try:
-        for scenario, seed in episodes:
-            obs, _ = env.reset(seed=seed, options={"scenario": {**own, **scenario}})
+        for _ in episodes:
+            obs, _ = env.reset()
             controller.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
             start, done, info = True, False, dict[str, Any]()
             while not done:

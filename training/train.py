@@ -152,19 +152,20 @@ def export_selected(out: Path, cfg: Any, summary: dict[str, Any], export: Path |
     from training.policy_bundle import save_bundle
 
     best_zip, best_norm = out / "best" / "best_model.zip", out / "best" / BEST_NORMALIZER
-    if best_zip.exists() and (best_norm.exists() or not cfg.normalize_obs):
-        source, norm = best_zip, best_norm
-    else:
-        source, norm = out / "model.zip", out / "vecnormalize.pkl"
+    source: Path
+    norm: Path | None
     if cfg.model_selection == "deviation":
         from training.selection import chosen_model, select
 
         print(f"selecting among the saved models of {out} on {cfg.eval_episodes} validation episodes:")
         selection = select(out, cfg)
-        source, chosen_norm = chosen_model(out, selection)
-        norm = chosen_norm if chosen_norm is not None else norm
+        source, norm = chosen_model(out, selection)
         summary = {**summary, "selection": {k: selection[k] for k in ("chosen", "rule")}}
         print(f"selected: {selection['chosen']} ({selection['rule']})")
+    elif best_zip.exists() and (best_norm.exists() or not cfg.normalize_obs):
+        source, norm = best_zip, best_norm
+    else:
+        source, norm = out / "model.zip", out / "vecnormalize.pkl"
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
     save_bundle(source, norm, cfg, {"training": summary}, out / "policy.zip")
     if export is not None:
