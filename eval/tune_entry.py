@@ -1,6 +1,7 @@
 """``drillgym tune-entry``: tune a slow entry on top of a base controller, on the paper and sweep suites.
 
-A grid of entry feed multipliers × entry depths (:mod:`controllers.feed_schedule`) is run on every
+A grid of entry feed multipliers × entry depths (:mod:`controllers.feed_schedule`), and optionally × the
+base's proportional gain (``--kps``: a slower entry changes how hard the base should push), is run on every
 scenario of the tuning suites (default ``paper`` and ``sweep``, never ``heldout``, which stays for
 judging learnt policies) over the same seeds as the base alone. The rule that picks the best schedule
 is fixed before running:
@@ -45,6 +46,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=[0.25, 0.5, 1.0, 1.5, 2.0],
         help="entry depths, mm (default %(default)s)",
     )
+    parser.add_argument(
+        "--kps",
+        type=comma_floats,
+        default=None,
+        help="also tune the base's proportional gain kp over these values (default: keep the base's)",
+    )
     parser.add_argument("--suites", default=",".join(TUNING_SUITES), help="tuning suites (default paper,sweep)")
     parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 per scenario (default 5)")
     parser.add_argument(
@@ -54,10 +61,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("results/tune_entry"), help="output folder")
 
 
-def candidate_specs(base: str, scales: list[float], depths_mm: list[float]) -> list[str]:
-    """The base alone, then the base with each (multiplier, depth) schedule, as controller specs."""
+def candidate_specs(
+    base: str, scales: list[float], depths_mm: list[float], kps: list[float] | None = None
+) -> list[str]:
+    """The base alone, then the base with each (multiplier, depth) schedule, as controller specs.
+
+    With ``kps`` every schedule is tried at each of these gains (kp-major order).
+    """
     sep = "," if ":" in base else ":"
-    return [base] + [f"{base}{sep}entry_feed_scale={s:g},entry_depth_mm={d:g}" for s in scales for d in depths_mm]
+    gains = [f"kp={k:g}," for k in kps] if kps else [""]
+    return [base] + [
+        f"{base}{sep}{g}entry_feed_scale={s:g},entry_depth_mm={d:g}" for g in gains for s in scales for d in depths_mm
+    ]
 
 
 def grid_table(episodes: pd.DataFrame, base: str, suites: list[str], max_time_increase: float) -> pd.DataFrame:
@@ -108,7 +123,9 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("the heldout suite judges learnt policies; tune on paper and sweep only")
         if args.seeds < 1 or args.workers < 1:
             raise ValueError("--seeds and --workers must be >= 1")
-        specs = candidate_specs(args.base, args.scales, args.depths_mm)
+        if args.kps and "kp=" in args.base:
+            raise ValueError("--kps tunes the base's kp: leave kp out of --base")
+        specs = candidate_specs(args.base, args.scales, args.depths_mm, args.kps)
         for spec in specs:
             make_controller(spec)
     except ValueError as e:
@@ -139,7 +156,9 @@ def _write_markdown(out: Path, grid: pd.DataFrame, best: str, args: argparse.Nam
     lines = [
         f"# Slow-entry tuning on `{args.base}`",
         "",
-        f"Suites {args.suites}, seeds 0..{args.seeds - 1}, the same episodes for every candidate. Objective: "
+        f"Suites {args.suites}, seeds 0..{args.seeds - 1}, the same episodes for every candidate"
+        + (f", gains kp {args.kps}" if args.kps else "")
+        + ". Objective: "
         "mean deviation averaged over the suites; feasible: peak lateral force not above the base's on any "
         f"suite and paper drill time at most +{args.max_time_increase:.0%}.",
         "",
@@ -161,22 +180,29 @@ def _plot(path: Path, grid: pd.DataFrame, args: argparse.Namespace, best: str) -
     import matplotlib.pyplot as plt
     import numpy as np
 
-    values = grid["objective_mm"].to_numpy()[1:].reshape(len(args.scales), len(args.depths_mm))
-    feasible = grid["feasible"].to_numpy()[1:].reshape(values.shape)
-    fig, ax = plt.subplots(figsize=(6, 4))
-    im = ax.imshow(values, cmap="viridis_r", aspect="auto")
-    for i in range(values.shape[0]):
-        for j in range(values.shape[1]):
-            spec = grid["controller"].iloc[1 + i * values.shape[1] + j]
-            text = f"{values[i, j]:.3f}" + ("" if feasible[i, j] else "\n(force/time)")
-            ax.text(j, i, text, ha="center", va="center", fontsize=7, color="red" if spec == best else "white")
-    ax.set_xticks(np.arange(len(args.depths_mm)), [f"{d:g}" for d in args.depths_mm])
-    ax.set_yticks(np.arange(len(args.scales)), [f"{s:g}" for s in args.scales])
-    ax.set_xlabel("entry depth (mm)")
-    ax.set_ylabel("entry feed multiplier (-)")
+    gains = [f"kp={k:g}" for k in args.kps] if args.kps else [""]
+    shape = (len(gains), len(args.scales), len(args.depths_mm))
+    values = grid["objective_mm"].to_numpy()[1:].reshape(shape)
+    feasible = grid["feasible"].to_numpy()[1:].reshape(shape)
+    specs = grid["controller"].to_numpy()[1:].reshape(shape)
+    fig, axes = plt.subplots(1, len(gains), figsize=(6 * len(gains), 4), squeeze=False)
+    lo, hi = float(np.nanmin(values)), float(np.nanmax(values))
+    for g, ax in enumerate(axes[0]):
+        im = ax.imshow(values[g], cmap="viridis_r", aspect="auto", vmin=lo, vmax=hi)
+        for i in range(shape[1]):
+            for j in range(shape[2]):
+                text = f"{values[g, i, j]:.3f}" + ("" if feasible[g, i, j] else "\n(force/time)")
+                color = "red" if specs[g, i, j] == best else "white"
+                ax.text(j, i, text, ha="center", va="center", fontsize=7, color=color)
+        ax.set_xticks(np.arange(shape[2]), [f"{d:g}" for d in args.depths_mm])
+        ax.set_yticks(np.arange(shape[1]), [f"{s:g}" for s in args.scales])
+        ax.set_xlabel("entry depth (mm)")
+        ax.set_ylabel("entry feed multiplier (-)")
+        if gains[g]:
+            ax.set_title(gains[g], fontsize=9)
+        fig.colorbar(im, ax=ax)
     base = float(grid["objective_mm"].iloc[0])
-    ax.set_title(f"mean deviation (mm) on {args.suites}; {args.base} alone: {base:.3f}", fontsize=9)
-    fig.colorbar(im, ax=ax)
+    fig.suptitle(f"mean deviation (mm) on {args.suites}; {args.base} alone: {base:.3f}", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

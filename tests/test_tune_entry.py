@@ -19,6 +19,17 @@ def test_candidates_are_the_base_then_every_schedule_of_the_grid():
     assert candidate_specs("li2023:kp=1", [0.5], [2.0])[1] == "li2023:kp=1,entry_feed_scale=0.5,entry_depth_mm=2"
 
 
+def test_with_gains_every_schedule_is_tried_at_every_gain_after_the_base_alone():
+    specs = candidate_specs("li2023", [0.5], [1.0, 2.0], kps=[2.0, 3.0])
+    assert specs == [
+        "li2023",
+        "li2023:kp=2,entry_feed_scale=0.5,entry_depth_mm=1",
+        "li2023:kp=2,entry_feed_scale=0.5,entry_depth_mm=2",
+        "li2023:kp=3,entry_feed_scale=0.5,entry_depth_mm=1",
+        "li2023:kp=3,entry_feed_scale=0.5,entry_depth_mm=2",
+    ]
+
+
 def _episodes(rows):
     cols = ["controller", "suite", "deviation_mean_mm", "lateral_force_max_n", "drill_time_s"]
     return pd.DataFrame(rows, columns=cols)
@@ -64,3 +75,21 @@ def test_tune_entry_rejects_the_heldout_suites_typos_and_bad_schedules(tmp_path,
     assert "judges learnt policies" in capsys.readouterr().err
     assert main(["tune-entry", "--scales", "2", "--out", str(tmp_path)]) == 2
     assert "never speeds up" in capsys.readouterr().err
+    assert main(["tune-entry", "--base", "li2023:kp=2", "--kps", "3", "--out", str(tmp_path)]) == 2
+    assert "leave kp out of --base" in capsys.readouterr().err
+
+
+def test_a_gain_grid_plots_one_panel_per_gain(tmp_path):
+    out = tmp_path / "tune"
+    argv = ["tune-entry", "--suites", "paper", "--seeds", "1", "--scales", "0.5", "--depths-mm", "1"]
+    assert main([*argv, "--kps", "3,4", "--out", str(out)]) == 0
+    grid = pd.read_csv(out / "grid.csv")
+    assert list(grid["controller"])[1:] == [
+        "li2023:kp=3,entry_feed_scale=0.5,entry_depth_mm=1",
+        "li2023:kp=4,entry_feed_scale=0.5,entry_depth_mm=1",
+    ]
+    # kp=4 is li2023's own gain: the same episodes as the plain schedule
+    plain = main([*argv, "--out", str(tmp_path / "plain")])
+    assert plain == 0
+    one = pd.read_csv(tmp_path / "plain" / "grid.csv").iloc[1]
+    assert grid.iloc[2]["paper_deviation_mean_mm"] == one["paper_deviation_mean_mm"]
