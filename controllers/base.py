@@ -1,8 +1,8 @@
 """What every controller is: SB3's ``predict`` on top of a per-step ``act``.
 
-A controller maps one observation of the cell (the Dict of :mod:`envs.observation`) to one action
+A controller maps one observation of the cell (the Dict of :mod:`drillgym.envs.observation`) to one action
 (``Box(-1, 1, (4,))``: tip correction in the base frame + feed override). It is told the surgical
-plan (:class:`envs.plan.DrillPlan`) before each episode and keeps its own state (filters, PID,
+plan (:class:`drillgym.envs.plan.DrillPlan`) before each episode and keeps its own state (filters, PID,
 path prediction), reset at episode start.
 """
 
@@ -13,8 +13,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from envs.constants import ACTION_DIM
-from envs.plan import DrillPlan
+from drillgym.envs.constants import ACTION_DIM
+from drillgym.envs.plan import DrillPlan
 
 
 class Controller(ABC):

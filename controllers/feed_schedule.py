@@ -8,7 +8,7 @@ little drill time. This is the classical "slow entry" of drilling practice: a fe
 nominal depth, applied on top of the base controller's own feed (which it multiplies).
 
 Any spec takes it: ``li2023:entry_feed_scale=0.5,entry_depth_mm=0.5`` is ``li2023`` with half its feed
-over the first 0.5 mm of nominal depth (:func:`controllers.registry.make_controller`).
+over the first 0.5 mm of nominal depth (:func:`drillgym.controllers.registry.make_controller`).
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from controllers.base import Controller
-from envs.constants import FEED_OVERRIDE_LOG2_MAX
-from envs.plan import DrillPlan
+from drillgym.controllers.base import Controller
+from drillgym.envs.constants import FEED_OVERRIDE_LOG2_MAX
+from drillgym.envs.plan import DrillPlan
 
 
 @dataclass

@@ -25,10 +25,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controllers.base import Controller
-from controllers.models import LI2023_MODEL_PEAK_N, OfflineForceModel, RobotComplianceModel, tool_compliance_m_n
-from envs.constants import CONTROL_DT_S, MAX_CORRECTION_M, SUBSTEPS_PER_STEP, unscale_action
-from envs.plan import DrillPlan
+from drillgym.controllers.base import Controller
+from drillgym.controllers.models import (
+    LI2023_MODEL_PEAK_N,
+    OfflineForceModel,
+    RobotComplianceModel,
+    tool_compliance_m_n,
+)
+from drillgym.envs.constants import CONTROL_DT_S, MAX_CORRECTION_M, SUBSTEPS_PER_STEP, unscale_action
+from drillgym.envs.plan import DrillPlan
 
 
 @dataclass
@@ -54,7 +59,7 @@ class Li2023Config:
     """Apply the online force-feedback correction."""
     model_peak_force_n: float = LI2023_MODEL_PEAK_N
     """Scale of the controller's force model: its peak at β 30°, 0.5 mm/s, fitted by least squares to the
-    F/T force of an uncompensated trial hole (:func:`controllers.models.fit_model_peak_n`)."""
+    F/T force of an uncompensated trial hole (:func:`drillgym.controllers.models.fit_model_peak_n`)."""
     tool_effective_diameter_ratio: float = 0.85
     """Bending diameter of the fluted drill over its nominal diameter, for k_D."""
     max_correction_m: float = MAX_CORRECTION_M

@@ -13,10 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controllers.base import Controller
-from controllers.li2023 import Li2023Config, Li2023Controller
-from controllers.zhang2005 import Zhang2005Config, Zhang2005Controller
-from envs.plan import DrillPlan
+from drillgym.controllers.base import Controller
+from drillgym.controllers.li2023 import Li2023Config, Li2023Controller
+from drillgym.controllers.zhang2005 import Zhang2005Config, Zhang2005Controller
+from drillgym.envs.plan import DrillPlan
 
 
 @dataclass

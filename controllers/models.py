@@ -13,13 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.drilling.bone import BUFFALO_CORTICAL, BonePreset
-from envs.drilling.force_model import EngagementTable
-from envs.drilling.geometry import DrillGeometry
-from envs.drilling.tool import CantileverTool
-from envs.plan import DrillPlan
-from envs.robot.compliance import KTHETA_LI2023_NM_RAD, JointCompliance
-from envs.robot.ur5 import TCP_FRAME, UR5Kinematics
+from drillgym.envs.drilling.bone import BUFFALO_CORTICAL, BonePreset
+from drillgym.envs.drilling.force_model import EngagementTable
+from drillgym.envs.drilling.geometry import DrillGeometry
+from drillgym.envs.drilling.tool import CantileverTool
+from drillgym.envs.plan import DrillPlan
+from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD, JointCompliance
+from drillgym.envs.robot.ur5 import TCP_FRAME, UR5Kinematics
 
 LI2023_MODEL_PEAK_N = 1.20
 """Peak unbalanced force of the controller's model at β 30°, 0.5 mm/s (N), fitted by least squares to
@@ -63,7 +63,7 @@ def tool_compliance_m_n(plan: DrillPlan, effective_diameter_ratio: float = 0.85)
 class OfflineForceModel:
     """Li's multi-stage force model, tabulated over the planned depth for one plan.
 
-    The functional form is the mechanistic model of :mod:`envs.drilling` (drill geometry, four stages,
+    The functional form is the mechanistic model of :mod:`drillgym.envs.drilling` (drill geometry, four stages,
     edge + chip terms); its magnitude is one number, the model's peak unbalance at Li's operating
     point (β 30°, 0.5 mm/s, 1.5 mm, 20,000 rpm, tip on the planned axis), fitted to the F/T force of an
     uncompensated trial hole. The trial is drilled with the drill free to skid, so the fit sees less

@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controllers.base import Controller
-from envs.constants import ACTION_DIM
+from drillgym.controllers.base import Controller
+from drillgym.envs.constants import ACTION_DIM
 
 
 @dataclass

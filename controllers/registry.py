@@ -1,6 +1,6 @@
 """Controller specs: ``name[:field=value,...]`` -> a configured controller.
 
-Every spec also takes the slow-entry fields (:data:`controllers.feed_schedule.SCHEDULE_FIELDS`), which
+Every spec also takes the slow-entry fields (:data:`drillgym.controllers.feed_schedule.SCHEDULE_FIELDS`), which
 put an entry feed schedule on top of the controller, and a name may be a preset (:data:`PRESETS`): a
 named spec whose fields a user's own fields override.
 """
@@ -11,12 +11,12 @@ import dataclasses
 from collections.abc import Callable
 from typing import Any
 
-from controllers.base import Controller
-from controllers.feed_schedule import SCHEDULE_FIELDS, EntryFeedSchedule, SlowEntry
-from controllers.li2023 import Li2023Config, Li2023Controller
-from controllers.li2023_cmrr import Li2023CmrrConfig, Li2023CmrrController
-from controllers.none import NoCompensation, NoCompensationConfig
-from controllers.zhang2005 import Zhang2005Config, Zhang2005Controller
+from drillgym.controllers.base import Controller
+from drillgym.controllers.feed_schedule import SCHEDULE_FIELDS, EntryFeedSchedule, SlowEntry
+from drillgym.controllers.li2023 import Li2023Config, Li2023Controller
+from drillgym.controllers.li2023_cmrr import Li2023CmrrConfig, Li2023CmrrController
+from drillgym.controllers.none import NoCompensation, NoCompensationConfig
+from drillgym.controllers.zhang2005 import Zhang2005Config, Zhang2005Controller
 
 CONTROLLERS: dict[str, tuple[Callable[[Any], Controller], type]] = {
     "none": (NoCompensation, NoCompensationConfig),
@@ -69,7 +69,7 @@ def make_controller(spec: str) -> Controller:
         overrides = {**preset, **overrides}
     if name == "residual":
         try:
-            from training.residual_policy import load_residual_controller
+            from drillgym.training.residual_policy import load_residual_controller
         except ImportError as e:
             raise ValueError("residual:PATH needs training.residual_policy, which this install lacks") from e
         return load_residual_controller(spec.partition(":")[2])

@@ -20,11 +20,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.base import Controller
-from controllers.models import RobotComplianceModel
-from envs.constants import CONTROL_DT_S, FEED_OVERRIDE_LOG2_MAX, MAX_CORRECTION_M, SUBSTEPS_PER_STEP, unscale_action
-from envs.plan import DrillPlan
-from envs.robot.compliance import KTHETA_LI2023_NM_RAD
+from drillgym.controllers.base import Controller
+from drillgym.controllers.models import RobotComplianceModel
+from drillgym.envs.constants import (
+    CONTROL_DT_S,
+    FEED_OVERRIDE_LOG2_MAX,
+    MAX_CORRECTION_M,
+    SUBSTEPS_PER_STEP,
+    unscale_action,
+)
+from drillgym.envs.plan import DrillPlan
+from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
 
 GRAVITY_M_S2 = 9.81
 

@@ -6,15 +6,15 @@ registered id.
 
 from gymnasium.envs.registration import register, registry
 
-from envs.constants import MAX_EPISODE_STEPS
-from envs.scenario import Scenario
+from drillgym.envs.constants import MAX_EPISODE_STEPS
+from drillgym.envs.scenario import Scenario
 
 ENV_IDS = ["drillgym/UR5BoneDrill-v0"]
 
 if ENV_IDS[0] not in registry:
     register(
         id=ENV_IDS[0],
-        entry_point="envs.drill_env:UR5BoneDrillEnv",
+        entry_point="drillgym.envs.drill_env:UR5BoneDrillEnv",
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 
@@ -24,7 +24,7 @@ REAL_ENV_IDS = ["drillgym/UR5BoneDrillReal-v0"]
 if REAL_ENV_IDS[0] not in registry:
     register(
         id=REAL_ENV_IDS[0],
-        entry_point="envs.real.real_env:UR5BoneDrillRealEnv",
+        entry_point="drillgym.envs.real.real_env:UR5BoneDrillRealEnv",
         max_episode_steps=MAX_EPISODE_STEPS,
         disable_env_checker=True,
     )

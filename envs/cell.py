@@ -1,7 +1,7 @@
 """The simulated drilling cell: quasi-static UR5 + bending drill + bone.
 
 Composes the arm (Pinocchio kinematics, joint compliance ``J Kθ⁻¹ Jᵀ``), the cantilever drill, the
-cutting-force tables and the tip balance (:mod:`envs.drilling.contact`). Per agent step the arm's
+cutting-force tables and the tip balance (:mod:`drillgym.envs.drilling.contact`). Per agent step the arm's
 compliance is refreshed at the current pose; per F/T sample (100 Hz) the tip balance is solved.
 Pure numpy + Pinocchio: no PyBullet here.
 """
@@ -12,16 +12,16 @@ import functools
 
 import numpy as np
 
-from envs.cell_params import R_BASE_TASK, CellParams
-from envs.drilling.bone import BonePreset, get_bone_preset
-from envs.drilling.contact import ContactSample, TipContactSolver
-from envs.drilling.force_model import EngagementTable
-from envs.drilling.geometry import DrillGeometry
-from envs.drilling.hole import Hole
-from envs.drilling.tool import CantileverTool
-from envs.robot.compliance import JointCompliance
-from envs.robot.ur5 import FLANGE_FRAME, Q_HOME_RAD, TCP_FRAME, TRACKER_FRAME, UR5Kinematics
-from envs.scenario import Scenario
+from drillgym.envs.cell_params import R_BASE_TASK, CellParams
+from drillgym.envs.drilling.bone import BonePreset, get_bone_preset
+from drillgym.envs.drilling.contact import ContactSample, TipContactSolver
+from drillgym.envs.drilling.force_model import EngagementTable
+from drillgym.envs.drilling.geometry import DrillGeometry
+from drillgym.envs.drilling.hole import Hole
+from drillgym.envs.drilling.tool import CantileverTool
+from drillgym.envs.robot.compliance import JointCompliance
+from drillgym.envs.robot.ur5 import FLANGE_FRAME, Q_HOME_RAD, TCP_FRAME, TRACKER_FRAME, UR5Kinematics
+from drillgym.envs.scenario import Scenario
 
 
 @functools.lru_cache(maxsize=64)
@@ -83,7 +83,7 @@ class SimCell:
         self.reset()
 
     def clear_effects(self) -> None:
-        """Undo what unmodelled effects (:mod:`envs.effects`) changed: nominal tool, bone, geometry.
+        """Undo what unmodelled effects (:mod:`drillgym.envs.effects`) changed: nominal tool, bone, geometry.
 
         The effect state of the cell: ``geometry_offset_task_m`` (the physical tip and the tool sit this
         far from where the controller's kinematic model puts them, task frame, m; the encoders and the

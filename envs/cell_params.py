@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from envs.robot.compliance import KTHETA_LI2023_NM_RAD
+from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
 
 R_BASE_TASK = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 """Task-frame axes in the UR base frame: x_task = +y_base (uphill), y_task = +x_base, z_task = -z_base."""

@@ -10,9 +10,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from envs.cell import SimCell
-from envs.cell_params import CellParams
-from envs.constants import (
+from drillgym.envs.cell import SimCell
+from drillgym.envs.cell_params import CellParams
+from drillgym.envs.constants import (
     ACTION_DIM,
     CONTROL_DT_S,
     MAX_EPISODE_STEPS,
@@ -22,16 +22,16 @@ from envs.constants import (
     TRACKER_RATE_HZ,
     scale_action,
 )
-from envs.drilling.bone import BonePreset
-from envs.effects.base import Effect, EffectStack
-from envs.metrics import EpisodeRecorder, episode_metrics
-from envs.observation import observation_space, pack_observation
-from envs.plan import DrillPlan
-from envs.pybullet_world import PyBulletWorld
-from envs.robot.ur5 import TRACKER_FRAME
-from envs.scenario import Scenario
-from envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
-from envs.task import DrillPath, Phase
+from drillgym.envs.drilling.bone import BonePreset
+from drillgym.envs.effects.base import Effect, EffectStack
+from drillgym.envs.metrics import EpisodeRecorder, episode_metrics
+from drillgym.envs.observation import observation_space, pack_observation
+from drillgym.envs.plan import DrillPlan
+from drillgym.envs.pybullet_world import PyBulletWorld
+from drillgym.envs.robot.ur5 import TRACKER_FRAME
+from drillgym.envs.scenario import Scenario
+from drillgym.envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
+from drillgym.envs.task import DrillPath, Phase
 
 RESET_OPTIONS = frozenset({"scenario", "effects"})
 """Keys ``reset(options=...)`` accepts."""
@@ -48,7 +48,7 @@ ENV_ARGUMENTS = (
     "render_width_px",
     "render_height_px",
 )
-"""The env's own keyword arguments, beside the scenario's (:class:`envs.scenario.Scenario`)."""
+"""The env's own keyword arguments, beside the scenario's (:class:`drillgym.envs.scenario.Scenario`)."""
 
 
 def _check_arguments(scenario_kwargs: dict[str, Any]) -> None:
@@ -88,7 +88,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     ## Action Space
 
-    ``Box(-1, 1, (4,), float32)``; scaling in :mod:`envs.constants`.
+    ``Box(-1, 1, (4,), float32)``; scaling in :mod:`drillgym.envs.constants`.
 
     | Num | Quantity | Min | Max | Frame | Unit |
     |-----|----------|-----|-----|-------|------|
@@ -142,7 +142,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     max_episode_steps=N)``) truncates outside the env: read ``env.unwrapped.episode_metrics()`` then.
 
     ``reset(options=...)`` takes ``{"scenario": {...}}`` (scenario arguments from the table below, changed
-    from this episode on) and ``{"effects": [...]}`` (unmodelled effects, :mod:`envs.effects`); other keys
+    from this episode on) and ``{"effects": [...]}`` (unmodelled effects, :mod:`drillgym.envs.effects`); other keys
     are an error.
 
     ## Arguments
@@ -166,13 +166,13 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     | tracker | True | - | - | whether a tracker is fitted |
     | force_limit_n | 40 | [1, 500] | N | safety stop on the measured force |
 
-    Also ``cell_params`` (:class:`envs.cell_params.CellParams`), ``bone_material`` (a custom
-    :class:`envs.drilling.BonePreset` replacing the named ``bone``), the reward weights
+    Also ``cell_params`` (:class:`drillgym.envs.cell_params.CellParams`), ``bone_material`` (a custom
+    :class:`drillgym.envs.drilling.BonePreset` replacing the named ``bone``), the reward weights
     ``reward_deviation_weight`` (per mm), ``reward_force_weight`` (per N), ``reward_smooth_weight``,
     ``reward_peak_force_weight`` (per N of episode peak), ``render_mode`` (``"rgb_array"``) and the frame
     size ``render_width_px``, ``render_height_px`` (320 × 240 by default). Invalid
     values raise ``ValueError`` naming the argument, its value and the allowed range. Unmodelled effects for
-    the sim-to-real diagnosis (:mod:`envs.effects`) are switched on with ``env.unwrapped.set_effects([...])``
+    the sim-to-real diagnosis (:mod:`drillgym.envs.effects`) are switched on with ``env.unwrapped.set_effects([...])``
     or ``reset(options={"effects": [...]})``; none are on by default.
 
     ## Version History
@@ -295,7 +295,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
                 self.effects.attach(self)
 
     def set_effects(self, effects: list[Effect] | tuple[Effect, ...] | None) -> None:
-        """Switch unmodelled effects (:mod:`envs.effects`) on from the next ``reset``; None or [] switches them off."""
+        """Switch unmodelled effects (:mod:`drillgym.envs.effects`) on from the next ``reset``; None or [] switches them off."""
         self.effects = EffectStack(effects) if effects else None
 
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
@@ -471,7 +471,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return DrillPlan.from_scenario(self.scenario, self.cell.T_base_task, self.cell.tcp_offset_m)
 
     def episode_metrics(self) -> dict[str, float]:
-        """Metrics of the episode so far (see :mod:`envs.metrics`)."""
+        """Metrics of the episode so far (see :mod:`drillgym.envs.metrics`)."""
         centre = self.cell.hole.centre_at(self.scenario.entry_depth_m)
         offset = math.hypot(centre[0], centre[1]) if centre is not None else float("nan")
         return episode_metrics(self.recorder, self.scenario.entry_depth_m, self.scenario.depth_m, offset)

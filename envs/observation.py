@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from envs.constants import FEED_OVERRIDE_LOG2_MAX
+from drillgym.envs.constants import FEED_OVERRIDE_LOG2_MAX
 
 OBS_BOUNDS: dict[str, tuple[int, float]] = {
     "ft_wrench": (6, 500.0),

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from envs.scenario import Scenario
+from drillgym.envs.scenario import Scenario
 
 
 @dataclass(frozen=True)

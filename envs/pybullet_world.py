@@ -2,7 +2,7 @@
 
 PyBullet (DIRECT mode, no GUI) holds the UR5 from ``example-robot-data``, the bone block inclined at
 β and the drill on the flange. Joint compliance this stiff is unstable as explicit PyBullet springs
-above ~0.1 ms steps, so the physics of the cell is the quasi-static model in :mod:`envs.cell`; the
+above ~0.1 ms steps, so the physics of the cell is the quasi-static model in :mod:`drillgym.envs.cell`; the
 world mirrors its state (deflected joint angles, drill pose) for rendering and independent
 kinematic cross-checks (PyBullet's own forward kinematics of the same URDF).
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 
-from envs.robot.ur5 import R_BASE_BASELINK, ur5_urdf_path
+from drillgym.envs.robot.ur5 import R_BASE_BASELINK, ur5_urdf_path
 
 UR5_JOINTS = (
     "shoulder_pan_joint",

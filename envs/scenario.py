@@ -10,8 +10,8 @@ import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
-from envs.drilling.bone import BONE_PRESETS
-from envs.drilling.geometry import DrillGeometry
+from drillgym.envs.drilling.bone import BONE_PRESETS
+from drillgym.envs.drilling.geometry import DrillGeometry
 
 # name -> (low, high, inclusive_low); every numeric field is checked against its range.
 RANGES: dict[str, tuple[float, float, bool]] = {

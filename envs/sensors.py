@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from envs.constants import FT_RESOLUTION, FT_TORQUE_NOISE_ARM_M
+from drillgym.envs.constants import FT_RESOLUTION, FT_TORQUE_NOISE_ARM_M
 
 
 class ForceTorqueSensor:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from enum import IntEnum
 
-from envs.constants import APPROACH_SPEED_M_S, APPROACH_START_M, FEED_START_M, RETRACT_SPEED_M_S
+from drillgym.envs.constants import APPROACH_SPEED_M_S, APPROACH_START_M, FEED_START_M, RETRACT_SPEED_M_S
 
 
 class Phase(IntEnum):

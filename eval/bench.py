@@ -2,9 +2,9 @@
 
 Every controller runs the same seeds 0..N-1 on every scenario of the suite (a paired comparison; the
 first controller is the baseline). Episodes run in ``--workers`` processes ("spawn": PyBullet and fork
-do not mix), or as Ray tasks with ``--ray`` / ``--address`` (:mod:`eval.scale.bench_ray`,
+do not mix), or as Ray tasks with ``--ray`` / ``--address`` (:mod:`drillgym.eval.scale.bench_ray`,
 ``docs/scale-out.md``); the results do not depend on either. Outputs in ``--out``: see
-:mod:`eval.bench_report`; one episode log per episode in ``logs/`` (``docs/log_schema.md``).
+:mod:`drillgym.eval.bench_report`; one episode log per episode in ``logs/`` (``docs/log_schema.md``).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
-from eval.suites import SUITES
+from drillgym.eval.suites import SUITES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -74,7 +74,7 @@ def controller_label(spec: str) -> str:
 
 def check_arguments(args: argparse.Namespace) -> list[str]:
     """Controller specs after validating every argument (raises ``ValueError`` with a clear message)."""
-    from controllers import make_controller
+    from drillgym.controllers import make_controller
 
     if args.suite not in SUITES:
         raise ValueError(f"unknown suite {args.suite!r}; choose from {', '.join(SUITES)}")
@@ -83,7 +83,7 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
     if args.workers < 1:
         raise ValueError(f"--workers={args.workers} must be >= 1")
     if getattr(args, "ray", False) or getattr(args, "address", None):
-        from eval.scale.cluster import require_ray
+        from drillgym.eval.scale.cluster import require_ray
 
         try:
             require_ray()
@@ -110,9 +110,9 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as e:
         print(f"drillgym bench: error: {e}", file=sys.stderr)
         return 2
-    from eval.bench_episode import EpisodeJob
-    from eval.bench_report import write_report
-    from eval.suites import suite_scenarios
+    from drillgym.eval.bench_episode import EpisodeJob
+    from drillgym.eval.bench_report import write_report
+    from drillgym.eval.suites import suite_scenarios
 
     out: Path = args.out
     scenarios = suite_scenarios(args.suite)
@@ -125,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
                 jobs.append(EpisodeJob(args.suite, sc.name, sc.kwargs, spec, seed, log, "" if log is None else name))
     (out if args.no_logs else out / "logs").mkdir(parents=True, exist_ok=True)
     if getattr(args, "ray", False) or getattr(args, "address", None):
-        from eval.scale.bench_ray import run_jobs_ray
+        from drillgym.eval.scale.bench_ray import run_jobs_ray
 
         cpus = args.workers if args.workers > 1 else None  # a local Ray's CPUs (default: the machine's)
         try:
@@ -154,7 +154,7 @@ def run_jobs(jobs: list[Any], workers: int, desc: str = "bench") -> list[dict[st
     """Run every job (in-process for ``workers == 1``, else in spawned processes); rows in any order."""
     from tqdm import tqdm
 
-    from eval.bench_episode import close_cached, run_job
+    from drillgym.eval.bench_episode import close_cached, run_job
 
     with tqdm(total=len(jobs), desc=desc, unit="ep") as bar:
         if workers == 1:

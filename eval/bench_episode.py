@@ -20,11 +20,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-import envs  # noqa: F401  (registers the ids)
-from controllers import make_controller
-from controllers.base import Controller
-from envs.metrics import METRIC_NAMES
-from envs.scenario import Scenario
+from drillgym import envs  # noqa: F401  (registers the ids)
+from drillgym.controllers import make_controller
+from drillgym.controllers.base import Controller
+from drillgym.envs.metrics import METRIC_NAMES
+from drillgym.envs.scenario import Scenario
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 ENV_CACHE_SIZE = 2
@@ -53,7 +53,7 @@ class EpisodeJob:
 
 def grid_jobs(suites: list[str], specs: list[str], seeds: int) -> list[EpisodeJob]:
     """Every (suite scenario, controller spec, seed 0..seeds-1) episode, without logs."""
-    from eval.suites import suite_scenarios
+    from drillgym.eval.suites import suite_scenarios
 
     return [
         EpisodeJob(suite, sc.name, sc.kwargs, spec, seed)
@@ -103,7 +103,7 @@ def run_controller_episode(env: gym.Env, controller: Controller, seed: int) -> d
     """Reset with ``seed``, hand the controller the plan, run to the end.
 
     Returns:
-        The episode metrics (:data:`envs.metrics.METRIC_NAMES`) plus ``steps``, ``sim_time_s`` and
+        The episode metrics (:data:`drillgym.envs.metrics.METRIC_NAMES`) plus ``steps``, ``sim_time_s`` and
         ``failure`` (``""``, ``"force_limit"`` or ``"truncated"``).
     """
     obs, _ = env.reset(seed=seed)
@@ -142,7 +142,7 @@ def run_job(job: EpisodeJob) -> dict[str, Any]:
 
 
 def _run(job: EpisodeJob) -> dict[str, Any]:
-    from eval.logs import EpisodeLogger, build_header
+    from drillgym.eval.logs import EpisodeLogger, build_header
 
     env = _env(job.kwargs)
     controller = _controller(job.controller)

@@ -9,10 +9,10 @@ from typing import Any
 
 import pandas as pd
 
-from envs.metrics import METRIC_NAMES
-from envs.scenario import Scenario
-from eval.bench_plots import plot_bars, plot_sweep
-from eval.summary import markdown_table, paired_differences, summarize
+from drillgym.envs.metrics import METRIC_NAMES
+from drillgym.envs.scenario import Scenario
+from drillgym.eval.bench_plots import plot_bars, plot_sweep
+from drillgym.eval.summary import markdown_table, paired_differences, summarize
 
 SCENARIO_COLUMNS = tuple(f.name for f in fields(Scenario))
 EPISODE_COLUMNS = (

@@ -124,7 +124,7 @@ def bench(host: str, seconds: float) -> dict[str, Any]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark (on an emulator unless ``--robot``)."""
-    from envs.real.emulator.process import EmulatorProcess
+    from drillgym.envs.real.emulator.process import EmulatorProcess
 
     if args.robot and not args.yes:
         print("bench-rtde streams servoL to a real robot (within 1 µm of its pose): pass --yes to confirm")

@@ -27,8 +27,8 @@ def measure(runs: int = 7) -> dict[str, Any]:
     """Time ``runs`` paper-scenario episodes; return RTF statistics and peak memory."""
     import gymnasium as gym
 
-    import envs  # noqa: F401  (registers the ids)
-    from envs.constants import ACTION_DIM
+    from drillgym import envs  # noqa: F401  (registers the ids)
+    from drillgym.envs.constants import ACTION_DIM
 
     if runs < 1:
         raise ValueError(f"runs={runs} must be >= 1")
@@ -74,8 +74,8 @@ def controller_cycle_times(
     """Per-call ``predict`` time of each controller over whole paper-scenario episodes (µs: p50, p99, max)."""
     import gymnasium as gym
 
-    import envs  # noqa: F401
-    from controllers import make_controller
+    from drillgym import envs  # noqa: F401
+    from drillgym.controllers import make_controller
 
     env = gym.make("drillgym/UR5BoneDrill-v0")
     out: dict[str, Any] = {}

@@ -22,11 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from envs.cell_params import CellParams
-from envs.drilling.bone import BUFFALO_CORTICAL, CANCELLOUS_RATIO, BonePreset
-from envs.scenario import Scenario
-from eval.paper import LI2023_UNCOMPENSATED
-from eval.summary import mean_ci
+from drillgym.envs.cell_params import CellParams
+from drillgym.envs.drilling.bone import BUFFALO_CORTICAL, CANCELLOUS_RATIO, BonePreset
+from drillgym.envs.scenario import Scenario
+from drillgym.eval.paper import LI2023_UNCOMPENSATED
+from drillgym.eval.summary import mean_ci
 
 CALIBRATED_METRICS = ("deviation_mean_mm", "lateral_force_max_n")
 """Fitted by the two scale unknowns."""
@@ -43,7 +43,7 @@ _SHIPPED = CellParams()
 
 @dataclass(frozen=True)
 class EntryStructure:
-    """The structural constants of the tip balance (defaults: the shipped ones, :class:`envs.cell_params.CellParams`)."""
+    """The structural constants of the tip balance (defaults: the shipped ones, :class:`drillgym.envs.cell_params.CellParams`)."""
 
     skid_relief: float = _SHIPPED.skid_relief
     """Share of the surface drop a sideways tip sees (1: all of it; < 0 turns the skid into a walk)."""
@@ -101,7 +101,7 @@ def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float
     """The paper scenario with this structure and these scales."""
     import gymnasium as gym
 
-    import envs  # noqa: F401  (registers the ids)
+    from drillgym import envs  # noqa: F401  (registers the ids)
 
     return gym.make(
         "drillgym/UR5BoneDrill-v0",
@@ -112,8 +112,8 @@ def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float
 
 
 def _uncompensated(env: Any, seed: int) -> Any:
-    """One uncompensated episode: an :class:`eval.rollout.EpisodeResult` with the F/T trace."""
-    from eval.rollout import run_episode
+    """One uncompensated episode: an :class:`drillgym.eval.rollout.EpisodeResult` with the F/T trace."""
+    from drillgym.eval.rollout import run_episode
 
     return run_episode(env, None, seed=seed)
 
@@ -164,8 +164,8 @@ def calibrate_entry(
 
 def fit_controller_model_n(env: Any, trace: dict[str, np.ndarray]) -> float:
     """li2023's model peak (N) fitted to the filtered F/T force of an uncompensated ``trace`` of ``env``."""
-    from controllers.models import fit_model_peak_n
-    from envs.metrics import FORCE_FILTER_SAMPLES, moving_average
+    from drillgym.controllers.models import fit_model_peak_n
+    from drillgym.envs.metrics import FORCE_FILTER_SAMPLES, moving_average
 
     force = np.asarray(trace["ft_force_n"], dtype=float)
     filtered = moving_average(np.hypot(force[:, 0], force[:, 1]), FORCE_FILTER_SAMPLES)
@@ -184,8 +184,8 @@ def predict_li2023(cal: EntryCalibration, seeds: range | list[int]) -> dict[str,
 
     li2023's model is fitted to the uncompensated run of the first seed.
     """
-    from controllers.registry import make_controller
-    from eval.bench_episode import run_controller_episode
+    from drillgym.controllers.registry import make_controller
+    from drillgym.eval.bench_episode import run_controller_episode
 
     env = make_env(cal.structure, cal.lateral_scale, cal.stickout_mm)
     try:

@@ -13,58 +13,58 @@ import sys
 from collections.abc import Sequence
 
 COMMANDS: dict[str, tuple[str, str]] = {
-    "demo": ("eval.demo", "Run the paper scenario end to end and print where the results are."),
+    "demo": ("drillgym.eval.demo", "Run the paper scenario end to end and print where the results are."),
     "identify-stiffness": (
-        "envs.robot.stiffness_cli",
+        "drillgym.envs.robot.stiffness_cli",
         "Identify the UR5 joint stiffnesses from simulated load tests (Li 2023 eq. 8, Table 1).",
     ),
-    "bench-speed": ("eval.bench_speed", "Real-time factor and peak memory of the simulated cell."),
+    "bench-speed": ("drillgym.eval.bench_speed", "Real-time factor and peak memory of the simulated cell."),
     "reproduce": (
-        "eval.reproduce",
+        "drillgym.eval.reproduce",
         "Reproduce Li 2023 (and Zhang 2005's claims): report.md, reproduction.json, figures.",
     ),
     "calibrate": (
-        "eval.calibration_cli",
+        "drillgym.eval.calibration_cli",
         "Calibrate the entry mechanics on the uncompensated paper run and predict li2023 on each candidate.",
     ),
     "tune-entry": (
-        "eval.tune_entry",
+        "drillgym.eval.tune_entry",
         "Tune a slow entry (feed schedule) on top of a controller on the paper and sweep suites; pick the best.",
     ),
     "train": (
-        "eval.train_seeds",
+        "drillgym.eval.train_seeds",
         "Train a residual policy (SB3) on top of a compensator; resumable; --seeds: several seeds and their report.",
     ),
     "bench": (
-        "eval.bench",
+        "drillgym.eval.bench",
         "Benchmark controllers on a scenario suite over seeds: metrics with confidence intervals, paired differences, plots, logs.",
     ),
     "run": (
-        "eval.run_real",
+        "drillgym.eval.run_real",
         "Drill with a controller on the real UR5 cell (or the emulator); same episode logs as the sim.",
     ),
     "emulate": (
-        "envs.real.emulator.cli",
+        "drillgym.envs.real.emulator.cli",
         "Serve a UR CB3 controller + ATI Net F/T emulator, backed by the simulator, on a loopback address.",
     ),
     "bench-rtde": (
-        "eval.bench_rtde",
+        "drillgym.eval.bench_rtde",
         "Timing of the 125 Hz servoL stream through ur_rtde: missed cycles, command-to-state latency.",
     ),
     "diagnose": (
-        "eval.diagnosis.cli_diagnose",
+        "drillgym.eval.diagnosis.cli_diagnose",
         "Sim-to-real gap diagnosis of real episode logs: where, which unmodelled effect, how far it shrinks.",
     ),
     "make-reality": (
-        "eval.diagnosis.reality.cli",
+        "drillgym.eval.diagnosis.reality.cli",
         "Write real-schema episode logs from the simulator with unmodelled effects switched on.",
     ),
     "bench-diagnosis": (
-        "eval.diagnosis.bench_cli",
+        "drillgym.eval.diagnosis.bench_cli",
         "Withheld-effect benchmark of the diagnosis: identification, shrink, false alarms, out-of-library effect.",
     ),
     "import-rtde": (
-        "eval.diagnosis.rtde_cli",
+        "drillgym.eval.diagnosis.rtde_cli",
         "Import ur_rtde file recordings joined with F/T and tracker CSVs into episode logs.",
     ),
 }

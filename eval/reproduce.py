@@ -17,8 +17,8 @@ from typing import Any
 
 from tqdm import tqdm
 
-from eval.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
-from eval.reproduce_experiments import (
+from drillgym.eval.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
+from drillgym.eval.reproduce_experiments import (
     KP_SWEEP,
     Condition,
     force_model_trends,
@@ -26,7 +26,7 @@ from eval.reproduce_experiments import (
     sim_trends,
     stiffness_identification,
 )
-from eval.summary import mean_ci
+from drillgym.eval.summary import mean_ci
 
 SHIPPED_POLICY = Path(__file__).resolve().parents[1] / "training" / "policies" / "residual_li2023_sac.zip"
 """The residual policy shipped with the project (shown beside the paper's controllers when present)."""
@@ -94,8 +94,8 @@ def _paired(a: list, b: list, name: str) -> tuple[float, float, float]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the experiments, write the report, print the headline table."""
-    from eval.reproduce_figures import write_figures
-    from eval.reproduce_report import headline, write_report
+    from drillgym.eval.reproduce_figures import write_figures
+    from drillgym.eval.reproduce_report import headline, write_report
 
     if args.seeds < 2:
         raise SystemExit(f"--seeds={args.seeds} must be >= 2 (confidence intervals need two)")

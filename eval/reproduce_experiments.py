@@ -9,9 +9,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from controllers import make_controller
-from envs.drilling import DrillGeometry, EngagementTable, get_bone_preset, stage_from_depth
-from eval.rollout import EpisodeResult, run_episode
+from drillgym.controllers import make_controller
+from drillgym.envs.drilling import DrillGeometry, EngagementTable, get_bone_preset, stage_from_depth
+from drillgym.eval.rollout import EpisodeResult, run_episode
 
 KP_SWEEP = (0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0)
 """KP values of the deviation-vs-KP figure (Li Fig. 12)."""
@@ -103,7 +103,7 @@ def force_model_trends() -> dict[str, Any]:
 
 def stiffness_identification(noise_mm: float = 0.05, load_n: float = 100.0, seed: int = 0) -> dict[str, Any]:
     """Li §3.3 and Table 1: identify Kθ from simulated load tests, predict three validation poses."""
-    from envs.robot.stiffness_cli import identify_and_compare
+    from drillgym.envs.robot.stiffness_cli import identify_and_compare
 
     return identify_and_compare(noise_mm=noise_mm, load_n=load_n, seed=seed)
 

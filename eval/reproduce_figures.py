@@ -11,9 +11,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from envs.metrics import FORCE_FILTER_SAMPLES, moving_average
-from eval.plots import STAGE_COLOURS, shade_stages
-from eval.summary import mean_ci
+from drillgym.envs.metrics import FORCE_FILTER_SAMPLES, moving_average
+from drillgym.eval.plots import STAGE_COLOURS, shade_stages
+from drillgym.eval.summary import mean_ci
 
 
 def _lateral(trace: dict[str, np.ndarray]) -> np.ndarray:

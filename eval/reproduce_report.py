@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from controllers.models import LI2023_MODEL_PEAK_N
-from eval.summary import mean_ci
+from drillgym.controllers.models import LI2023_MODEL_PEAK_N
+from drillgym.eval.summary import mean_ci
 
 
 def _fmt(v: float | None, digits: int = 3) -> str:

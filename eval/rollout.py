@@ -8,8 +8,8 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
-import envs  # noqa: F401  (registers the ids)
-from envs.constants import ACTION_DIM
+from drillgym import envs  # noqa: F401  (registers the ids)
+from drillgym.envs.constants import ACTION_DIM
 
 
 class PolicyPredictor(Protocol):

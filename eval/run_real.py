@@ -19,11 +19,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-import envs  # noqa: F401  (registers the ids)
-from envs.real.config import SafetyLimits
-from envs.real.emulator.cli import parse_scenario
-from envs.real.metrics import OBSERVABLE_METRICS
-from envs.real.netft import NetFTCalibration
+from drillgym import envs  # noqa: F401  (registers the ids)
+from drillgym.envs.real.config import SafetyLimits
+from drillgym.envs.real.emulator.cli import parse_scenario
+from drillgym.envs.real.metrics import OBSERVABLE_METRICS
+from drillgym.envs.real.netft import NetFTCalibration
 
 ENV_ID = "drillgym/UR5BoneDrillReal-v0"
 
@@ -92,8 +92,8 @@ def run_episode(env: gym.Env, controller: Any, seed: int) -> dict[str, Any]:
 
 def run(args: argparse.Namespace) -> int:
     """Connect, confirm, drill ``--episodes`` holes, print and save the metrics."""
-    from controllers import make_controller
-    from eval.logs import EpisodeLogger, build_header
+    from drillgym.controllers import make_controller
+    from drillgym.eval.logs import EpisodeLogger, build_header
 
     try:
         scenario = parse_scenario(args.scenario).to_dict()

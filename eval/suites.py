@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
-from envs.scenario import Scenario
+from drillgym.envs.scenario import Scenario
 
 TRAINING_RANGES: dict[str, tuple[float, float]] = {
     "beta_deg": (15.0, 35.0),

@@ -1,9 +1,9 @@
 """``drillgym train``: one residual training run, or ``--seeds 0,1,2,3,4``: the same configuration on each seed.
 
-Without ``--seeds`` this is :mod:`training.train` unchanged. With it, every seed trains in its own process
+Without ``--seeds`` this is :mod:`drillgym.training.train` unchanged. With it, every seed trains in its own process
 (``--jobs`` at a time; each run is the single-seed command with ``--seed N --out OUT/seedN``, so any seed's
 policy is reproduced by that command alone), then every policy and every baseline are benchmarked on the
-same episodes (``--eval-suites``, ``--eval-seeds`` seeds per scenario) and :mod:`eval.seed_report` writes the
+same episodes (``--eval-suites``, ``--eval-seeds`` seeds per scenario) and :mod:`drillgym.eval.seed_report` writes the
 across-seed report: per-seed checks, interquartile means with stratified-bootstrap CIs and the
 probability of improvement over each baseline (``seed_report.md``, ``.json``, ``.png``).
 
@@ -20,8 +20,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from training import train
-from training.config import load_config, resolve_config
+from drillgym.training import train
+from drillgym.training.config import load_config, resolve_config
 
 POLICY_LABEL = "policy"
 
@@ -37,7 +37,7 @@ def _seeds(text: str) -> list[int]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The single-run arguments of :mod:`training.train` plus the multi-seed ones."""
+    """The single-run arguments of :mod:`drillgym.training.train` plus the multi-seed ones."""
     train.add_arguments(parser)
     group = parser.add_argument_group("several training seeds (--seeds)")
     group.add_argument("--seeds", type=_seeds, default=None, help="train each of these seeds, e.g. 0,1,2,3,4")
@@ -80,8 +80,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _check(args: argparse.Namespace) -> list[str]:
-    from controllers import make_controller
-    from eval.bench import split_controller_specs
+    from drillgym.controllers import make_controller
+    from drillgym.eval.bench import split_controller_specs
 
     if args.resume or args.export or args.sweep is not None:
         raise ValueError("--seeds cannot be combined with --resume, --export or --sweep")
@@ -101,7 +101,7 @@ def _check(args: argparse.Namespace) -> list[str]:
 
 def seed_command(args: argparse.Namespace, seed: int, out: Path) -> list[str]:
     """The single-seed ``drillgym train`` command of one seed (what reproduces its policy)."""
-    cmd = [sys.executable, "-m", "eval.cli", "train", "--out", str(out), "--seed", str(seed)]
+    cmd = [sys.executable, "-m", "drillgym.eval.cli", "train", "--out", str(out), "--seed", str(seed)]
     if args.config is not None:
         cmd += ["--config", str(args.config)]
     for flag, value in (("--timesteps", args.timesteps), ("--n-envs", args.n_envs)):
@@ -145,10 +145,10 @@ def judge(args: argparse.Namespace, out: Path, baselines: list[str]) -> int:
     """Benchmark every seed's policy and the baselines on the same episodes; write the seed report."""
     import pandas as pd
 
-    from eval.bench import run_jobs
-    from eval.bench_episode import grid_jobs
-    from eval.bench_report import episodes_frame
-    from eval.seed_report import write_seed_report
+    from drillgym.eval.bench import run_jobs
+    from drillgym.eval.bench_episode import grid_jobs
+    from drillgym.eval.bench_report import episodes_frame
+    from drillgym.eval.seed_report import write_seed_report
 
     suites = [s.strip() for s in args.eval_suites.split(",") if s.strip()]
     policies = {f"seed{s}": f"residual:{out / f'seed{s}' / 'policy.zip'}" for s in args.seeds}

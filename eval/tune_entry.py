@@ -1,6 +1,6 @@
 """``drillgym tune-entry``: tune a slow entry on top of a base controller, on the paper and sweep suites.
 
-A grid of entry feed multipliers × entry depths (:mod:`controllers.feed_schedule`), and optionally × the
+A grid of entry feed multipliers × entry depths (:mod:`drillgym.controllers.feed_schedule`), and optionally × the
 base's proportional gain (``--kps``: a slower entry changes how hard the base should push), is run on every
 scenario of the tuning suites (default ``paper`` and ``sweep``, never ``heldout``, which stays for
 judging learnt policies) over the same seeds as the base alone. The rule that picks the best schedule
@@ -25,8 +25,8 @@ from typing import Any
 
 import pandas as pd
 
-from eval.calibration_cli import comma_floats
-from eval.suites import SUITES
+from drillgym.eval.calibration_cli import comma_floats
+from drillgym.eval.suites import SUITES
 
 TUNING_SUITES = ("paper", "sweep")
 
@@ -109,10 +109,10 @@ def best_candidate(grid: pd.DataFrame) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym tune-entry``."""
-    from controllers import make_controller
-    from eval.bench import run_jobs
-    from eval.bench_episode import grid_jobs
-    from eval.bench_report import episodes_frame
+    from drillgym.controllers import make_controller
+    from drillgym.eval.bench import run_jobs
+    from drillgym.eval.bench_episode import grid_jobs
+    from drillgym.eval.bench_report import episodes_frame
 
     suites = [s.strip() for s in args.suites.split(",") if s.strip()]
     try:

@@ -13,8 +13,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401  (registers the ids)
-from eval.rollout import EpisodeResult, run_episode
+from drillgym import envs  # noqa: F401  (registers the ids)
+from drillgym.eval.rollout import EpisodeResult, run_episode
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from eval.diagnosis.fit import FitResult
-from eval.diagnosis.gap import Terms
-from eval.diagnosis.rank import ModelScore
+from drillgym.eval.diagnosis.fit import FitResult
+from drillgym.eval.diagnosis.gap import Terms
+from drillgym.eval.diagnosis.rank import ModelScore
 
 
 def stub_score(

@@ -13,9 +13,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401
-from envs.real.config import SafetyLimits
-from envs.real.emulator.process import EmulatorProcess, ports_free
+from drillgym import envs  # noqa: F401
+from drillgym.envs.real.config import SafetyLimits
+from drillgym.envs.real.emulator.process import EmulatorProcess, ports_free
 
 REAL_ENV_ID = "drillgym/UR5BoneDrillReal-v0"
 CI_LIMITS = SafetyLimits(max_cycle_gap_s=0.5, rtde_stale_s=0.5, ft_stale_s=0.5)

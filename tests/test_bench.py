@@ -5,16 +5,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import envs  # noqa: F401
-from controllers.none import NoCompensation, NoCompensationConfig
-from controllers.registry import CONTROLLERS
-from envs.metrics import METRIC_NAMES
-from eval import bench_episode
-from eval.bench import controller_label, split_controller_specs
-from eval.bench_episode import EpisodeJob, run_job
-from eval.cli import main
-from eval.logs import read_episode_log
-from eval.summary import SUMMARY_COLUMNS
+from drillgym import envs  # noqa: F401
+from drillgym.controllers.none import NoCompensation, NoCompensationConfig
+from drillgym.controllers.registry import CONTROLLERS
+from drillgym.envs.metrics import METRIC_NAMES
+from drillgym.eval import bench_episode
+from drillgym.eval.bench import controller_label, split_controller_specs
+from drillgym.eval.bench_episode import EpisodeJob, run_job
+from drillgym.eval.cli import main
+from drillgym.eval.logs import read_episode_log
+from drillgym.eval.summary import SUMMARY_COLUMNS
 
 
 def test_paper_suite_writes_every_output_with_the_exact_summary_header(tmp_path, capsys):
@@ -101,7 +101,7 @@ def test_an_episode_that_raises_keeps_its_partial_log_and_the_bench_goes_on(tmp_
 
 
 def test_killed_run_leaves_a_readable_partial_log(tmp_path):
-    from eval.logs import EpisodeLogger, build_header
+    from drillgym.eval.logs import EpisodeLogger, build_header
 
     env = gym.make("drillgym/UR5BoneDrill-v0")
     path = tmp_path / "killed.parquet"

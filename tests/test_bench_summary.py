@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from eval.summary import format_ci, mean_ci, paired_differences, summarize
+from drillgym.eval.summary import format_ci, mean_ci, paired_differences, summarize
 
 
 def test_ci_of_the_mean_uses_student_t_with_n_minus_1_dof():

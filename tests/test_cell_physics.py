@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 from conftest import ENV_ID, r_squared, run_zero_action
 
-from envs.cell import SimCell
-from envs.cell_params import CellParams
-from envs.constants import unscale_action
-from envs.pybullet_world import PyBulletWorld
-from envs.robot.compliance import KTHETA_LI2023_NM_RAD
-from envs.robot.ur5 import FLANGE_FRAME
-from envs.scenario import Scenario
-from eval.paper import CALIBRATION_TOLERANCE, LI2023_UNCOMPENSATED
+from drillgym.envs.cell import SimCell
+from drillgym.envs.cell_params import CellParams
+from drillgym.envs.constants import unscale_action
+from drillgym.envs.pybullet_world import PyBulletWorld
+from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
+from drillgym.envs.robot.ur5 import FLANGE_FRAME
+from drillgym.envs.scenario import Scenario
+from drillgym.eval.paper import CALIBRATION_TOLERANCE, LI2023_UNCOMPENSATED
 
 POSES_BASE_M = [
     (-0.45, -0.11, 0.10),

@@ -1,6 +1,6 @@
 import json
 
-from eval.cli import COMMANDS, main
+from drillgym.eval.cli import COMMANDS, main
 
 
 def test_help_lists_every_command(capsys):

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from test_controllers import _obs, _plan
 
-from controllers import make_controller
-from controllers.feed_schedule import EntryFeedSchedule, SlowEntry
-from controllers.li2023_cmrr import Li2023CmrrController
-from controllers.registry import PRESETS
-from envs.constants import scale_action
+from drillgym.controllers import make_controller
+from drillgym.controllers.feed_schedule import EntryFeedSchedule, SlowEntry
+from drillgym.controllers.li2023_cmrr import Li2023CmrrController
+from drillgym.controllers.registry import PRESETS
+from drillgym.envs.constants import scale_action
 
 
 def _feed_scale(controller, obs) -> float:

@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
-from controllers import Li2023Config, Li2023Controller, Zhang2005Controller, make_controller, parse_spec
-from controllers.models import RobotComplianceModel, tool_compliance_m_n
-from envs.cell_params import R_BASE_TASK, CellParams
-from envs.constants import CONTROL_DT_S, MAX_CORRECTION_M, scale_action
-from envs.observation import OBS_BOUNDS
-from envs.plan import DrillPlan
-from envs.robot.ur5 import Q_HOME_RAD, TCP_FRAME
-from envs.scenario import Scenario
+from drillgym.controllers import Li2023Config, Li2023Controller, Zhang2005Controller, make_controller, parse_spec
+from drillgym.controllers.models import RobotComplianceModel, tool_compliance_m_n
+from drillgym.envs.cell_params import R_BASE_TASK, CellParams
+from drillgym.envs.constants import CONTROL_DT_S, MAX_CORRECTION_M, scale_action
+from drillgym.envs.observation import OBS_BOUNDS
+from drillgym.envs.plan import DrillPlan
+from drillgym.envs.robot.ur5 import Q_HOME_RAD, TCP_FRAME
+from drillgym.envs.scenario import Scenario
 
 TCP_OFFSET_M = 0.11 + 0.036
 

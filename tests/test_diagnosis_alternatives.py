@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from test_diagnosis_pair_rule import _score
 
-from eval.diagnosis.rank import alternatives
+from drillgym.eval.diagnosis.rank import alternatives
 
 S0 = 2000.0
 """Penalised score of "no effect" in these examples."""

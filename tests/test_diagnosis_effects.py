@@ -6,11 +6,11 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401
-from envs.cell_params import CellParams
-from envs.constants import SUBSTEPS_PER_STEP
-from envs.effects import CHANNEL_GROUPS, EFFECTS, TraceView, build_effects, parse_effect_spec
-from envs.scenario import Scenario
+from drillgym import envs  # noqa: F401
+from drillgym.envs.cell_params import CellParams
+from drillgym.envs.constants import SUBSTEPS_PER_STEP
+from drillgym.envs.effects import CHANNEL_GROUPS, EFFECTS, TraceView, build_effects, parse_effect_spec
+from drillgym.envs.scenario import Scenario
 
 QUIET = {
     "ft_noise_n": 0.0,

@@ -10,9 +10,9 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 
-import envs  # noqa: F401
-from controllers import make_controller
-from eval.logs import EpisodeLogger, build_header, read_episode_log
+from drillgym import envs  # noqa: F401
+from drillgym.controllers import make_controller
+from drillgym.eval.logs import EpisodeLogger, build_header, read_episode_log
 
 RTDE_T0 = 5321.25
 """Controller time (s since its start) at the episode's t = 0."""

@@ -7,10 +7,10 @@ import pandas as pd
 import pytest
 from test_diagnosis_helpers import sim_log
 
-from eval.diagnosis.channels import STAGES
-from eval.diagnosis.episodes import episode_from_log, load_episodes
-from eval.diagnosis.stages import stage_labels
-from eval.diagnosis.validate import MAX_REPAIR_SAMPLES, LogCheckError, check_log
+from drillgym.eval.diagnosis.channels import STAGES
+from drillgym.eval.diagnosis.episodes import episode_from_log, load_episodes
+from drillgym.eval.diagnosis.stages import stage_labels
+from drillgym.eval.diagnosis.validate import MAX_REPAIR_SAMPLES, LogCheckError, check_log
 
 
 @pytest.fixture(scope="module")

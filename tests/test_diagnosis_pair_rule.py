@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from diagnosis_stubs import stub_score
 
-from eval.diagnosis.rank import ModelScore, pair_beats
+from drillgym.eval.diagnosis.rank import ModelScore, pair_beats
 
 NULL_GAP = 1.0
 
@@ -47,7 +47,7 @@ def test_a_pair_built_on_the_second_best_single_is_judged_against_the_best():
 
 
 def test_a_second_effect_hidden_behind_the_first_is_reported_as_possible_not_named():
-    from eval.diagnosis.rank import possible_second_effects
+    from drillgym.eval.diagnosis.rank import possible_second_effects
 
     a = _score(("a",), 11.0, 5.0, 500.0)
     hidden = _score(("h",), 11.0, 10.9, 1090.0)  # alone it explains nothing visible

@@ -6,11 +6,11 @@ import json
 
 import pytest
 
-from eval.diagnosis.bench import score_case, summarise
-from eval.diagnosis.bench_cases import Case, full_cases, quick_cases
-from eval.diagnosis.diagnose import DiagnoseOptions, diagnose
-from eval.diagnosis.episodes import load_episodes
-from eval.diagnosis.reality.generate import make_reality
+from drillgym.eval.diagnosis.bench import score_case, summarise
+from drillgym.eval.diagnosis.bench_cases import Case, full_cases, quick_cases
+from drillgym.eval.diagnosis.diagnose import DiagnoseOptions, diagnose
+from drillgym.eval.diagnosis.episodes import load_episodes
+from drillgym.eval.diagnosis.reality.generate import make_reality
 
 CANDIDATES = ("ft_drift", "tool_runout", "latency")
 REQUIRED_EFFECT_KEYS = {"name", "params", "heldout_gap_before", "heldout_gap_after", "shrink", "ci_low", "ci_high"}
@@ -51,7 +51,7 @@ def test_an_effect_outside_the_library_is_unexplained_and_located(tmp_path):
 
 
 def test_diagnose_cli_writes_json_report_and_figures_on_all_cores(tmp_path):
-    from eval.cli import main
+    from drillgym.eval.cli import main
 
     make_reality("wobbly_runout:runout_m=4e-5", 4, 14, tmp_path / "logs")
     out = tmp_path / "out"
@@ -116,7 +116,7 @@ def test_benchmark_scoring():
 
 @pytest.mark.expensive
 def test_bench_diagnosis_quick_runs_end_to_end(tmp_path):
-    from eval.cli import main
+    from drillgym.eval.cli import main
 
     assert main(["bench-diagnosis", "--quick", "--out", str(tmp_path), "--workers", "2", "--no-progress"]) == 0
     bench = json.loads((tmp_path / "bench.json").read_text())
@@ -125,7 +125,7 @@ def test_bench_diagnosis_quick_runs_end_to_end(tmp_path):
 
 @pytest.mark.parametrize("command", ["diagnose", "make-reality", "bench-diagnosis", "import-rtde"])
 def test_new_commands_have_help(command, capsys):
-    from eval.cli import main
+    from drillgym.eval.cli import main
 
     with pytest.raises(SystemExit) as e:
         main([command, "--help"])
@@ -133,7 +133,7 @@ def test_new_commands_have_help(command, capsys):
 
 
 def test_bench_diagnosis_refuses_unknown_case_names(tmp_path, capsys):
-    from eval.cli import main
+    from drillgym.eval.cli import main
 
     assert main(["bench-diagnosis", "--only", "pair-1,pair-99", "--out", str(tmp_path), "--no-progress"]) == 2
     assert "pair-99" in capsys.readouterr().err and not (tmp_path / "bench.json").exists()

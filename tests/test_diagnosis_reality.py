@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from test_diagnosis_effects import QUIET, scripted_channels
 
-from envs.effects import CHANNEL_GROUPS, EFFECTS
-from eval.diagnosis.reality.bone import ForceScaleReset
-from eval.diagnosis.reality.generate import build_reality, make_reality
-from eval.diagnosis.reality.library import REALITY_EFFECTS
-from eval.logs import read_episode_log
+from drillgym.envs.effects import CHANNEL_GROUPS, EFFECTS
+from drillgym.eval.diagnosis.reality.bone import ForceScaleReset
+from drillgym.eval.diagnosis.reality.generate import build_reality, make_reality
+from drillgym.eval.diagnosis.reality.library import REALITY_EFFECTS
+from drillgym.eval.logs import read_episode_log
 
 SETTINGS = {
     "ft_warmup": "ft_warmup:fz_n=3,fx_n=-1.5",
@@ -94,7 +94,7 @@ def test_make_reality_writes_real_schema_logs_with_nothing_privileged(tmp_path):
 
 
 def test_make_reality_cli_keeps_the_truth_outside_the_log_folder(tmp_path):
-    from eval.cli import main
+    from drillgym.eval.cli import main
 
     assert (
         main(["make-reality", "--effects", "none", "--episodes", "1", "--seed", "0", "--out", str(tmp_path / "r")]) == 0

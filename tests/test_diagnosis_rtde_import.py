@@ -9,10 +9,10 @@ import pandas as pd
 import pytest
 from test_diagnosis_helpers import RTDE_T0, sim_log, write_session
 
-from eval.diagnosis.episodes import episode_from_log, load_episodes
-from eval.diagnosis.rtde_import import import_session, read_rtde_csv
-from eval.diagnosis.validate import LogCheckError
-from eval.logs import read_episode_log
+from drillgym.eval.diagnosis.episodes import episode_from_log, load_episodes
+from drillgym.eval.diagnosis.rtde_import import import_session, read_rtde_csv
+from drillgym.eval.diagnosis.validate import LogCheckError
+from drillgym.eval.logs import read_episode_log
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +62,7 @@ def test_a_session_folder_is_read_by_the_diagnosis_loader(session):
 
 
 def test_import_rtde_cli_writes_a_real_schema_log(session, tmp_path):
-    from eval.cli import main
+    from drillgym.eval.cli import main
 
     assert main(["import-rtde", str(session), "--out", str(tmp_path / "out")]) == 0
     header, frame = read_episode_log(tmp_path / "out" / "session.parquet")

@@ -7,10 +7,10 @@ from types import SimpleNamespace
 import numpy as np
 from diagnosis_stubs import stub_score
 
-from eval.diagnosis.channels import ALL_CHANNELS, GROUP_OF, STAGES
-from eval.diagnosis.fit import fit_model, refit_jointly
-from eval.diagnosis.gap import Terms
-from eval.diagnosis.rank import (
+from drillgym.eval.diagnosis.channels import ALL_CHANNELS, GROUP_OF, STAGES
+from drillgym.eval.diagnosis.fit import fit_model, refit_jointly
+from drillgym.eval.diagnosis.gap import Terms
+from drillgym.eval.diagnosis.rank import (
     ModelScore,
     own_cells,
     pair_beats,
@@ -145,7 +145,7 @@ def _flat(level: float) -> Terms:
 
 
 def test_joint_refit_separates_what_forward_selection_confounds(monkeypatch):
-    monkeypatch.setattr("eval.diagnosis.fit._guess", lambda ev, names: None)  # no tracker data here
+    monkeypatch.setattr("drillgym.eval.diagnosis.fit._guess", lambda ev, names: None)  # no tracker data here
     ev = _QuadraticEvaluator()
     first = fit_model(ev, ("tool_length",))
     assert not first.error and abs(first.params[0]["dl_m"] - 0.0015) < 2e-4  # absorbs the offset's share

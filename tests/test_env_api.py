@@ -11,8 +11,8 @@ from gymnasium import spaces
 from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-import envs
-from envs.observation import OBS_BOUNDS
+from drillgym import envs
+from drillgym.envs.observation import OBS_BOUNDS
 
 ENV_ID = envs.ENV_IDS[0]
 PRIVILEGED_INFO_KEYS = (

@@ -6,8 +6,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs
-from envs.scenario import Scenario
+from drillgym import envs
+from drillgym.envs.scenario import Scenario
 
 ENV_ID = envs.ENV_IDS[0]
 

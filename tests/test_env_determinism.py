@@ -5,7 +5,7 @@ import numbers
 import gymnasium as gym
 import numpy as np
 
-import envs
+from drillgym import envs
 
 ENV_ID = envs.ENV_IDS[0]
 

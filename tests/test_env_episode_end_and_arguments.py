@@ -4,8 +4,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401
-from envs.constants import MAX_EPISODE_STEPS
+from drillgym import envs  # noqa: F401
+from drillgym.envs.constants import MAX_EPISODE_STEPS
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 

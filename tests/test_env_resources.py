@@ -9,8 +9,8 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-import envs
-from envs.drill_env import UR5BoneDrillEnv
+from drillgym import envs
+from drillgym.envs.drill_env import UR5BoneDrillEnv
 
 ENV_ID = envs.ENV_IDS[0]
 MAX_CLIENT_ID = 1024  # PyBullet's client-slot limit is far below this

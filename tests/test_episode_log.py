@@ -6,9 +6,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401
-from controllers import make_controller
-from eval.logs import (
+from drillgym import envs  # noqa: F401
+from drillgym.controllers import make_controller
+from drillgym.eval.logs import (
     COLUMN_NAMES,
     LOG_SCHEMA_VERSION,
     SIM_COLUMNS,
@@ -18,7 +18,7 @@ from eval.logs import (
     build_header,
     read_episode_log,
 )
-from eval.logs.writer import schema_for
+from drillgym.eval.logs.writer import schema_for
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 ROOT = Path(__file__).resolve().parents[1]

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from conftest import r_squared
 
-from envs.drilling import DrillGeometry, EngagementTable, get_bone_preset, stage_from_depth
+from drillgym.envs.drilling import DrillGeometry, EngagementTable, get_bone_preset, stage_from_depth
 
 GEOM = DrillGeometry()
 BONE = get_bone_preset("buffalo_femur")

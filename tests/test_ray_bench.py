@@ -6,10 +6,10 @@ import signal
 import pandas as pd
 import pytest
 
-from eval.bench_episode import EpisodeJob, run_job
-from eval.cli import main
-from eval.logs import read_episode_log
-from eval.scale.sink import StreamingSink
+from drillgym.eval.bench_episode import EpisodeJob, run_job
+from drillgym.eval.cli import main
+from drillgym.eval.logs import read_episode_log
+from drillgym.eval.scale.sink import StreamingSink
 
 
 def _jobs(out, controllers=("none", "li2023"), seeds=2):
@@ -45,7 +45,7 @@ def test_ray_and_local_runs_give_identical_outputs(tmp_path, ray_local):
 
 @pytest.mark.parametrize("chunk_size", [1, 2])
 def test_a_worker_killed_mid_episode_is_retried_and_nothing_is_lost(tmp_path, ray_local, chunk_size):
-    from eval.scale.bench_ray import _scratch, run_jobs_ray
+    from drillgym.eval.scale.bench_ray import _scratch, run_jobs_ray
 
     marker = tmp_path / "killed"
     victim = ("li2023", 1)
@@ -53,7 +53,7 @@ def test_a_worker_killed_mid_episode_is_retried_and_nothing_is_lost(tmp_path, ra
     def kill_once(job):
         """Kill this worker process 150 steps into the victim's first attempt (after several log flushes)."""
         if (job.controller, job.seed) == victim and not marker.exists():
-            from eval import bench_episode
+            from drillgym.eval import bench_episode
 
             marker.write_text(str(os.getpid()))
             real = bench_episode.run_controller_episode
@@ -93,7 +93,7 @@ def test_a_worker_killed_mid_episode_is_retried_and_nothing_is_lost(tmp_path, ra
 
 
 def test_a_worker_that_dies_past_its_retries_becomes_an_error_row(tmp_path, ray_local):
-    from eval.scale.bench_ray import run_jobs_ray
+    from drillgym.eval.scale.bench_ray import run_jobs_ray
 
     def always_die(job):
         if job.seed == 0:
@@ -108,7 +108,7 @@ def test_a_worker_that_dies_past_its_retries_becomes_an_error_row(tmp_path, ray_
 
 
 def test_chunks_cover_the_grid_with_about_four_tasks_per_cpu():
-    from eval.scale.bench_ray import chunk_size_for
+    from drillgym.eval.scale.bench_ray import chunk_size_for
 
     assert chunk_size_for(4, 2) == 1 and chunk_size_for(40, 2) == 5 and chunk_size_for(10_000, 2) == 8
     assert chunk_size_for(40, 64) == 1
@@ -136,7 +136,7 @@ def test_an_unreachable_cluster_is_a_clear_error(tmp_path, capsys):
 
 def test_a_worker_on_another_node_ships_the_log_bytes_to_the_driver(tmp_path):
     pytest.importorskip("ray")
-    from eval.scale.bench_ray import _scratch, run_episode_task
+    from drillgym.eval.scale.bench_ray import _scratch, run_episode_task
 
     name = "logs/paper__paper__li2023__seed0.parquet"
     job = EpisodeJob("paper", "paper", {}, "li2023", 0, tmp_path / "remote" / name, name)

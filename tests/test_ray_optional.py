@@ -10,10 +10,11 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_core_modules_and_a_local_bench_do_not_import_ray(tmp_path):
     code = f"""
 import sys
-import envs, controllers, eval.bench, eval.bench_episode, eval.cli, training.train, training.sweep
-from eval.cli import main
+import drillgym.envs, drillgym.controllers, drillgym.eval.bench, drillgym.eval.bench_episode, drillgym.eval.cli
+import drillgym.training.train, drillgym.training.sweep
+from drillgym.eval.cli import main
 assert main(["bench", "--controllers", "none", "--seeds", "1", "--no-logs", "--out", {str(tmp_path / "b")!r}]) == 0
-training.sweep.load_sweep({str(ROOT / "training/sweeps/small.yaml")!r})
+drillgym.training.sweep.load_sweep({str(ROOT / "training/sweeps/small.yaml")!r})
 loaded = sorted(m for m in sys.modules if m == "ray" or m.startswith("ray."))
 assert not loaded, loaded
 print("no ray")

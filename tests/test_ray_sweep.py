@@ -8,10 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import envs  # noqa: F401
-from controllers import make_controller
-from eval.cli import main
-from training.sweep import load_sweep
+from drillgym import envs  # noqa: F401
+from drillgym.controllers import make_controller
+from drillgym.eval.cli import main
+from drillgym.training.sweep import load_sweep
 
 SWEEPS = Path(__file__).resolve().parents[1] / "training" / "sweeps"
 

@@ -6,9 +6,9 @@ import sys
 
 from real_cell import start_emulator  # noqa: F401  (fixture)
 
-from envs.real.emulator.process import free_loopback_host, ports_free
-from eval.cli import main
-from eval.logs import read_episode_log
+from drillgym.envs.real.emulator.process import free_loopback_host, ports_free
+from drillgym.eval.cli import main
+from drillgym.eval.logs import read_episode_log
 
 SHORT_PLAN = "feed_mm_s=3,depth_mm=3"
 """A 3 s hole (approach 1.4 s, feed 1.1 s, retract 0.6 s)."""
@@ -32,7 +32,7 @@ def test_run_drills_logs_and_prints_the_measurable_metrics(start_emulator, tmp_p
 
 def test_run_asks_before_moving(start_emulator, tmp_path):  # noqa: F811
     emu = start_emulator()
-    cmd = [sys.executable, "-m", "eval.cli", "run", "--robot", emu.host, "--out", str(tmp_path)]
+    cmd = [sys.executable, "-m", "drillgym.eval.cli", "run", "--robot", emu.host, "--out", str(tmp_path)]
     proc = subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and "--yes" in proc.stderr and "nothing moved" in proc.stdout
     assert emu.status()["command_counts"] == {} and emu.status()["scripts_loaded"] == 0

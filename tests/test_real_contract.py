@@ -11,7 +11,7 @@ import rtde_control
 import rtde_receive
 from real_cell import start_emulator  # noqa: F401  (fixture)
 
-from envs.real.emulator import contract
+from drillgym.envs.real.emulator import contract
 
 
 def test_the_pinned_ur_rtde_is_installed():

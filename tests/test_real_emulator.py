@@ -9,10 +9,10 @@ import rtde_control
 import rtde_receive
 from real_cell import start_emulator  # noqa: F401  (fixture)
 
-from envs.cell_params import CellParams
-from envs.real.emulator.config import DASHBOARD_PORT
-from envs.real.netft import NetFTCalibration, NetFTClient
-from envs.scenario import Scenario
+from drillgym.envs.cell_params import CellParams
+from drillgym.envs.real.emulator.config import DASHBOARD_PORT
+from drillgym.envs.real.netft import NetFTCalibration, NetFTClient
+from drillgym.envs.scenario import Scenario
 
 pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefile)
 

@@ -29,13 +29,13 @@ import numpy as np
 import pytest
 from real_cell import CI_LIMITS, make_real_env, run_steps, start_emulator  # noqa: F401  (fixture)
 
-import envs  # noqa: F401
-from controllers import make_controller
-from envs.real.emulator.process import free_loopback_host
-from envs.real.metrics import cell_metrics
-from envs.real.robot_link import LinkError
-from eval.logs import EpisodeLogger, build_header, read_episode_log
-from eval.logs.writer import schema_for
+from drillgym import envs  # noqa: F401
+from drillgym.controllers import make_controller
+from drillgym.envs.real.emulator.process import free_loopback_host
+from drillgym.envs.real.metrics import cell_metrics
+from drillgym.envs.real.robot_link import LinkError
+from drillgym.eval.logs import EpisodeLogger, build_header, read_episode_log
+from drillgym.eval.logs.writer import schema_for
 
 pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefile)
 
@@ -138,7 +138,7 @@ def test_dry_run_streams_nothing_and_logs_what_it_would_send(start_emulator, tmp
 
 
 def test_reset_refuses_to_move_from_too_far_away(start_emulator):  # noqa: F811
-    from envs.real.config import SafetyLimits
+    from drillgym.envs.real.config import SafetyLimits
 
     emu = start_emulator()
     env = make_real_env(emu, safety_limits=SafetyLimits(reset_max_distance_m=0.005))

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from real_cell import CI_LIMITS, make_real_env, run_steps, start_emulator  # noqa: F401  (fixture)
 
-from controllers import make_controller
-from envs.real.config import SafetyLimits
-from eval.logs import EpisodeLogger, build_header, read_episode_log
+from drillgym.controllers import make_controller
+from drillgym.envs.real.config import SafetyLimits
+from drillgym.eval.logs import EpisodeLogger, build_header, read_episode_log
 
 pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefile)
 

@@ -4,8 +4,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from envs.real.robot_link import LinkError, RobotState
-from envs.real.servo import ServoLoop
+from drillgym.envs.real.robot_link import LinkError, RobotState
+from drillgym.envs.real.servo import ServoLoop
 
 PROTECTIVE_STOP_BITS = 1 << 2
 

@@ -6,16 +6,16 @@ import math
 import numpy as np
 import pytest
 
-from envs.cell_params import R_BASE_TASK
-from envs.metrics import EpisodeRecorder
-from envs.real import netft, safety, tracker
-from envs.real.config import SafetyLimits, ServoParams
-from envs.real.emulator.cli import parse_scenario
-from envs.real.emulator.config import EmulatorConfig, ScheduledFault
-from envs.real.emulator.rtde_protocol import PackageReader, pack
-from envs.real.metrics import CONTACT_FORCE_N, cell_metrics, contact_flags
-from envs.real.poses import matrix_to_pose, matrix_to_rotvec, pose_to_matrix, rotvec_to_matrix
-from envs.real.sampling import FTBinner, path_at
+from drillgym.envs.cell_params import R_BASE_TASK
+from drillgym.envs.metrics import EpisodeRecorder
+from drillgym.envs.real import netft, safety, tracker
+from drillgym.envs.real.config import SafetyLimits, ServoParams
+from drillgym.envs.real.emulator.cli import parse_scenario
+from drillgym.envs.real.emulator.config import EmulatorConfig, ScheduledFault
+from drillgym.envs.real.emulator.rtde_protocol import PackageReader, pack
+from drillgym.envs.real.metrics import CONTACT_FORCE_N, cell_metrics, contact_flags
+from drillgym.envs.real.poses import matrix_to_pose, matrix_to_rotvec, pose_to_matrix, rotvec_to_matrix
+from drillgym.envs.real.sampling import FTBinner, path_at
 
 
 def _random_rotation(rng):

@@ -1,6 +1,6 @@
 import json
 
-from eval.cli import main
+from drillgym.eval.cli import main
 
 
 def test_reproduce_quick_writes_report_rows_and_figures(tmp_path, capsys):

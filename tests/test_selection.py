@@ -2,7 +2,7 @@
 
 import pytest
 
-from training.selection import MAX_TIME_RATIO, choose, judge
+from drillgym.training.selection import MAX_TIME_RATIO, choose, judge
 
 BASE = {
     "deviation_mean_mm": [0.10, 0.12, 0.08, 0.11],
@@ -55,7 +55,7 @@ def test_a_run_exports_the_selected_model_and_select_only_repeats_the_choice(tmp
     import zipfile
     from pathlib import Path
 
-    from eval.cli import main
+    from drillgym.eval.cli import main
 
     smoke = (Path(__file__).resolve().parents[1] / "training" / "configs" / "smoke.yaml").read_text()
     cfg = tmp_path / "c.yaml"
@@ -78,8 +78,8 @@ def test_a_run_exports_the_selected_model_and_select_only_repeats_the_choice(tmp
 
 
 def test_extra_paper_episodes_are_the_paper_scenario_on_their_own_seeds():
-    from training.config import TrainConfig
-    from training.selection import PAPER_SELECTION_SEED, validation_episodes
+    from drillgym.training.config import TrainConfig
+    from drillgym.training.selection import PAPER_SELECTION_SEED, validation_episodes
 
     episodes = validation_episodes(TrainConfig(eval_episodes=3, selection_paper_episodes=2))
     assert len(episodes) == 5 and episodes[3:] == [({}, PAPER_SELECTION_SEED), ({}, PAPER_SELECTION_SEED + 1)]
@@ -87,9 +87,9 @@ def test_extra_paper_episodes_are_the_paper_scenario_on_their_own_seeds():
 
 
 def test_a_paper_episode_after_a_draw_is_scored_in_the_paper_scenario():
-    from controllers import make_controller
-    from training.config import TrainConfig
-    from training.selection import score
+    from drillgym.controllers import make_controller
+    from drillgym.training.config import TrainConfig
+    from drillgym.training.selection import score
 
     cfg = TrainConfig()
     draw = {"beta_deg": 15.0, "feed_mm_s": 1.0, "stickout_mm": 30.0}

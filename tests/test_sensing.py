@@ -2,8 +2,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from envs.constants import FT_RESOLUTION, MAX_CORRECTION_M
-from envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
+from drillgym.envs.constants import FT_RESOLUTION, MAX_CORRECTION_M
+from drillgym.envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
 
 
 def test_ft_readings_are_quantised_to_the_mini40_resolution():

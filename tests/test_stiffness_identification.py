@@ -9,8 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from envs.robot.compliance import KTHETA_LI2023_NM_RAD
-from envs.robot.stiffness_id import (
+from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
+from drillgym.envs.robot.stiffness_id import (
     DEFAULT_TCP_OFFSET_M,
     IDENTIFICATION_POSES_Q_RAD,
     LI_TABLE1_POSES_Q_RAD,
@@ -21,9 +21,9 @@ from envs.robot.stiffness_id import (
     point_kinematics,
     simulate_load_experiments,
 )
-from envs.robot.stiffness_table1 import reproduce_li_table1
-from envs.robot.ur5 import UR5Kinematics
-from eval.cli import main
+from drillgym.envs.robot.stiffness_table1 import reproduce_li_table1
+from drillgym.envs.robot.ur5 import UR5Kinematics
+from drillgym.eval.cli import main
 
 K_TRUE = KTHETA_LI2023_NM_RAD
 

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from envs.drilling import CantileverTool, DrillGeometry
+from drillgym.envs.drilling import CantileverTool, DrillGeometry
 
 
 def _beam_tip_deflection_numeric(force_n: float, length_m: float, ei: float, n: int = 4000) -> float:

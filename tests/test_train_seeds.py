@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from eval.cli import main
-from eval.train_seeds import _seeds, add_arguments, seed_command
+from drillgym.eval.cli import main
+from drillgym.eval.train_seeds import _seeds, add_arguments, seed_command
 
 SMOKE = Path(__file__).resolve().parents[1] / "training" / "configs" / "smoke.yaml"
 
@@ -27,7 +27,7 @@ def test_each_seed_runs_the_single_seed_command_into_its_own_folder(tmp_path):
     cmd = seed_command(args, 5, tmp_path / "seed5")
     assert cmd[1:] == [
         "-m",
-        "eval.cli",
+        "drillgym.eval.cli",
         "train",
         "--out",
         str(tmp_path / "seed5"),

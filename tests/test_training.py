@@ -6,13 +6,13 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401
-from controllers import make_controller
-from training.config import TrainConfig, load_config
-from training.domain_randomization import merged_ranges
-from training.env_factory import make_train_vec_env
-from training.model import build_model
-from training.residual_wrapper import (
+from drillgym import envs  # noqa: F401
+from drillgym.controllers import make_controller
+from drillgym.training.config import TrainConfig, load_config
+from drillgym.training.domain_randomization import merged_ranges
+from drillgym.training.env_factory import make_train_vec_env
+from drillgym.training.model import build_model
+from drillgym.training.residual_wrapper import (
     BASE_ACTION_KEY,
     PLAN_KEY,
     PREV_RESIDUAL_KEY,
@@ -28,7 +28,7 @@ SHIPPED = Path(__file__).resolve().parents[1] / "training" / "policies" / "resid
 def test_combine_adds_the_scaled_residual_and_clips():
     base = np.array([0.2, -0.9, 0.0, 0.1], np.float32)
     # lateral residual: task x, y turned into base axes (x_task = +y_base, y_task = +x_base here)
-    from envs.cell_params import R_BASE_TASK
+    from drillgym.envs.cell_params import R_BASE_TASK
 
     lat = combine(base, np.array([0.4, -0.2]), 0.5, R_BASE_TASK)
     np.testing.assert_allclose(lat, [0.1, -0.7, 0.0, 0.1], atol=1e-6)
@@ -58,7 +58,7 @@ def test_a_nominal_feed_ceiling_lets_the_residual_undo_a_base_slowdown_but_not_p
 
 
 def test_a_gain_residual_scales_the_base_correction_per_task_axis():
-    from envs.cell_params import R_BASE_TASK
+    from drillgym.envs.cell_params import R_BASE_TASK
 
     base = np.array([0.2, -0.9, 0.05, 0.1], np.float32)  # task x = base y = -0.9, task y = base x = 0.2
     out = combine(base, np.array([-0.5, 1.0]), 0.5, R_BASE_TASK, mode="gain")
@@ -160,7 +160,7 @@ def test_config_yaml_overrides_and_rejects_typos(tmp_path):
 
 
 def test_smoke_training_run_saves_a_policy_that_loads_and_resumes(tmp_path):
-    from eval.cli import main
+    from drillgym.eval.cli import main
 
     cfg = Path(__file__).resolve().parents[1] / "training" / "configs" / "smoke.yaml"
     out = tmp_path / "run"
@@ -189,7 +189,7 @@ def test_missing_policy_file_is_a_clear_error():
 
 @pytest.mark.skipif(not SHIPPED.exists(), reason="no shipped policy")
 def test_shipped_policy_completes_an_episode_from_real_cell_signals_only():
-    from eval.rollout import run_episode
+    from drillgym.eval.rollout import run_episode
 
     controller = make_controller(f"residual:{SHIPPED}")
     env = gym.make(ENV_ID)
@@ -208,7 +208,7 @@ def test_shipped_policy_completes_an_episode_from_real_cell_signals_only():
 def test_saved_policy_acts_through_the_controller_exactly_as_in_its_training_wrapper(tmp_path):
     import torch
 
-    from training.policy_bundle import save_bundle
+    from drillgym.training.policy_bundle import save_bundle
 
     cfg = TrainConfig(
         n_envs=1, net_arch=[16], observe_prev_residual=True, observe_plan=True, normalize_obs=False, seed=5
@@ -246,8 +246,8 @@ def test_saved_policy_acts_through_the_controller_exactly_as_in_its_training_wra
 
 
 def test_validation_scenarios_are_held_in_and_visited_once_per_evaluation():
-    from eval.suites import outside_training
-    from training.domain_randomization import ScenarioCycle, validation_scenarios
+    from drillgym.eval.suites import outside_training
+    from drillgym.training.domain_randomization import ScenarioCycle, validation_scenarios
 
     scenarios = validation_scenarios(6)
     assert scenarios[0] == {} and len(scenarios) == 6 and validation_scenarios(6) == scenarios
@@ -267,8 +267,8 @@ def test_validation_scenarios_are_held_in_and_visited_once_per_evaluation():
 
 
 def test_the_paper_validation_episode_is_the_paper_scenario_even_after_other_draws():
-    from envs.scenario import Scenario
-    from training.domain_randomization import ScenarioCycle, validation_scenarios
+    from drillgym.envs.scenario import Scenario
+    from drillgym.training.domain_randomization import ScenarioCycle, validation_scenarios
 
     scenarios = validation_scenarios(3)
     env = ScenarioCycle(gym.make(ENV_ID), scenarios, seeds=[1, 2, 3])
@@ -279,7 +279,7 @@ def test_the_paper_validation_episode_is_the_paper_scenario_even_after_other_dra
 
 
 def test_extra_randomisation_ranges_reach_training_and_validation_draws():
-    from training.domain_randomization import DomainRandomization, merged_ranges, validation_scenarios
+    from drillgym.training.domain_randomization import DomainRandomization, merged_ranges, validation_scenarios
 
     cfg = TrainConfig(dr_ranges={"density_scale": [0.9, 1.1]})
     ranges = merged_ranges(cfg.dr_ranges)
@@ -345,7 +345,7 @@ def test_the_shipped_policy_clamps_the_plan_as_its_training_did():
 
 
 def test_resuming_nothing_and_overwriting_a_run_by_accident_are_errors(tmp_path, capsys):
-    from eval.cli import main
+    from drillgym.eval.cli import main
 
     empty = tmp_path / "empty"
     assert main(["train", "--out", str(empty), "--resume"]) == 2
@@ -361,8 +361,8 @@ def test_resuming_nothing_and_overwriting_a_run_by_accident_are_errors(tmp_path,
 
 
 def test_shipped_policies_and_configs_are_found_by_name_from_any_directory(tmp_path, monkeypatch):
-    from training.config import load_config
-    from training.policy_bundle import NAMED_POLICIES, resolve_policy
+    from drillgym.training.config import load_config
+    from drillgym.training.policy_bundle import NAMED_POLICIES, resolve_policy
 
     monkeypatch.chdir(tmp_path)
     assert resolve_policy("shipped").exists()

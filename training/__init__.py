@@ -4,7 +4,7 @@
 ``make_controller("residual:PATH")`` runs it like any controller.
 """
 
-from training.config import TrainConfig, load_config
-from training.residual_wrapper import ResidualWrapper, combine
+from drillgym.training.config import TrainConfig, load_config
+from drillgym.training.residual_wrapper import ResidualWrapper, combine
 
 __all__ = ["ResidualWrapper", "TrainConfig", "combine", "load_config"]

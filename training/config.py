@@ -24,12 +24,12 @@ class TrainConfig:
     """Residual ±1 = ± this share of the env's action range (0.5: ±1 mm of correction)."""
     residual_mode: str = "add"
     """``add``: the residual adds ± ``residual_scale`` of the action range; ``gain``: it scales the base's
-    lateral correction by ``1 + residual_scale · residual`` (see :data:`training.residual_wrapper.RESIDUAL_MODES`)."""
+    lateral correction by ``1 + residual_scale · residual`` (see :data:`drillgym.training.residual_wrapper.RESIDUAL_MODES`)."""
     residual_feed: bool = False
     """Let the residual change the feed (off: compare at the base's feed, as Li does)."""
     residual_feed_ceiling: str = "base"
     """How fast the feed residual may drill: ``base`` (never faster than the base) or ``nominal`` (it may undo a
-    base's slowing, up to the plan's feed; :data:`training.residual_wrapper.FEED_CEILINGS`)."""
+    base's slowing, up to the plan's feed; :data:`drillgym.training.residual_wrapper.FEED_CEILINGS`)."""
     residual_axes: str = "lateral"
     """``lateral``: the residual moves the tip across the drill only; ``xyz``: along the base axes too."""
     observe_prev_residual: bool = False
@@ -48,7 +48,7 @@ class TrainConfig:
     """Draw a new scenario every episode inside the training ranges."""
     dr_ranges: dict[str, list[float]] = field(default_factory=dict)
     """Extra or replaced domain-randomisation ranges, ``{scenario argument: [low, high]}`` on top of
-    :data:`training.domain_randomization.DR_RANGES` (training and validation draws alike)."""
+    :data:`drillgym.training.domain_randomization.DR_RANGES` (training and validation draws alike)."""
     net_arch: list[int] = field(default_factory=lambda: [64, 64])
     """Hidden layers of actor and critic."""
     learning_rate: float = 3e-4
@@ -85,7 +85,7 @@ class TrainConfig:
     model_selection: str = "reward"
     """Which saved model becomes ``policy.zip``: ``reward`` (SB3's best mean validation reward) or
     ``deviation`` (the lowest validation deviation among the models that beat the base without a higher peak
-    force or +30 % drill time: :mod:`training.selection`)."""
+    force or +30 % drill time: :mod:`drillgym.training.selection`)."""
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
@@ -96,8 +96,8 @@ class TrainConfig:
             raise ValueError(f"model_selection={self.model_selection!r}; choose reward or deviation")
         if self.eval_scenarios not in ("paper", "validation"):
             raise ValueError(f"eval_scenarios={self.eval_scenarios!r}; choose paper or validation")
-        from training.domain_randomization import check_ranges
-        from training.residual_wrapper import check_mode
+        from drillgym.training.domain_randomization import check_ranges
+        from drillgym.training.residual_wrapper import check_mode
 
         check_mode(self.residual_mode, self.residual_feed_ceiling)
         check_ranges(self.dr_ranges)

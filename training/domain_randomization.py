@@ -11,7 +11,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from eval.suites import TRAINING_BONES, TRAINING_RANGES
+from drillgym.eval.suites import TRAINING_BONES, TRAINING_RANGES
 
 DR_RANGES: dict[str, tuple[float, float]] = {
     **TRAINING_RANGES,
@@ -24,7 +24,7 @@ DR_RANGES: dict[str, tuple[float, float]] = {
 
 def check_ranges(ranges: dict[str, Any]) -> None:
     """Raise ``ValueError`` unless every entry is a numeric scenario argument with ``[low, high]`` inside its limits."""
-    from envs.scenario import Scenario
+    from drillgym.envs.scenario import Scenario
 
     defaults = Scenario()
     for name, bounds in ranges.items():

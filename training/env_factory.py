@@ -9,15 +9,15 @@ import gymnasium as gym
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
-from training.config import TrainConfig
-from training.domain_randomization import (
+from drillgym.training.config import TrainConfig
+from drillgym.training.domain_randomization import (
     VALIDATION_SEED,
     DomainRandomization,
     ScenarioCycle,
     merged_ranges,
     validation_scenarios,
 )
-from training.residual_wrapper import ResidualWrapper, plan_support
+from drillgym.training.residual_wrapper import ResidualWrapper, plan_support
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 
@@ -40,7 +40,7 @@ def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:
 
 def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | None = None) -> gym.Env:
     """One drilling env (optionally domain-randomised) under the residual wrapper."""
-    import envs  # noqa: F401  (registers the ids in spawned workers)
+    from drillgym import envs  # noqa: F401  (registers the ids in spawned workers)
 
     env: gym.Env = gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})})
     if randomize:
@@ -66,14 +66,14 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
     """The evaluation env under the residual wrapper (one env).
 
     ``cfg.eval_scenarios == "paper"``: the paper scenario (or ``scenario``) every episode;
-    ``"validation"``: :func:`training.domain_randomization.validation_scenarios` in turn, one per
+    ``"validation"``: :func:`drillgym.training.domain_randomization.validation_scenarios` in turn, one per
     evaluation episode, each with its own fixed seed (so every evaluation of ``cfg.eval_episodes``
     episodes replays the same episodes: evaluations, and the base's, differ only by the policy).
     """
 
     def factory() -> gym.Env:
         if cfg.eval_scenarios == "validation" and scenario is None:
-            import envs  # noqa: F401
+            from drillgym import envs  # noqa: F401
 
             env: gym.Env = gym.make(ENV_ID, **cfg.env_kwargs)
             scenarios = validation_scenarios(cfg.eval_episodes, ranges=merged_ranges(cfg.dr_ranges))

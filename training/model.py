@@ -10,7 +10,7 @@ from stable_baselines3 import PPO, SAC, TD3
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 
-from training.config import TrainConfig
+from drillgym.training.config import TrainConfig
 
 
 class _CriticWarmup:

@@ -17,8 +17,8 @@ import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.running_mean_std import RunningMeanStd
 
-from training.config import TrainConfig
-from training.model import ALGO_CLASSES
+from drillgym.training.config import TrainConfig
+from drillgym.training.model import ALGO_CLASSES
 
 POLICY_DIR = Path(__file__).resolve().parent / "policies"
 """The policies shipped with the package."""

@@ -11,12 +11,12 @@ from typing import Any
 
 import numpy as np
 
-from controllers.base import Controller
-from controllers.registry import make_controller
-from envs.plan import DrillPlan
-from training.domain_randomization import merged_ranges
-from training.policy_bundle import load_bundle, resolve_policy
-from training.residual_wrapper import (
+from drillgym.controllers.base import Controller
+from drillgym.controllers.registry import make_controller
+from drillgym.envs.plan import DrillPlan
+from drillgym.training.domain_randomization import merged_ranges
+from drillgym.training.policy_bundle import load_bundle, resolve_policy
+from drillgym.training.residual_wrapper import (
     BASE_ACTION_KEY,
     PLAN_KEY,
     PREV_RESIDUAL_KEY,
@@ -102,7 +102,7 @@ def _single_thread_inference() -> None:
 
 
 def load_residual_controller(path: str) -> ResidualPolicyController:
-    """``residual:PATH`` -> controller (used by :func:`controllers.make_controller`)."""
+    """``residual:PATH`` -> controller (used by :func:`drillgym.controllers.make_controller`)."""
     if not path:
         raise ValueError("residual controllers need a path: residual:PATH/TO/policy.zip")
     return ResidualPolicyController(path)

@@ -15,10 +15,10 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from controllers import Controller, make_controller
-from envs.constants import ACTION_DIM
-from envs.drilling.bone import nominal_hardness
-from eval.suites import TRAINING_BONES
+from drillgym.controllers import Controller, make_controller
+from drillgym.envs.constants import ACTION_DIM
+from drillgym.envs.drilling.bone import nominal_hardness
+from drillgym.eval.suites import TRAINING_BONES
 
 BASE_ACTION_KEY = "base_action"
 PLAN_KEY = "plan"
@@ -54,10 +54,10 @@ PLAN_HIGH = np.array([np.pi / 2, 5e-3, 0.1, 0.05, 3.0], dtype=np.float32)
 
 
 def plan_features(plan: Any, support: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """``[beta_rad, feed_m_s, stickout_m, cortical_thickness_m, bone_hardness]`` of a :class:`envs.plan.DrillPlan`.
+    """``[beta_rad, feed_m_s, stickout_m, cortical_thickness_m, bone_hardness]`` of a :class:`drillgym.envs.plan.DrillPlan`.
 
     ``bone_hardness`` is the planned bone type's nominal cortical hardness relative to buffalo cortex
-    (:func:`envs.drilling.bone.nominal_hardness`): the surgeon names the specimen, not its true hardness.
+    (:func:`drillgym.envs.drilling.bone.nominal_hardness`): the surgeon names the specimen, not its true hardness.
     With ``support`` (:func:`plan_support`) the features are clamped to it instead of to their full bounds.
     """
     values = [plan.beta_rad, plan.feed_m_s, plan.stickout_m, plan.cortical_thickness_m, nominal_hardness(plan.bone)]

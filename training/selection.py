@@ -4,7 +4,7 @@ SB3's ``EvalCallback`` keeps the model with the best mean validation *reward*. T
 penalties, so it also charges a policy for every extra step it drills: a policy that lowers the mean
 deviation by slowing the feed can score a lower reward than the base. ``model_selection: deviation``
 instead scores every saved model (each checkpoint, the final model and the best-reward model) on the
-same validation episodes as the training's evaluations (:func:`training.domain_randomization.validation_scenarios`,
+same validation episodes as the training's evaluations (:func:`drillgym.training.domain_randomization.validation_scenarios`,
 fixed seeds; never the heldout suite) together with the base controller, and picks by a rule fixed in
 advance, which mirrors the benchmark's acceptance:
 
@@ -36,9 +36,9 @@ import gymnasium as gym
 import numpy as np
 from scipy import stats
 
-from controllers import Controller, make_controller
-from training.config import TrainConfig
-from training.domain_randomization import VALIDATION_SEED, ScenarioCycle, merged_ranges, validation_scenarios
+from drillgym.controllers import Controller, make_controller
+from drillgym.training.config import TrainConfig
+from drillgym.training.domain_randomization import VALIDATION_SEED, ScenarioCycle, merged_ranges, validation_scenarios
 
 ENV_ID = "drillgym/UR5BoneDrill-v0"
 MAX_TIME_RATIO = 1.3
@@ -86,7 +86,7 @@ def validation_episodes(cfg: TrainConfig) -> list[tuple[dict[str, Any], int]]:
 
 def score(controller: Controller, cfg: TrainConfig, episodes: list[tuple[dict[str, Any], int]]) -> dict[str, list]:
     """Deviation (mm), peak lateral force (N) and drill time (s) of each validation episode."""
-    import envs  # noqa: F401  (registers the ids)
+    from drillgym import envs  # noqa: F401  (registers the ids)
 
     out: dict[str, list] = {"deviation_mean_mm": [], "lateral_force_max_n": [], "drill_time_s": []}
     scenarios, seeds = [sc for sc, _ in episodes], [seed for _, seed in episodes]
@@ -152,8 +152,8 @@ def select(run: Path, cfg: TrainConfig, progress: bool = True) -> dict[str, Any]
 
     Returns the selection (``chosen``: the candidate's name, ``rule``: which rule chose it).
     """
-    from training.policy_bundle import save_bundle
-    from training.residual_policy import ResidualPolicyController
+    from drillgym.training.policy_bundle import save_bundle
+    from drillgym.training.residual_policy import ResidualPolicyController
 
     episodes = validation_episodes(cfg)
     base = score(make_controller(cfg.base), cfg, episodes)

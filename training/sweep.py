@@ -1,7 +1,7 @@
 """``drillgym train --sweep SPEC.yaml [--ray] [--address ADDR]``: tune residual training on Ray Tune.
 
 A sweep file (``training/sweeps/*.yaml``) names a base training configuration, fixed overrides, a
-search space over :class:`training.config.TrainConfig` fields and the ASHA early-stopping schedule::
+search space over :class:`drillgym.training.config.TrainConfig` fields and the ASHA early-stopping schedule::
 
     base_config: ../configs/residual_sac.yaml   # relative to the sweep file; optional
     fixed: {total_timesteps: 150000, eval_freq: 10000}
@@ -19,7 +19,7 @@ search space over :class:`training.config.TrainConfig` fields and the ASHA early
 
 Search kinds: ``choice`` (list), ``grid`` (list; every value, times ``samples``), ``uniform``,
 ``loguniform`` ([low, high]), ``randint`` ([low, high), integers). This module reads and checks a
-sweep without Ray; running it (:mod:`eval.scale.tune_sweep`) needs ``drillgym[ray]``.
+sweep without Ray; running it (:mod:`drillgym.eval.scale.tune_sweep`) needs ``drillgym[ray]``.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from typing import Any
 
 import yaml
 
-from training.config import TrainConfig, load_config
+from drillgym.training.config import TrainConfig, load_config
 
 SEARCH_KINDS = ("choice", "grid", "uniform", "loguniform", "randint")
 """Distributions a search entry may use."""
@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--ray/--address need --sweep SPEC.yaml (a single run trains on one machine)")
         if args.resume:
             raise ValueError("--resume does not apply to --sweep (a failed trial restarts from its checkpoint)")
-        from eval.scale.cluster import require_ray
+        from drillgym.eval.scale.cluster import require_ray
 
         require_ray()
         overrides = {
@@ -170,7 +170,7 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, RuntimeError, OSError) as e:
         print(f"drillgym train: error: {e}", file=sys.stderr)
         return 2
-    from eval.scale.tune_sweep import run_sweep
+    from drillgym.eval.scale.tune_sweep import run_sweep
 
     try:
         outcome = run_sweep(spec, args.out, args.address, export=args.export)

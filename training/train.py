@@ -17,7 +17,7 @@ from typing import Any
 
 import yaml
 
-from training.config import load_config
+from drillgym.training.config import load_config
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -128,7 +128,7 @@ def _prepare(args: argparse.Namespace, overrides: dict[str, Any]) -> Any:
 
 def _export(out: Path, cfg: Any, model: Any, evaluation: Any, wall_s: float, export: Path | None) -> None:
     """Write ``summary.json`` and the curves; bundle the selected model as ``out/policy.zip`` (and ``export``)."""
-    from training.plots import plot_curves
+    from drillgym.training.plots import plot_curves
 
     summary = {
         "timesteps": int(model.num_timesteps),
@@ -146,16 +146,16 @@ def export_selected(out: Path, cfg: Any, summary: dict[str, Any], export: Path |
     """Bundle the model that ``cfg.model_selection`` picks as ``out/policy.zip`` (and ``export``).
 
     ``reward``: SB3's best-reward model with the observation normaliser it was evaluated with (the final
-    model if there is none); ``deviation``: :func:`training.selection.select`'s choice.
+    model if there is none); ``deviation``: :func:`drillgym.training.selection.select`'s choice.
     """
-    from training.callbacks import BEST_NORMALIZER
-    from training.policy_bundle import save_bundle
+    from drillgym.training.callbacks import BEST_NORMALIZER
+    from drillgym.training.policy_bundle import save_bundle
 
     best_zip, best_norm = out / "best" / "best_model.zip", out / "best" / BEST_NORMALIZER
     source: Path
     norm: Path | None
     if cfg.model_selection == "deviation":
-        from training.selection import chosen_model, select
+        from drillgym.training.selection import chosen_model, select
 
         print(f"selecting among the saved models of {out} on {cfg.eval_episodes} validation episodes:")
         selection = select(out, cfg)
@@ -191,7 +191,7 @@ def select_only(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     """Train (or resume), export the best policy bundle, plot the curves; ``--sweep``: see training.sweep."""
     if getattr(args, "sweep", None) is not None or getattr(args, "ray", False) or getattr(args, "address", None):
-        from training import sweep
+        from drillgym.training import sweep
 
         return sweep.run(args)
     if getattr(args, "select_only", False):
@@ -200,9 +200,9 @@ def run(args: argparse.Namespace) -> int:
     from stable_baselines3.common.callbacks import CheckpointCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from training.callbacks import BaseComparisonEvalCallback
-    from training.env_factory import make_eval_vec_env, make_train_vec_env
-    from training.model import ALGO_CLASSES, build_model
+    from drillgym.training.callbacks import BaseComparisonEvalCallback
+    from drillgym.training.env_factory import make_eval_vec_env, make_train_vec_env
+    from drillgym.training.model import ALGO_CLASSES, build_model
 
     overrides: dict[str, Any] = {
         k: v

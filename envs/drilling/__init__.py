@@ -5,11 +5,11 @@ geometry, the cantilever tool and the hole left behind. Nothing here imports PyB
 controllers may reuse it as their own offline model.
 """
 
-from envs.drilling.bone import BONE_PRESETS, BoneMaterial, BonePreset, get_bone_preset
-from envs.drilling.force_model import EngagementTable, ForceModel, engaged_corner_fraction, stage_from_depth
-from envs.drilling.geometry import DrillGeometry
-from envs.drilling.hole import Hole
-from envs.drilling.tool import CantileverTool
+from drillgym.envs.drilling.bone import BONE_PRESETS, BoneMaterial, BonePreset, get_bone_preset
+from drillgym.envs.drilling.force_model import EngagementTable, ForceModel, engaged_corner_fraction, stage_from_depth
+from drillgym.envs.drilling.geometry import DrillGeometry
+from drillgym.envs.drilling.hole import Hole
+from drillgym.envs.drilling.tool import CantileverTool
 
 __all__ = [
     "BONE_PRESETS",

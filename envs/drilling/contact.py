@@ -30,9 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.drilling.force_model import EngagementTable, stage_bounds, stage_of
-from envs.drilling.geometry import DrillGeometry
-from envs.drilling.hole import Hole
+from drillgym.envs.drilling.force_model import EngagementTable, stage_bounds, stage_of
+from drillgym.envs.drilling.geometry import DrillGeometry
+from drillgym.envs.drilling.hole import Hole
 
 
 @dataclass

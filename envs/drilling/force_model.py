@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.drilling.bone import BonePreset
-from envs.drilling.geometry import DrillGeometry
+from drillgym.envs.drilling.bone import BonePreset
+from drillgym.envs.drilling.geometry import DrillGeometry
 
 N_RADIAL = 24
 """Radial elements along each lip (chisel included)."""

@@ -8,7 +8,7 @@ the default simulation is untouched (bit for bit) and pays nothing for the hooks
 Hook points, in the order of one agent step (50 ms, 5 F/T samples):
 
 * ``attach(env)``: at ``reset``, after the cell and sensors are reset (change the tool, the bone
-  profile, the side guidance of the tip balance; see :meth:`envs.cell.SimCell.clear_effects`).
+  profile, the side guidance of the tip balance; see :meth:`drillgym.envs.cell.SimCell.clear_effects`).
 * ``command_delay_s(env, delay_s)``: when a command is queued; returns its latency (s).
 * ``begin_step(env)``: before the samples of the step (set the specimen's force scale, servo offsets).
 * ``servo_offset_task_m``: an attribute (3,) or None read after ``begin_step``: a shift of the
@@ -18,7 +18,7 @@ Hook points, in the order of one agent step (50 ms, 5 F/T samples):
   sensor frame) before the F/T noise and resolution.
 
 Offsets the encoders do *not* see (the tool or the arm is not where the controller's model puts it)
-go on the cell: :attr:`envs.cell.SimCell.geometry_offset_task_m` and ``marker_offset_base_m``.
+go on the cell: :attr:`drillgym.envs.cell.SimCell.geometry_offset_task_m` and ``marker_offset_base_m``.
 
 A sensor-only effect (``sensor_only = True``) changes readings, not physics; it also implements
 :meth:`Effect.apply_to_trace`, the same change applied to a recorded trace, which lets a fit skip

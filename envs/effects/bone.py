@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from envs.constants import CONTROL_DT_S
-from envs.effects.base import Effect, Param
+from drillgym.envs.constants import CONTROL_DT_S
+from drillgym.envs.effects.base import Effect, Param
 
 MIN_HARDNESS = 0.05
 """Floor of any hardness factor (the bone never vanishes)."""

@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from envs.constants import CONTROL_DT_S
-from envs.effects.base import Effect, Param
+from drillgym.envs.constants import CONTROL_DT_S
+from drillgym.envs.effects.base import Effect, Param
 
 SIGN_SMOOTHING_RAD_S = 1e-5
 """Joint speed below which Coulomb friction fades out (rad/s): a joint at rest holds its position."""
@@ -18,7 +18,7 @@ def add_geometry_offset(cell: Any, offset_task_m: np.ndarray, marker_base_m: np.
     """Move the physical tool (and the tracker marker) away from where the controller's model puts it.
 
     Args:
-        cell: the :class:`envs.cell.SimCell`.
+        cell: the :class:`drillgym.envs.cell.SimCell`.
         offset_task_m: tip offset (m, task frame), added to any offset already set.
         marker_base_m: tracker-marker offset (m, base frame), added likewise; None leaves it.
     """

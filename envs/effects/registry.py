@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from envs.effects.base import Effect
-from envs.effects.bone import DensityGradient, SkidFriction, ThermalSoftening
-from envs.effects.joints import JointFriction, KinematicOffset
-from envs.effects.sensor import FTDrift, ToolRunout
-from envs.effects.timing import Latency
-from envs.effects.tool import ToolLength
+from drillgym.envs.effects.base import Effect
+from drillgym.envs.effects.bone import DensityGradient, SkidFriction, ThermalSoftening
+from drillgym.envs.effects.joints import JointFriction, KinematicOffset
+from drillgym.envs.effects.sensor import FTDrift, ToolRunout
+from drillgym.envs.effects.timing import Latency
+from drillgym.envs.effects.tool import ToolLength
 
 EFFECTS: dict[str, type[Effect]] = {
     cls.name: cls

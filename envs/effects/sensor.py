@@ -1,7 +1,7 @@
 """Sensor-side candidate effects: they change what the F/T sensor reads, not the physics.
 
 Both act on the true wrench before the sensor's noise and resolution, and on a recorded trace
-(:meth:`~envs.effects.base.Effect.apply_to_trace`) for a fit that need not re-simulate.
+(:meth:`~drillgym.envs.effects.base.Effect.apply_to_trace`) for a fit that need not re-simulate.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from envs.effects.base import Effect, Param, TraceView
+from drillgym.envs.effects.base import Effect, Param, TraceView
 
 
 class FTDrift(Effect):

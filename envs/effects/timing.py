@@ -5,7 +5,7 @@ from __future__ import annotations
 import bisect
 from typing import Any
 
-from envs.effects.base import Effect, Param
+from drillgym.envs.effects.base import Effect, Param
 
 
 class DelayLine:

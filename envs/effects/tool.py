@@ -6,9 +6,9 @@ from typing import Any
 
 import numpy as np
 
-from envs.drilling.tool import CantileverTool
-from envs.effects.base import Effect, Param
-from envs.effects.joints import add_geometry_offset
+from drillgym.envs.drilling.tool import CantileverTool
+from drillgym.envs.effects.base import Effect, Param
+from drillgym.envs.effects.joints import add_geometry_offset
 
 
 class ToolLength(Effect):

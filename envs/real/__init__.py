@@ -2,10 +2,10 @@
 
 ``gym.make("drillgym/UR5BoneDrillReal-v0", robot_host=..., ft_sensor=..., tracker=..., **scenario)`` connects
 to a UR CB3 through ``ur_rtde`` (pinned 1.6.5), an ATI Net F/T (RDT over UDP) and an optional tracker.
-See :class:`envs.real.real_env.UR5BoneDrillRealEnv` and ``docs/deployment.md``.
+See :class:`drillgym.envs.real.real_env.UR5BoneDrillRealEnv` and ``docs/deployment.md``.
 """
 
-from envs.real.config import SafetyLimits, ServoParams
-from envs.real.netft import NetFTCalibration
+from drillgym.envs.real.config import SafetyLimits, ServoParams
+from drillgym.envs.real.netft import NetFTCalibration
 
 __all__ = ["NetFTCalibration", "SafetyLimits", "ServoParams"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-from envs.constants import MAX_CORRECTION_M, RTDE_RATE_HZ
+from drillgym.envs.constants import MAX_CORRECTION_M, RTDE_RATE_HZ
 
 
 @dataclass(frozen=True)

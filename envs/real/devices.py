@@ -7,11 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.real.command_log import CommandLog
-from envs.real.config import ServoParams
-from envs.real.netft import RDT_PORT, NetFTCalibration, NetFTClient
-from envs.real.robot_link import LinkError, RobotLink
-from envs.real.tracker import Tracker, make_tracker
+from drillgym.envs.real.command_log import CommandLog
+from drillgym.envs.real.config import ServoParams
+from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration, NetFTClient
+from drillgym.envs.real.robot_link import LinkError, RobotLink
+from drillgym.envs.real.tracker import Tracker, make_tracker
 
 
 def split_host_port(spec: str, default_port: int) -> tuple[str, int]:

@@ -1,9 +1,9 @@
 """One episode of the real cell, step by step: the clock, the resampled streams, the recorder, the observation.
 
 Step k covers ``[t0 + k·dt, t0 + (k+1)·dt)`` of the monotonic clock (``t0``: the stream's start). At the end of
-the window its F/T bins are closed (:class:`envs.real.sampling.FTBinner`), the nominal path is read at each
-bin (:func:`envs.real.sampling.path_at`) and the per-sample channels are appended to the env's
-:class:`envs.metrics.EpisodeRecorder`, the same channels the sim records (true-tip ones NaN, the stage an F/T
+the window its F/T bins are closed (:class:`drillgym.envs.real.sampling.FTBinner`), the nominal path is read at each
+bin (:func:`drillgym.envs.real.sampling.path_at`) and the per-sample channels are appended to the env's
+:class:`drillgym.envs.metrics.EpisodeRecorder`, the same channels the sim records (true-tip ones NaN, the stage an F/T
 contact flag). A fault ends the window at the fault's time: the recorder holds every sample up to it.
 """
 
@@ -15,15 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.constants import APPROACH_START_M
-from envs.metrics import EpisodeRecorder
-from envs.observation import pack_observation
-from envs.real.devices import CellDevices
-from envs.real.metrics import contact_flags
-from envs.real.robot_link import LinkError
-from envs.real.sampling import FTBinner, path_at
-from envs.real.servo import CellGeometry, ServoLoop
-from envs.task import Phase
+from drillgym.envs.constants import APPROACH_START_M
+from drillgym.envs.metrics import EpisodeRecorder
+from drillgym.envs.observation import pack_observation
+from drillgym.envs.real.devices import CellDevices
+from drillgym.envs.real.metrics import contact_flags
+from drillgym.envs.real.robot_link import LinkError
+from drillgym.envs.real.sampling import FTBinner, path_at
+from drillgym.envs.real.servo import CellGeometry, ServoLoop
+from drillgym.envs.task import Phase
 
 ARRIVAL_GRACE_S = 0.002
 """Wait this long past a window's end for its last F/T records to arrive (s)."""

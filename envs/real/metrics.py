@@ -1,6 +1,6 @@
 """Episode metrics a real cell can compute: no true tip, so contact from the F/T force, deviation from the tracker.
 
-The same :func:`envs.metrics.episode_metrics`, with the engagement "stage" replaced by an F/T contact flag
+The same :func:`drillgym.envs.metrics.episode_metrics`, with the engagement "stage" replaced by an F/T contact flag
 (force magnitude, 50 ms mean, above :data:`CONTACT_FORCE_N`) and the true deviation unknown (NaN):
 ``deviation_*_mm`` and ``hole_offset_mm`` come out NaN (measure the hole on the specimen), the force metrics,
 ``drill_time_s`` and ``tracker_deviation_mean_mm`` are computed. :func:`cell_metrics` applies the same
@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from envs.metrics import EpisodeRecorder, episode_metrics, moving_average
+from drillgym.envs.metrics import EpisodeRecorder, episode_metrics, moving_average
 
 CONTACT_FORCE_N = 0.3
 """Contact when the 50 ms mean F/T force magnitude exceeds this (N): 15x the Mini40's noise, well under

@@ -10,22 +10,22 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from envs.cell_params import R_BASE_TASK, CellParams
-from envs.constants import ACTION_DIM, APPROACH_START_M, CONTROL_DT_S, scale_action
-from envs.metrics import EpisodeRecorder, episode_metrics
-from envs.observation import observation_space
-from envs.plan import DrillPlan
-from envs.real.command_log import CommandLog
-from envs.real.config import SafetyLimits, ServoParams
-from envs.real.devices import CellDevices
-from envs.real.episode import EpisodeStreams
-from envs.real.netft import NetFTCalibration
-from envs.real.poses import rotation_angle_rad, rotvec_to_matrix
-from envs.real.robot_link import LinkError
-from envs.real.safety import check_safety_bits
-from envs.real.servo import BLIND_FAULTS, CellGeometry, ServoLoop
-from envs.scenario import Scenario
-from envs.task import DrillPath
+from drillgym.envs.cell_params import R_BASE_TASK, CellParams
+from drillgym.envs.constants import ACTION_DIM, APPROACH_START_M, CONTROL_DT_S, scale_action
+from drillgym.envs.metrics import EpisodeRecorder, episode_metrics
+from drillgym.envs.observation import observation_space
+from drillgym.envs.plan import DrillPlan
+from drillgym.envs.real.command_log import CommandLog
+from drillgym.envs.real.config import SafetyLimits, ServoParams
+from drillgym.envs.real.devices import CellDevices
+from drillgym.envs.real.episode import EpisodeStreams
+from drillgym.envs.real.netft import NetFTCalibration
+from drillgym.envs.real.poses import rotation_angle_rad, rotvec_to_matrix
+from drillgym.envs.real.robot_link import LinkError
+from drillgym.envs.real.safety import check_safety_bits
+from drillgym.envs.real.servo import BLIND_FAULTS, CellGeometry, ServoLoop
+from drillgym.envs.scenario import Scenario
+from drillgym.envs.task import DrillPath
 
 TARE_S = 0.3
 """F/T samples averaged for the tare at the start pose (s)."""
@@ -50,7 +50,7 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     ## Observation Space
 
-    The sim's ``Dict`` (:func:`envs.observation.observation_space`), from measurements only: ``ft_wrench``
+    The sim's ``Dict`` (:func:`drillgym.envs.observation.observation_space`), from measurements only: ``ft_wrench``
     (latest 10 ms bin), ``ft_wrench_mean`` (the step's bins), ``q_rad`` and ``tcp_error_base_m`` (RTDE),
     ``tracker_error_base_m`` / ``tracker_valid`` (the marker vs. where it was at the start pose moved along
     the path; 0 / 0 without a fresh reading), the path, and the command being streamed.
@@ -81,10 +81,10 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     ## Arguments
 
     ``robot_host`` (required), ``ft_sensor`` (``HOST[:PORT]``; default: ``robot_host``), ``tracker``
-    (``"none"`` or ``"udp:HOST[:PORT]"``), ``ft_calibration`` (:class:`envs.real.netft.NetFTCalibration`),
+    (``"none"`` or ``"udp:HOST[:PORT]"``), ``ft_calibration`` (:class:`drillgym.envs.real.netft.NetFTCalibration`),
     ``dry_run`` (no control interface at all: commands are only logged), ``command_log_path`` (JSONL of every
-    command sent or, dry, not sent), ``safety_limits`` (:class:`envs.real.config.SafetyLimits`),
-    ``servo_params`` (:class:`envs.real.config.ServoParams`), ``cell_params`` (the entry point in the base
+    command sent or, dry, not sent), ``safety_limits`` (:class:`drillgym.envs.real.config.SafetyLimits`),
+    ``servo_params`` (:class:`drillgym.envs.real.config.ServoParams`), ``cell_params`` (the entry point in the base
     frame, sensor-to-chuck length, as registered on the real cell), the reward weights, and the sim's
     scenario arguments: they define the plan (β, feed, rpm, drill, stick-out, depth, cortical thickness,
     bone) and ``force_limit_n``; the sim-only ones (noise, latency, bone variability) are ignored.

@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from envs.real.command_log import CommandLog
-from envs.real.config import ServoParams
+from drillgym.envs.real.command_log import CommandLog
+from drillgym.envs.real.config import ServoParams
 
 RTDE_STATE_VARIABLES = [
     "timestamp",

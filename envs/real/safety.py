@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.real.config import SafetyLimits
+from drillgym.envs.real.config import SafetyLimits
 
 SAFETY_STATUS_BITS = {
     2: "protective stop",

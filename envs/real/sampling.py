@@ -12,8 +12,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from envs.constants import PHYSICS_DT_S
-from envs.real.netft import FTRecord
+from drillgym.envs.constants import PHYSICS_DT_S
+from drillgym.envs.real.netft import FTRecord
 
 
 class FTBinner:

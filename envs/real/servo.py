@@ -1,9 +1,9 @@
 """The 125 Hz servo stream of the real cell: nominal path + latest correction, checked, then ``servoL``.
 
 A background thread owns the robot while an episode runs. Every cycle (``initPeriod`` / ``waitPeriod``)
-it advances the nominal path (:class:`envs.task.DrillPath`) by the elapsed time at the commanded feed
+it advances the nominal path (:class:`drillgym.envs.task.DrillPath`) by the elapsed time at the commanded feed
 override, adds the latest correction the agent commanded (held between agent steps), rate-limits the
-target, checks every safety condition (:mod:`envs.real.safety`) and streams ``servoL``. On any fault it
+target, checks every safety condition (:mod:`drillgym.envs.real.safety`) and streams ``servoL``. On any fault it
 commands ``servoStop`` (and, if the link is lost, tries ``stopScript``) and ends; at the end of the
 path it stops servoing. The agent side reads the fault, the timing statistics and the path history.
 """
@@ -16,12 +16,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from envs.real import safety
-from envs.real.config import SafetyLimits, ServoParams
-from envs.real.netft import NetFTClient
-from envs.real.poses import matrix_to_rotvec
-from envs.real.robot_link import LinkError, RobotLink, RobotState
-from envs.task import DrillPath, Phase
+from drillgym.envs.real import safety
+from drillgym.envs.real.config import SafetyLimits, ServoParams
+from drillgym.envs.real.netft import NetFTClient
+from drillgym.envs.real.poses import matrix_to_rotvec
+from drillgym.envs.real.robot_link import LinkError, RobotLink, RobotState
+from drillgym.envs.task import DrillPath, Phase
 
 REFUSAL_STATE_WAIT_S = 0.05
 """After a refused ``servoL``, how long to watch the RTDE state for a safety stop behind it (s): 6 RTDE cycles."""

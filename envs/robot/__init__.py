@@ -1,7 +1,7 @@
 """The UR5: kinematics and Jacobians (Pinocchio), joint compliance, stiffness identification."""
 
-from envs.robot.compliance import KTHETA_LI2023_NM_RAD, JointCompliance
-from envs.robot.ur5 import TCP_FRAME, TRACKER_FRAME, UR5Kinematics, ur5_urdf_path
+from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD, JointCompliance
+from drillgym.envs.robot.ur5 import TCP_FRAME, TRACKER_FRAME, UR5Kinematics, ur5_urdf_path
 
 __all__ = [
     "KTHETA_LI2023_NM_RAD",

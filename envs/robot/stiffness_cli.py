@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from envs.robot.compliance import KTHETA_LI2023_NM_RAD
-from envs.robot.stiffness_id import (
+from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
+from drillgym.envs.robot.stiffness_id import (
     DEFAULT_TCP_OFFSET_M,
     IDENTIFICATION_POSES_Q_RAD,
     LI_TABLE1_MEASURED_Z_MM,
@@ -27,8 +27,8 @@ from envs.robot.stiffness_id import (
     identify_joint_stiffness,
     simulate_load_experiments,
 )
-from envs.robot.stiffness_table1 import Table1Comparison, reproduce_li_table1
-from envs.robot.ur5 import TCP_FRAME, UR5Kinematics
+from drillgym.envs.robot.stiffness_table1 import Table1Comparison, reproduce_li_table1
+from drillgym.envs.robot.ur5 import TCP_FRAME, UR5Kinematics
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

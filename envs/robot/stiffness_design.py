@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.robot.stiffness_id import (
+from drillgym.envs.robot.stiffness_id import (
     IDENTIFICATION_POSES_Q_RAD,
     REL_STD_ERROR_MAX,
     LoadExperiments,
@@ -14,7 +14,7 @@ from envs.robot.stiffness_id import (
     inverse_information_diag,
     regressor,
 )
-from envs.robot.ur5 import UR5Kinematics
+from drillgym.envs.robot.ur5 import UR5Kinematics
 
 
 def _lever_jacobians(jacobian: np.ndarray, R_base_frame: np.ndarray, lever_m: float) -> np.ndarray:

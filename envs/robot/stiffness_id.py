@@ -24,8 +24,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import nnls
 
-from envs.robot.compliance import KTHETA_LI2023_NM_RAD
-from envs.robot.ur5 import TCP_FRAME, UR5Kinematics
+from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
+from drillgym.envs.robot.ur5 import TCP_FRAME, UR5Kinematics
 
 REL_STD_ERROR_MAX = 0.10
 """A joint counts as identified when its relative standard error is at most this and its compliance CI
@@ -353,6 +353,6 @@ def identify_joint_stiffness(
 
 def _suggest(*args: Any, **kwargs: Any) -> list[str]:
     """The experiment-design suggestions (imported late: that module builds on this one)."""
-    from envs.robot.stiffness_design import suggest_experiments
+    from drillgym.envs.robot.stiffness_design import suggest_experiments
 
     return suggest_experiments(*args, **kwargs)

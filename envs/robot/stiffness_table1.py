@@ -6,14 +6,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.robot.stiffness_id import (
+from drillgym.envs.robot.stiffness_id import (
     LI_TABLE1_LOADS_N,
     LI_TABLE1_POSES_Q_RAD,
     equilibrium_deflection,
     linear_deflection_m,
     point_kinematics,
 )
-from envs.robot.ur5 import UR5Kinematics
+from drillgym.envs.robot.ur5 import UR5Kinematics
 
 
 @dataclass(frozen=True)

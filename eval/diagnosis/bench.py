@@ -1,6 +1,6 @@
 """``drillgym bench-diagnosis``: generate each case's reality, diagnose it blind, tabulate how it did.
 
-Per case (:mod:`eval.diagnosis.bench_cases`): write the reality's logs, diagnose them with the candidate
+Per case (:mod:`drillgym.eval.diagnosis.bench_cases`): write the reality's logs, diagnose them with the candidate
 library (the true effect is never in the diagnosing simulator: the library holds other models of the
 same physics, and none of the outside effect), and compare with the truth. Cases run in parallel (one
 process each); each diagnosis runs in its process.
@@ -21,7 +21,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from eval.diagnosis.bench_cases import Case
+from drillgym.eval.diagnosis.bench_cases import Case
 
 ACCEPTANCE = {
     "top1_accuracy_single": 0.90,
@@ -69,9 +69,9 @@ def run_case(job: CaseJob) -> dict[str, Any]:
 
 def _run_case(job: CaseJob) -> dict[str, Any]:
     case, episodes, candidates, keep = job
-    from eval.diagnosis.diagnose import DiagnoseOptions, run_diagnosis
-    from eval.diagnosis.episodes import load_episodes
-    from eval.diagnosis.reality.generate import make_reality
+    from drillgym.eval.diagnosis.diagnose import DiagnoseOptions, run_diagnosis
+    from drillgym.eval.diagnosis.episodes import load_episodes
+    from drillgym.eval.diagnosis.reality.generate import make_reality
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="drillgym-reality-") as tmp:

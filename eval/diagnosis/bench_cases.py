@@ -2,8 +2,8 @@
 
 Every reality effect at two magnitudes, pairs, clean data and an effect outside the candidate library.
 
-Each case is a reality spec (:mod:`eval.diagnosis.reality`); the diagnosis never sees it, only the
-logs, and its candidate library (:mod:`envs.effects`) holds separately written models of the same
+Each case is a reality spec (:mod:`drillgym.eval.diagnosis.reality`); the diagnosis never sees it, only the
+logs, and its candidate library (:mod:`drillgym.envs.effects`) holds separately written models of the same
 physics (and none of the out-of-library effect).
 """
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from eval.diagnosis.reality.generate import build_reality
+from drillgym.eval.diagnosis.reality.generate import build_reality
 
 
 @dataclass(frozen=True)

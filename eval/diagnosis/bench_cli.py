@@ -33,9 +33,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print its figures."""
-    from envs.effects.registry import EFFECTS
-    from eval.diagnosis.bench import run_bench
-    from eval.diagnosis.bench_cases import QUICK_CANDIDATES, full_cases, quick_cases
+    from drillgym.envs.effects.registry import EFFECTS
+    from drillgym.eval.diagnosis.bench import run_bench
+    from drillgym.eval.diagnosis.bench_cases import QUICK_CANDIDATES, full_cases, quick_cases
 
     cases = quick_cases() if args.quick else full_cases()
     if args.only:
@@ -54,10 +54,10 @@ def run(args: argparse.Namespace) -> int:
     candidates = QUICK_CANDIDATES if args.quick else tuple(EFFECTS)
     rows_of = None
     if args.ray or args.address:
-        from eval.scale.cluster import require_ray
+        from drillgym.eval.scale.cluster import require_ray
 
         require_ray()
-        from eval.diagnosis.bench_ray import ray_rows
+        from drillgym.eval.diagnosis.bench_ray import ray_rows
 
         rows_of = lambda jobs: ray_rows(jobs, args.address, args.workers)  # noqa: E731
     try:

@@ -13,8 +13,8 @@ from typing import Any
 
 import ray
 
-from eval.diagnosis.bench import CaseJob, error_row, run_case
-from eval.scale.cluster import ray_session
+from drillgym.eval.diagnosis.bench import CaseJob, error_row, run_case
+from drillgym.eval.scale.cluster import ray_session
 
 MAX_RETRIES = 2
 """Times Ray re-runs a case whose worker process died."""
@@ -27,7 +27,7 @@ def ray_rows(
 
     Args:
         jobs: the cases.
-        address: Ray address (see :func:`eval.scale.cluster.ray_session`); None starts a local instance.
+        address: Ray address (see :func:`drillgym.eval.scale.cluster.ray_session`); None starts a local instance.
         num_cpus: CPUs of a local instance (default: the machine's).
         max_retries: re-runs of a case whose worker died.
     """

@@ -41,7 +41,7 @@ GROUP_OF = {
     **dict.fromkeys(TRACKER_CHANNELS, "tracker"),
     **dict.fromkeys(Q_CHANNELS, "q"),
 }
-"""Channel group of each channel (the groups of :data:`envs.effects.CHANNEL_GROUPS`)."""
+"""Channel group of each channel (the groups of :data:`drillgym.envs.effects.CHANNEL_GROUPS`)."""
 
 STAGES = ("approach", "entry1", "entry2", "entry3", "stable", "retract")
 """Drilling stages estimated from the commanded depth: before contact, Li's entry stages 1–3 (lips partly

@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from envs.effects.registry import EFFECTS
+from drillgym.envs.effects.registry import EFFECTS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,9 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load, diagnose, write."""
-    from eval.diagnosis.diagnose import DiagnoseOptions, run_diagnosis
-    from eval.diagnosis.episodes import load_episodes
-    from eval.diagnosis.report import write_outputs
+    from drillgym.eval.diagnosis.diagnose import DiagnoseOptions, run_diagnosis
+    from drillgym.eval.diagnosis.episodes import load_episodes
+    from drillgym.eval.diagnosis.report import write_outputs
 
     candidates = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
     unknown = sorted(set(candidates) - set(EFFECTS))

@@ -13,13 +13,13 @@ from typing import Any
 
 import numpy as np
 
-from envs.effects.base import Effect
-from envs.effects.registry import EFFECTS
-from eval.diagnosis.episodes import EpisodeData
-from eval.diagnosis.features import Blocks, Features, features, make_blocks, smooth_blocks
-from eval.diagnosis.gap import HARDNESS_LEVELS, EpisodeNull, Terms, episode_null, gap_terms, noise_variance
-from eval.diagnosis.replay import Replayer, SimTrace, seed_for
-from eval.diagnosis.spectrum import spectrum_summary
+from drillgym.envs.effects.base import Effect
+from drillgym.envs.effects.registry import EFFECTS
+from drillgym.eval.diagnosis.episodes import EpisodeData
+from drillgym.eval.diagnosis.features import Blocks, Features, features, make_blocks, smooth_blocks
+from drillgym.eval.diagnosis.gap import HARDNESS_LEVELS, EpisodeNull, Terms, episode_null, gap_terms, noise_variance
+from drillgym.eval.diagnosis.replay import Replayer, SimTrace, seed_for
+from drillgym.eval.diagnosis.spectrum import spectrum_summary
 
 NOISE_DRAWS = 2
 """Replays with sensor noise (and the preset's hardness) per episode, for the noise scale."""

@@ -5,7 +5,7 @@ episodes into calibration and held-out halves; replay every episode nominally an
 scatter (null model); test whether there is a gap at all; fit every candidate effect on the
 calibration half and score it on the held-out half; fit pairs of the best candidates when one is not
 enough (forward selection, then the best pairs refitted jointly); name what is surely worth naming
-(:mod:`eval.diagnosis.rank`).
+(:mod:`drillgym.eval.diagnosis.rank`).
 """
 
 from __future__ import annotations
@@ -20,12 +20,12 @@ from typing import Any
 
 from tqdm import tqdm
 
-from envs.effects.registry import EFFECTS
-from eval.diagnosis.context import DiagnosisData, split_episodes
-from eval.diagnosis.episodes import EpisodeData
-from eval.diagnosis.fit import FitResult
-from eval.diagnosis.pool import Runner
-from eval.diagnosis.rank import (
+from drillgym.envs.effects.registry import EFFECTS
+from drillgym.eval.diagnosis.context import DiagnosisData, split_episodes
+from drillgym.eval.diagnosis.episodes import EpisodeData
+from drillgym.eval.diagnosis.fit import FitResult
+from drillgym.eval.diagnosis.pool import Runner
+from drillgym.eval.diagnosis.rank import (
     PAIR_TRY_RESIDUAL,
     ModelScore,
     alternatives,
@@ -58,7 +58,7 @@ class DiagnoseOptions:
     """Pairs are built on top of this many of the best singles (forward selection from each)."""
     refit_pairs: int = 2
     """This many of the best pairs (and the pair of the two best nameable singles) are then refitted
-    with every parameter free (:func:`~eval.diagnosis.fit.refit_jointly`); 0 keeps forward selection."""
+    with every parameter free (:func:`~drillgym.eval.diagnosis.fit.refit_jointly`); 0 keeps forward selection."""
     seed: int = 0
     """Seed of the split and the bootstrap."""
     progress: bool = True

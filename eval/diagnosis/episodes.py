@@ -2,7 +2,7 @@
 
 Read from episode logs in the project's schema (``docs/log_schema.md``): compacted ``<name>.parquet``
 files, the ``<name>/`` directory of a run that did not finish (used up to its last row, noted), and
-``ur_rtde`` recording sessions (a folder with ``rtde.csv``; :mod:`eval.diagnosis.rtde_import`). Only
+``ur_rtde`` recording sessions (a folder with ``rtde.csv``; :mod:`drillgym.eval.diagnosis.rtde_import`). Only
 the columns a real cell records are read; ``sim_*`` columns are dropped before anything looks at them.
 """
 
@@ -16,12 +16,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from envs.constants import unscale_action
-from envs.scenario import Scenario
-from eval.diagnosis.channels import LF_CHANNELS
-from eval.diagnosis.stages import stage_labels
-from eval.diagnosis.validate import LogCheckError, check_log
-from eval.logs import EpisodeLogError, read_episode_log
+from drillgym.envs.constants import unscale_action
+from drillgym.envs.scenario import Scenario
+from drillgym.eval.diagnosis.channels import LF_CHANNELS
+from drillgym.eval.diagnosis.stages import stage_labels
+from drillgym.eval.diagnosis.validate import LogCheckError, check_log
+from drillgym.eval.logs import EpisodeLogError, read_episode_log
 
 SESSION_MARKER = "rtde.csv"
 """A sub-folder holding this file is an ``ur_rtde`` recording session to import."""
@@ -40,9 +40,9 @@ class EpisodeData:
         phase: path phase per sample, (n,).
         depth_cmd_m: commanded depth (m, task z), (n,).
         stage: estimated stage per sample (index into ``STAGES``), (n,).
-        lf: the real channels (:data:`~eval.diagnosis.channels.LF_CHANNELS`) per sample, (n, 15); tracker
+        lf: the real channels (:data:`~drillgym.eval.diagnosis.channels.LF_CHANNELS`) per sample, (n, 15); tracker
             columns NaN where the tracker was not tracking.
-        repairs: what :func:`~eval.diagnosis.validate.check_log` repaired, one line each.
+        repairs: what :func:`~drillgym.eval.diagnosis.validate.check_log` repaired, one line each.
         r_base_task: the planned task frame's axes in the base frame (3x3).
     """
 
@@ -114,7 +114,7 @@ def episode_from_log(name: str, header: dict[str, Any], frame: pd.DataFrame) -> 
 
 
 def _default_t_base_task(scenario: Scenario) -> np.ndarray:
-    from envs.cell_params import R_BASE_TASK, CellParams
+    from drillgym.envs.cell_params import R_BASE_TASK, CellParams
 
     t = np.eye(4)
     t[:3, :3] = R_BASE_TASK
@@ -145,7 +145,7 @@ def load_episodes(directory: str | Path, strict: bool = False) -> tuple[list[Epi
     Returns:
         ``(episodes, skipped)``: the episodes, and one line per skipped log naming the reason.
     """
-    from eval.diagnosis.rtde_import import import_session
+    from drillgym.eval.diagnosis.rtde_import import import_session
 
     episodes, skipped = [], []
     for path in find_logs(directory):

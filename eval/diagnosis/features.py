@@ -1,7 +1,7 @@
 """Features of a trace the gap is computed on: 0.1 s block means and HF power per stage.
 
 Blocks never straddle a stage: each stage's run of samples is cut into blocks of
-:data:`~eval.diagnosis.channels.BLOCK_SAMPLES`. The block layout comes from the real episode and is
+:data:`~drillgym.eval.diagnosis.channels.BLOCK_SAMPLES`. The block layout comes from the real episode and is
 used for every trace replayed from it (rows are aligned).
 """
 
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from eval.diagnosis.channels import BLOCK_SAMPLES, STAGES
+from drillgym.eval.diagnosis.channels import BLOCK_SAMPLES, STAGES
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy import signal
 
-from envs.constants import FT_RATE_HZ
-from eval.diagnosis.channels import LF_CHANNELS, STAGES
+from drillgym.envs.constants import FT_RATE_HZ
+from drillgym.eval.diagnosis.channels import LF_CHANNELS, STAGES
 
 STAGE_COLOURS = ("#ffffff", "#fde0c5", "#facba6", "#f8b58b", "#dfe7f2", "#eeeeee")
 

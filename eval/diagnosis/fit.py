@@ -5,7 +5,7 @@ Parameters are searched in a unit box (each one mapped from its physical range):
 combined, plus a reading straight off the data where an effect offers one), then a bounded compass
 search from the best one or two starting points, with a budget of evaluations. Every evaluation
 replays the calibration episodes (sensor-only effects are applied to the cached nominal replays
-instead). The objective is the mean gap term of :mod:`eval.diagnosis.gap`. A pair is fitted by
+instead). The objective is the mean gap term of :mod:`drillgym.eval.diagnosis.gap`. A pair is fitted by
 forward selection (:func:`fit_model` with ``start``), and the best pairs again with every parameter
 free (:func:`refit_jointly`).
 """
@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from envs.effects.base import Param
-from envs.effects.registry import EFFECTS
-from eval.diagnosis.context import Evaluator, Spec
-from eval.diagnosis.gap import Terms
+from drillgym.envs.effects.base import Param
+from drillgym.envs.effects.registry import EFFECTS
+from drillgym.eval.diagnosis.context import Evaluator, Spec
+from drillgym.eval.diagnosis.gap import Terms
 
 GRID_FRACTIONS = (1 / 16, 1 / 4, 1.0)
 """Grid levels of a one-sided parameter, as fractions of its span from the off value."""
@@ -347,7 +347,7 @@ def _worth_refining(f_off: float, f_best: float, data: Any) -> bool:
     Only if it removes at least :data:`REFINE_MIN_GAIN` of the calibration excess (an effect that does
     nothing on the grid explains nothing here).
     """
-    from eval.diagnosis.rank import pooled
+    from drillgym.eval.diagnosis.rank import pooled
 
     excess = f_off - pooled([data.null_terms[i] for i in data.cal])
     return excess > 0 and f_off - f_best >= REFINE_MIN_GAIN * excess

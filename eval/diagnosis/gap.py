@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from eval.diagnosis.channels import (
+from drillgym.eval.diagnosis.channels import (
     ALL_CHANNELS,
     HF_LOG_VAR_FLOOR,
     HF_POWER_FLOOR_N2,
@@ -35,7 +35,7 @@ from eval.diagnosis.channels import (
     LF_FLOOR,
     STAGES,
 )
-from eval.diagnosis.features import Blocks, Features, block_jumps, block_lengths
+from drillgym.eval.diagnosis.features import Blocks, Features, block_jumps, block_lengths
 
 N_LF = len(LF_CHANNELS)
 PROFILE_GRID = np.linspace(-3.0, 3.0, 25)

@@ -1,7 +1,7 @@
 """Run diagnosis jobs on every core: a ``spawn`` process pool, each worker with its own simulator.
 
-Workers receive the shared :class:`~eval.diagnosis.context.DiagnosisData` once (pool initializer) and
-keep one env (:class:`~eval.diagnosis.replay.Replayer`). With one worker everything runs in this process.
+Workers receive the shared :class:`~drillgym.eval.diagnosis.context.DiagnosisData` once (pool initializer) and
+keep one env (:class:`~drillgym.eval.diagnosis.replay.Replayer`). With one worker everything runs in this process.
 """
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ import multiprocessing as mp
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
-from eval.diagnosis.context import DiagnosisData, Evaluator, baseline_job
-from eval.diagnosis.fit import FitResult, fit_model, refit_jointly
-from eval.diagnosis.replay import Replayer
+from drillgym.eval.diagnosis.context import DiagnosisData, Evaluator, baseline_job
+from drillgym.eval.diagnosis.fit import FitResult, fit_model, refit_jointly
+from drillgym.eval.diagnosis.replay import Replayer
 
 _WORKER: dict[str, Any] = {}
 
@@ -66,5 +66,5 @@ class Runner:
     def refits(
         self, data: DiagnosisData, models: list[tuple[tuple[str, ...], list[list[dict[str, float]]]]]
     ) -> Iterable[tuple[int, FitResult]]:
-        """Refit each ``(names, starts)`` with every parameter free (:func:`~eval.diagnosis.fit.refit_jointly`)."""
+        """Refit each ``(names, starts)`` with every parameter free (:func:`~drillgym.eval.diagnosis.fit.refit_jointly`)."""
         return self._map(data, _refit, [(k, names, starts) for k, (names, starts) in enumerate(models)])

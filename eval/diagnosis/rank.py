@@ -1,6 +1,6 @@
 """Held-out scores, bootstrap intervals, the parameter penalty, and the verdict.
 
-Gap of a set of episodes: ``G = Σ J / Σ N``, the mean normalised term (:mod:`eval.diagnosis.gap`);
+Gap of a set of episodes: ``G = Σ J / Σ N``, the mean normalised term (:mod:`drillgym.eval.diagnosis.gap`);
 the simulator's own level ``G₀`` comes from null replays (noise and a drawn specimen on). For a model
 (one effect or a pair, fitted on the calibration episodes) on the held-out episodes:
 
@@ -25,10 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from envs.effects.registry import EFFECTS
-from eval.diagnosis.channels import ALL_CHANNELS, GROUP_OF, STAGES
-from eval.diagnosis.fit import FitResult
-from eval.diagnosis.gap import Terms
+from drillgym.envs.effects.registry import EFFECTS
+from drillgym.eval.diagnosis.channels import ALL_CHANNELS, GROUP_OF, STAGES
+from drillgym.eval.diagnosis.fit import FitResult
+from drillgym.eval.diagnosis.gap import Terms
 
 BOOTSTRAP = 1000
 """Bootstrap resamples of the held-out episodes."""

@@ -3,7 +3,7 @@
 The scenario comes from the log's header; every agent step sends the logged command (correction and
 feed override) open loop. By default the replay is *nominal*: no sensor noise and no specimen
 variability (the sim's expectation); the null model switches them on (drawn from ``seed``) or sets the
-specimen's hardness. Effects (:mod:`envs.effects`) can be switched on for the replay.
+specimen's hardness. Effects (:mod:`drillgym.envs.effects`) can be switched on for the replay.
 """
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.drill_env import UR5BoneDrillEnv
-from envs.effects.base import Effect, TraceView
-from eval.diagnosis.channels import LF_CHANNELS
-from eval.diagnosis.episodes import EpisodeData
+from drillgym.envs.drill_env import UR5BoneDrillEnv
+from drillgym.envs.effects.base import Effect, TraceView
+from drillgym.eval.diagnosis.channels import LF_CHANNELS
+from drillgym.eval.diagnosis.episodes import EpisodeData
 
 
 @dataclass
@@ -26,7 +26,7 @@ class SimTrace:
     """The simulated channels of one replay, row-aligned with the real episode.
 
     Attributes:
-        lf: the channels of :data:`~eval.diagnosis.channels.LF_CHANNELS` per sample, (n, 15); NaN on rows
+        lf: the channels of :data:`~drillgym.eval.diagnosis.channels.LF_CHANNELS` per sample, (n, 15); NaN on rows
             the replay did not reach (it ended earlier than the log).
         t_s: sample times (s), (n,).
         engaged_share: share of the lips in bone per sample (the replay's own state), (n,).

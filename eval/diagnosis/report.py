@@ -9,11 +9,11 @@ from typing import Any
 
 import numpy as np
 
-from eval.diagnosis.channels import STAGES
-from eval.diagnosis.context import build, make_spec
-from eval.diagnosis.diagnose import Diagnosis
-from eval.diagnosis.figures import plot_gap_map, plot_overlays, plot_ranking, plot_spectra
-from eval.diagnosis.replay import Replayer, seed_for
+from drillgym.eval.diagnosis.channels import STAGES
+from drillgym.eval.diagnosis.context import build, make_spec
+from drillgym.eval.diagnosis.diagnose import Diagnosis
+from drillgym.eval.diagnosis.figures import plot_gap_map, plot_overlays, plot_ranking, plot_spectra
+from drillgym.eval.diagnosis.replay import Replayer, seed_for
 
 OVERLAY_CHANNELS = ["fz_n", "fx_n", "tracker_x_task_m", "q1_rad"]
 

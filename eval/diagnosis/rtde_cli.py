@@ -21,10 +21,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Import every session; report the ones that fail their checks."""
-    from eval.diagnosis.episodes import episode_from_log
-    from eval.diagnosis.rtde_import import import_session
-    from eval.diagnosis.validate import LogCheckError
-    from eval.logs import EpisodeLogWriter
+    from drillgym.eval.diagnosis.episodes import episode_from_log
+    from drillgym.eval.diagnosis.rtde_import import import_session
+    from drillgym.eval.diagnosis.validate import LogCheckError
+    from drillgym.eval.logs import EpisodeLogWriter
 
     args.out.mkdir(parents=True, exist_ok=True)
     failed = 0

@@ -19,7 +19,7 @@ A session folder holds (``docs/diagnosis.md`` has the full spec):
 Rows are the F/T samples; each agent step's command, joint angles, TCP and tracker are the values at
 the end of the step held for its rows, as the episode-log schema says. Repairs (listed in the header's
 ``run.repairs``): repeated RTDE rows are dropped. Everything else that does not fit raises
-:class:`~eval.diagnosis.validate.LogCheckError` naming the file and the problem.
+:class:`~drillgym.eval.diagnosis.validate.LogCheckError` naming the file and the problem.
 """
 
 from __future__ import annotations
@@ -32,9 +32,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from envs.constants import CONTROL_DT_S, FT_RATE_HZ, RTDE_RATE_HZ, TRACKER_RATE_HZ
-from eval.diagnosis.validate import LogCheckError
-from eval.logs.schema import LOG_SCHEMA_VERSION
+from drillgym.envs.constants import CONTROL_DT_S, FT_RATE_HZ, RTDE_RATE_HZ, TRACKER_RATE_HZ
+from drillgym.eval.diagnosis.validate import LogCheckError
+from drillgym.eval.logs.schema import LOG_SCHEMA_VERSION
 
 RTDE_Q = tuple(f"actual_q_{i}" for i in range(6))
 RTDE_TCP = tuple(f"actual_TCP_pose_{i}" for i in range(3))

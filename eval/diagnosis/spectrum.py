@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from envs.constants import FT_RATE_HZ
-from eval.diagnosis.channels import FORCE_CHANNELS
+from drillgym.envs.constants import FT_RATE_HZ
+from drillgym.eval.diagnosis.channels import FORCE_CHANNELS
 
 BANDS_HZ = ((0.0, 1.0), (1.0, 5.0), (5.0, 20.0), (20.0, 50.0))
 """Frequency bands (Hz)."""

@@ -1,7 +1,7 @@
 """Drilling stage of every sample, estimated from the commanded depth (a real log has no stage).
 
 The commanded tip depth and the planned geometry (β, drill diameter) give Li's stage boundaries
-(:func:`envs.drilling.force_model.stage_bounds`); the real tip lags and deviates from the command, so
+(:func:`drillgym.envs.drilling.force_model.stage_bounds`); the real tip lags and deviates from the command, so
 this is the stage the plan expects, which is what a person reading a real log can know.
 """
 
@@ -11,13 +11,13 @@ import math
 
 import numpy as np
 
-from envs.drilling.force_model import stage_bounds
-from envs.drilling.geometry import DrillGeometry
-from eval.diagnosis.channels import STAGES
+from drillgym.envs.drilling.force_model import stage_bounds
+from drillgym.envs.drilling.geometry import DrillGeometry
+from drillgym.eval.diagnosis.channels import STAGES
 
 
 def stage_labels(depth_cmd_m: np.ndarray, phase: np.ndarray, beta_deg: float, drill_diameter_mm: float) -> np.ndarray:
-    """Stage index (into :data:`~eval.diagnosis.channels.STAGES`) per sample.
+    """Stage index (into :data:`~drillgym.eval.diagnosis.channels.STAGES`) per sample.
 
     Args:
         depth_cmd_m: commanded tip depth past the planned entry point (m, task z), per sample.

@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from envs.constants import FT_RATE_HZ, SUBSTEPS_PER_STEP
-from eval.logs.schema import COLUMN_NAMES, SIM_PREFIX
+from drillgym.envs.constants import FT_RATE_HZ, SUBSTEPS_PER_STEP
+from drillgym.eval.logs.schema import COLUMN_NAMES, SIM_PREFIX
 
 REAL_COLUMNS = tuple(n for n in COLUMN_NAMES if not n.startswith(SIM_PREFIX))
 """Columns every log must have (a real cell's)."""

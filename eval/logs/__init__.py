@@ -4,11 +4,11 @@
 ``read_episode_log("run.parquet")`` returns ``(header, DataFrame)``. Schema: ``docs/log_schema.md``.
 """
 
-from eval.logs.header import build_header, package_versions
-from eval.logs.logger import EpisodeLogger
-from eval.logs.reader import EpisodeLogError, read_episode_log
-from eval.logs.schema import COLUMN_NAMES, COLUMNS, LOG_SCHEMA_VERSION, SIM_COLUMNS
-from eval.logs.writer import EpisodeLogWriter
+from drillgym.eval.logs.header import build_header, package_versions
+from drillgym.eval.logs.logger import EpisodeLogger
+from drillgym.eval.logs.reader import EpisodeLogError, read_episode_log
+from drillgym.eval.logs.schema import COLUMN_NAMES, COLUMNS, LOG_SCHEMA_VERSION, SIM_COLUMNS
+from drillgym.eval.logs.writer import EpisodeLogWriter
 
 __all__ = [
     "COLUMNS",

@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from envs.constants import CONTROL_DT_S, FT_RATE_HZ, RTDE_RATE_HZ, TRACKER_RATE_HZ
-from eval.logs.schema import LOG_SCHEMA_VERSION
+from drillgym.envs.constants import CONTROL_DT_S, FT_RATE_HZ, RTDE_RATE_HZ, TRACKER_RATE_HZ
+from drillgym.eval.logs.schema import LOG_SCHEMA_VERSION
 
 VERSIONED_PACKAGES = ("drillgym", "numpy", "gymnasium", "pybullet", "pin", "pandas", "pyarrow", "stable-baselines3")
 """Distributions whose versions go into every header (a missing optional one is left out)."""
@@ -58,7 +58,7 @@ def build_header(
     Args:
         env: the env; its ``unwrapped.scenario`` and ``unwrapped.plan`` and its spec id are recorded.
         controller: the controller's ``describe()`` (``{"name", "config"}``), or None for no policy.
-        seed: the reset seed; None lets :class:`eval.logs.EpisodeLogger` fill it in at ``reset``.
+        seed: the reset seed; None lets :class:`drillgym.eval.logs.EpisodeLogger` fill it in at ``reset``.
         source: ``"sim"`` or ``"real"``.
         extra: anything else worth keeping (e.g. the benchmark suite and scenario name), under ``"run"``.
 

@@ -3,7 +3,7 @@
 After each step it takes the F/T samples the step added to the unwrapped env's recorder
 (``env.unwrapped.recorder``, per-sample channels) and the step's action, observation and latest
 RTDE / tracker readings (held for the step's samples), and appends one row per sample
-(:mod:`eval.logs.schema`). The log is compacted when the episode ends or the logger is closed.
+(:mod:`drillgym.eval.logs.schema`). The log is compacted when the episode ends or the logger is closed.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from typing import Any, SupportsFloat
 import gymnasium as gym
 import numpy as np
 
-from envs.constants import scale_action
-from eval.logs.writer import FLUSH_ROWS, EpisodeLogWriter
+from drillgym.envs.constants import scale_action
+from drillgym.eval.logs.writer import FLUSH_ROWS, EpisodeLogWriter
 
 
 class EpisodeLogger(gym.Wrapper):

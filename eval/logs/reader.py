@@ -11,9 +11,9 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from eval.logs.paths import HEADER_FILE, PART_GLOB, log_paths
-from eval.logs.schema import HEADER_METADATA_KEY
-from eval.logs.writer import schema_for
+from drillgym.eval.logs.paths import HEADER_FILE, PART_GLOB, log_paths
+from drillgym.eval.logs.schema import HEADER_METADATA_KEY
+from drillgym.eval.logs.writer import schema_for
 
 
 class EpisodeLogError(ValueError):

@@ -4,7 +4,7 @@ A Parquet file is unreadable without its footer, so a log is written as a direct
 ``header.json`` first, then numbered parts ``part-00000.parquet``, ... each a complete small Parquet
 file (written to a temporary name and renamed, so a part is either whole or absent). ``close()``
 compacts the parts into ``<name>.parquet`` with the header in its schema metadata and removes the
-directory; a crash leaves the directory, readable up to the last flush (:mod:`eval.logs.reader`).
+directory; a crash leaves the directory, readable up to the last flush (:mod:`drillgym.eval.logs.reader`).
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from eval.logs.header import dumps
-from eval.logs.paths import HEADER_FILE, log_paths, part_name
-from eval.logs.schema import ARROW_SCHEMA, HEADER_METADATA_KEY, SIM_COLUMNS
+from drillgym.eval.logs.header import dumps
+from drillgym.eval.logs.paths import HEADER_FILE, log_paths, part_name
+from drillgym.eval.logs.schema import ARROW_SCHEMA, HEADER_METADATA_KEY, SIM_COLUMNS
 
 FLUSH_ROWS = 100
 """Rows per part: 1 s of F/T samples at 100 Hz."""
@@ -43,7 +43,7 @@ class EpisodeLogWriter:
 
         Args:
             path: the log, ``<name>.parquet`` (or ``<name>``).
-            header: JSON-ready header (:func:`eval.logs.build_header`); its ``source`` picks the columns.
+            header: JSON-ready header (:func:`drillgym.eval.logs.build_header`); its ``source`` picks the columns.
             flush_rows: rows buffered before a part is written.
             overwrite: replace an existing log of that name instead of raising ``FileExistsError``.
         """

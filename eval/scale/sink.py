@@ -15,9 +15,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from envs.metrics import METRIC_NAMES
-from eval.bench_report import episodes_frame
-from eval.summary import summarize
+from drillgym.envs.metrics import METRIC_NAMES
+from drillgym.eval.bench_report import episodes_frame
+from drillgym.eval.summary import summarize
 
 
 class StreamingSink:

@@ -1,4 +1,4 @@
-"""Measure ``drillgym bench --ray`` against the in-process run on one grid: ``python -m eval.scale.speedup``.
+"""Measure ``drillgym bench --ray`` against the in-process run on one grid: ``python -m drillgym.eval.scale.speedup``.
 
 Runs the grid ``--repeat`` times each way, alternating, in this process: the episode phase in-process
 (``--workers 1``) and on a local Ray instance (start-up, worker warm-up and episode phase timed apart),
@@ -17,9 +17,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from eval.bench import controller_label, run_jobs, split_controller_specs
-from eval.bench_episode import EpisodeJob
-from eval.suites import suite_scenarios
+from drillgym.eval.bench import controller_label, run_jobs, split_controller_specs
+from drillgym.eval.bench_episode import EpisodeJob
+from drillgym.eval.suites import suite_scenarios
 
 
 def _jobs(suite: str, specs: list[str], seeds: int, out: Path) -> list[EpisodeJob]:
@@ -34,7 +34,7 @@ def _jobs(suite: str, specs: list[str], seeds: int, out: Path) -> list[EpisodeJo
 
 def measure(suite: str, controllers: str, seeds: int, repeat: int, num_cpus: int | None) -> dict[str, Any]:
     """Median times (s) of both ways over ``repeat`` alternating runs, and the speed-up of the episode phase."""
-    from eval.scale.bench_ray import run_jobs_ray
+    from drillgym.eval.scale.bench_ray import run_jobs_ray
 
     specs = split_controller_specs(controllers)
     local_s: list[float] = []

@@ -23,11 +23,11 @@ from ray import tune
 from ray.tune.schedulers import ASHAScheduler
 from ray.tune.search import BasicVariantGenerator
 
-from eval.scale.cluster import ray_session
-from eval.scale.tune_trial import METRIC, TIME_ATTR, train_trial
-from training.config import TrainConfig
-from training.policy_bundle import save_bundle
-from training.sweep import SweepSpec
+from drillgym.eval.scale.cluster import ray_session
+from drillgym.eval.scale.tune_trial import METRIC, TIME_ATTR, train_trial
+from drillgym.training.config import TrainConfig
+from drillgym.training.policy_bundle import save_bundle
+from drillgym.training.sweep import SweepSpec
 
 TRIAL_COLUMNS = ("trial_id", "status", "evaluations", TIME_ATTR, "best_" + METRIC, "last_" + METRIC)
 """Leading columns of ``trials.csv`` (the searched hyperparameters follow)."""

@@ -16,8 +16,8 @@ from typing import Any
 import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 
-from training.callbacks import BaseComparisonEvalCallback
-from training.config import TrainConfig
+from drillgym.training.callbacks import BaseComparisonEvalCallback
+from drillgym.training.config import TrainConfig
 
 METRIC = "eval_deviation_mm"
 """Reported metric: the policy's mean tip deviation over the evaluation episodes (mm; minimised)."""
@@ -68,8 +68,8 @@ def train_trial(config: dict[str, Any]) -> None:
     from ray import tune
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from training.env_factory import make_eval_vec_env, make_train_vec_env
-    from training.model import ALGO_CLASSES, build_model
+    from drillgym.training.env_factory import make_eval_vec_env, make_train_vec_env
+    from drillgym.training.model import ALGO_CLASSES, build_model
 
     cfg = TrainConfig(**config)
     torch.set_num_threads(1)  # the trial's other CPUs run its SubprocVecEnv workers

@@ -3,5 +3,5 @@
 It speaks the real protocols on loopback — RTDE (30004), dashboard (29999), the script port (30003), the
 ATI Net F/T RDT stream (UDP 49152) — well enough for the unmodified ``ur_rtde`` 1.6.5 client, plus a marker
 stream and a JSON control port for fault injection. Start it with ``drillgym emulate`` or
-:class:`envs.real.emulator.process.EmulatorProcess` (always in its own process).
+:class:`drillgym.envs.real.emulator.process.EmulatorProcess` (always in its own process).
 """

@@ -1,10 +1,10 @@
-"""``python -m envs.real.emulator``: the same as ``drillgym emulate``."""
+"""``python -m drillgym.envs.real.emulator``: the same as ``drillgym emulate``."""
 
 import argparse
 import sys
 
-from envs.real.emulator import cli
+from drillgym.envs.real.emulator import cli
 
-parser = argparse.ArgumentParser(prog="python -m envs.real.emulator", description=cli.__doc__)
+parser = argparse.ArgumentParser(prog="python -m drillgym.envs.real.emulator", description=cli.__doc__)
 cli.add_arguments(parser)
 sys.exit(cli.run(parser.parse_args()))

@@ -13,7 +13,7 @@ import json
 import signal
 from typing import Any
 
-from envs.real.emulator.config import (
+from drillgym.envs.real.emulator.config import (
     CONTROL_PORT,
     DASHBOARD_PORT,
     RTDE_PORT,
@@ -21,9 +21,9 @@ from envs.real.emulator.config import (
     EmulatorConfig,
     ScheduledFault,
 )
-from envs.real.netft import RDT_PORT
-from envs.real.tracker import TRACKER_PORT
-from envs.scenario import Scenario
+from drillgym.envs.real.netft import RDT_PORT
+from drillgym.envs.real.tracker import TRACKER_PORT
+from drillgym.envs.scenario import Scenario
 
 
 def parse_scenario(text: str | None) -> Scenario:
@@ -97,7 +97,7 @@ def config_from_args(args: argparse.Namespace) -> EmulatorConfig:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until told to stop."""
-    from envs.real.emulator.server import Emulator
+    from drillgym.envs.real.emulator.server import Emulator
 
     emulator = Emulator(config_from_args(args))
 

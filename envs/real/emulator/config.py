@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from envs.real.netft import RDT_PORT, NetFTCalibration
-from envs.real.tracker import TRACKER_PORT
-from envs.scenario import Scenario
+from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
+from drillgym.envs.real.tracker import TRACKER_PORT
+from drillgym.envs.scenario import Scenario
 
 RTDE_PORT = 30004
 DASHBOARD_PORT = 29999

@@ -14,7 +14,7 @@ import hashlib
 import re
 from typing import Any
 
-from envs.real.emulator.script import PROGRAM_HEADER, REALTIME_COMMANDS
+from drillgym.envs.real.emulator.script import PROGRAM_HEADER, REALTIME_COMMANDS
 
 UR_RTDE_VERSION = "1.6.5"
 

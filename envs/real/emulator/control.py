@@ -13,7 +13,7 @@ import json
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from envs.real.emulator.server import Emulator
+    from drillgym.envs.real.emulator.server import Emulator
 
 
 def handle_control(emulator: Emulator, line: str) -> tuple[dict[str, Any], bool]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from envs.real.emulator.script import ControlProgram, RuntimeState
+from drillgym.envs.real.emulator.script import ControlProgram, RuntimeState
 
 WELCOME = "Connected: Universal Robots Dashboard Server\n"
 POLYSCOPE_VERSION = "URSoftware 3.15.7.106331 (Sep 07 2022)"

@@ -6,10 +6,10 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from envs.real.emulator.config import FAULT_KINDS, ScheduledFault
+from drillgym.envs.real.emulator.config import FAULT_KINDS, ScheduledFault
 
 if TYPE_CHECKING:
-    from envs.real.emulator.server import Emulator
+    from drillgym.envs.real.emulator.server import Emulator
 
 
 @dataclass

@@ -18,9 +18,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from envs.real.emulator.config import CONTROL_PORT, DASHBOARD_PORT, RTDE_PORT, SCRIPT_PORT
-from envs.real.netft import RDT_PORT
-from envs.real.tracker import TRACKER_PORT
+from drillgym.envs.real.emulator.config import CONTROL_PORT, DASHBOARD_PORT, RTDE_PORT, SCRIPT_PORT
+from drillgym.envs.real.netft import RDT_PORT
+from drillgym.envs.real.tracker import TRACKER_PORT
 
 TCP_PORTS = (RTDE_PORT, DASHBOARD_PORT, SCRIPT_PORT, CONTROL_PORT)
 UDP_PORTS = (RDT_PORT, TRACKER_PORT)
@@ -85,7 +85,7 @@ class EmulatorProcess:
         cmd = [
             sys.executable,
             "-m",
-            "envs.real.emulator",
+            "drillgym.envs.real.emulator",
             "--host",
             self.host,
             "--seed",

@@ -13,8 +13,8 @@ import struct
 from collections import deque
 from collections.abc import Callable
 
-from envs.real.emulator import rtde_protocol as rp
-from envs.real.emulator.registers import Registers
+from drillgym.envs.real.emulator import rtde_protocol as rp
+from drillgym.envs.real.emulator.registers import Registers
 
 CONTROLLER_VERSION = (3, 15, 7, 106331)
 """PolyScope 3.15.7 (CB3): what ``GET_URCONTROL_VERSION`` answers; it selects ur_rtde's recipes and rates."""

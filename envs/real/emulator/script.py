@@ -16,8 +16,8 @@ from enum import IntEnum
 
 import numpy as np
 
-from envs.real.emulator.registers import Registers
-from envs.real.emulator.world import EmulatedCell
+from drillgym.envs.real.emulator.registers import Registers
+from drillgym.envs.real.emulator.world import EmulatedCell
 
 
 class RuntimeState(IntEnum):

@@ -9,10 +9,10 @@ import math
 import socket
 from collections.abc import Callable
 
-from envs.real import netft, tracker
-from envs.real.emulator.config import EmulatorConfig
-from envs.real.emulator.faults import FaultState
-from envs.real.emulator.world import EmulatedCell
+from drillgym.envs.real import netft, tracker
+from drillgym.envs.real.emulator.config import EmulatorConfig
+from drillgym.envs.real.emulator.faults import FaultState
+from drillgym.envs.real.emulator.world import EmulatedCell
 
 
 class SensorStreams:

@@ -16,17 +16,17 @@ import sys
 import time
 from collections.abc import Callable
 
-from envs.constants import PHYSICS_DT_S
-from envs.real.emulator.config import EmulatorConfig
-from envs.real.emulator.control import handle_control
-from envs.real.emulator.dashboard import WELCOME, Dashboard
-from envs.real.emulator.faults import FaultState
-from envs.real.emulator.registers import Registers
-from envs.real.emulator.rtde_server import CB3_RATE_HZ, RtdeConnection
-from envs.real.emulator.script import ControlProgram
-from envs.real.emulator.sensor_streams import SensorStreams
-from envs.real.emulator.state import controller_state
-from envs.real.emulator.world import EmulatedCell
+from drillgym.envs.constants import PHYSICS_DT_S
+from drillgym.envs.real.emulator.config import EmulatorConfig
+from drillgym.envs.real.emulator.control import handle_control
+from drillgym.envs.real.emulator.dashboard import WELCOME, Dashboard
+from drillgym.envs.real.emulator.faults import FaultState
+from drillgym.envs.real.emulator.registers import Registers
+from drillgym.envs.real.emulator.rtde_server import CB3_RATE_HZ, RtdeConnection
+from drillgym.envs.real.emulator.script import ControlProgram
+from drillgym.envs.real.emulator.sensor_streams import SensorStreams
+from drillgym.envs.real.emulator.state import controller_state
+from drillgym.envs.real.emulator.world import EmulatedCell
 
 CONTROLLER_DT_S = 1.0 / CB3_RATE_HZ
 ROBOT_PORTS = ("rtde", "dashboard", "script")

@@ -10,7 +10,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from envs.real.emulator.server import Emulator
+    from drillgym.envs.real.emulator.server import Emulator
 
 ROBOT_MODE_RUNNING = 7
 JOINT_MODE_RUNNING = 253

@@ -1,6 +1,6 @@
 """Privileged truth of the emulated cell (true tip, engagement, hole): for tests, never for the client.
 
-Metrics follow :func:`envs.metrics.episode_metrics` on what the emulator knows: the drilling interval runs
+Metrics follow :func:`drillgym.envs.metrics.episode_metrics` on what the emulator knows: the drilling interval runs
 from first contact (stage > 0) to the deepest tip position (the end of the feed).
 """
 
@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from envs.drilling.contact import ContactSample
+from drillgym.envs.drilling.contact import ContactSample
 
 
 class TruthRecorder:

@@ -1,6 +1,6 @@
 """The emulated robot and cell: a UR5 servo on the quasi-static drilling physics of the simulator.
 
-The physics is the simulator's own (:class:`envs.cell.SimCell`, 100 Hz updates, the same per-50-ms
+The physics is the simulator's own (:class:`drillgym.envs.cell.SimCell`, 100 Hz updates, the same per-50-ms
 compliance refresh), driven by what the controller program commands instead of by the env: servo
 targets (``servoL``), straight moves (``moveL``) and stops. The feed the bone sees is estimated from the
 commanded targets' axial speed (their arrival times), as the real bone sees the real motion.
@@ -18,13 +18,13 @@ from collections import deque
 
 import numpy as np
 
-from envs.cell import SimCell
-from envs.cell_params import CellParams
-from envs.constants import FT_TORQUE_NOISE_ARM_M, PHYSICS_DT_S, SUBSTEPS_PER_STEP
-from envs.drilling.contact import ContactSample
-from envs.real.emulator.truth import TruthRecorder
-from envs.real.poses import matrix_to_pose, pose_to_matrix, rotation_angle_rad
-from envs.scenario import Scenario
+from drillgym.envs.cell import SimCell
+from drillgym.envs.cell_params import CellParams
+from drillgym.envs.constants import FT_TORQUE_NOISE_ARM_M, PHYSICS_DT_S, SUBSTEPS_PER_STEP
+from drillgym.envs.drilling.contact import ContactSample
+from drillgym.envs.real.emulator.truth import TruthRecorder
+from drillgym.envs.real.poses import matrix_to_pose, pose_to_matrix, rotation_angle_rad
+from drillgym.envs.scenario import Scenario
 
 HOME_STANDOFF_M = 10e-3
 """The robot starts with the drill tip this far above the planned entry point, on the planned axis (m)."""

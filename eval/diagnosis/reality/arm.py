@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from envs.constants import CONTROL_DT_S
-from envs.effects.base import Param
-from envs.robot.ur5 import TCP_FRAME, TRACKER_FRAME
-from eval.diagnosis.reality.base import RealityEffect, shift_tool
+from drillgym.envs.constants import CONTROL_DT_S
+from drillgym.envs.effects.base import Param
+from drillgym.envs.robot.ur5 import TCP_FRAME, TRACKER_FRAME
+from drillgym.eval.diagnosis.reality.base import RealityEffect, shift_tool
 
 
 class JitteredLatency(RealityEffect):

@@ -1,6 +1,6 @@
 """Base of the reality generator's effects: the env's hook interface plus a per-episode random stream.
 
-These effects are written apart from the candidate library (:mod:`envs.effects`) and, where physics
+These effects are written apart from the candidate library (:mod:`drillgym.envs.effects`) and, where physics
 allows, in another form (Stribeck friction vs Coulomb + viscous, a sigmoid layer vs a linear gradient,
 jittered vs fixed latency, heat balance vs an exponential in time, ...), so that a diagnosis naming
 the matching candidate has earned it. ``explains`` names the candidate that models the same physics
@@ -14,14 +14,14 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from envs.effects.base import Effect
+from drillgym.envs.effects.base import Effect
 
 
 class RealityEffect(Effect):
     """An effect of the reality generator."""
 
     explains: ClassVar[str | None] = None
-    """The candidate effect (:data:`envs.effects.EFFECTS`) that models this physics; None if none does."""
+    """The candidate effect (:data:`drillgym.envs.effects.EFFECTS`) that models this physics; None if none does."""
     location: ClassVar[tuple[tuple[str, ...], tuple[str, ...]] | None] = None
     """For an effect outside the library: (channels, stages) where its gap is expected."""
 

@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from envs.constants import CONTROL_DT_S
-from envs.effects.base import Param
-from eval.diagnosis.reality.base import RealityEffect
+from drillgym.envs.constants import CONTROL_DT_S
+from drillgym.envs.effects.base import Param
+from drillgym.eval.diagnosis.reality.base import RealityEffect
 
 
 class ForceScaleReset(RealityEffect):

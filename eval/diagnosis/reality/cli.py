@@ -8,7 +8,7 @@ from pathlib import Path
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI arguments."""
-    from eval.diagnosis.reality.library import REALITY_EFFECTS
+    from drillgym.eval.diagnosis.reality.library import REALITY_EFFECTS
 
     parser.add_argument(
         "--effects",
@@ -29,7 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Generate the logs and the truth file."""
-    from eval.diagnosis.reality.generate import make_reality, write_truth
+    from drillgym.eval.diagnosis.reality.generate import make_reality, write_truth
 
     truth = make_reality(args.effects, args.episodes, args.seed, args.out, overwrite=args.overwrite)
     out = Path(args.out)

@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from envs.effects.registry import parse_effect_spec
-from eval.diagnosis.reality.base import RealityEffect
-from eval.diagnosis.reality.bone import ForceScaleReset
-from eval.diagnosis.reality.library import REALITY_EFFECTS
+from drillgym.envs.effects.registry import parse_effect_spec
+from drillgym.eval.diagnosis.reality.base import RealityEffect
+from drillgym.eval.diagnosis.reality.bone import ForceScaleReset
+from drillgym.eval.diagnosis.reality.library import REALITY_EFFECTS
 
 BETAS_DEG = (15.0, 20.0, 25.0, 30.0, 35.0)
 FEEDS_MM_S = (0.4, 0.6, 0.8, 1.0)
@@ -60,9 +60,9 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
     """
     import gymnasium as gym
 
-    import envs  # noqa: F401  (registers the ids)
-    from controllers import make_controller
-    from eval.logs import EpisodeLogger, build_header
+    from drillgym import envs  # noqa: F401  (registers the ids)
+    from drillgym.controllers import make_controller
+    from drillgym.eval.logs import EpisodeLogger, build_header
 
     if episodes < 1:
         raise ValueError(f"episodes={episodes} must be >= 1")

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from eval.diagnosis.reality.arm import ChuckToolLength, JitteredLatency, JointZeroOffsets, StribeckFriction
-from eval.diagnosis.reality.base import RealityEffect
-from eval.diagnosis.reality.bone import BoneVoid, DensityLayer, EntryFriction, HeatSoftening
-from eval.diagnosis.reality.sensor import FTWarmup, WobblyRunout
+from drillgym.eval.diagnosis.reality.arm import ChuckToolLength, JitteredLatency, JointZeroOffsets, StribeckFriction
+from drillgym.eval.diagnosis.reality.base import RealityEffect
+from drillgym.eval.diagnosis.reality.bone import BoneVoid, DensityLayer, EntryFriction, HeatSoftening
+from drillgym.eval.diagnosis.reality.sensor import FTWarmup, WobblyRunout
 
 REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
     cls.name: cls

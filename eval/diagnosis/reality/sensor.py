@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from envs.effects.base import Param
-from eval.diagnosis.reality.base import RealityEffect
+from drillgym.envs.effects.base import Param
+from drillgym.eval.diagnosis.reality.base import RealityEffect
 
 
 class FTWarmup(RealityEffect):

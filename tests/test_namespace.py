@@ -1,0 +1,57 @@
+"""One import name: ``drillgym``; the four folders are its sub-packages and nothing else is installed."""
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PARTS = ("envs", "controllers", "training", "eval")
+
+
+def _python(code: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", code], cwd=cwd, capture_output=True, text=True, timeout=300)
+
+
+def test_drillgym_works_beside_a_users_own_envs_package(tmp_path):
+    (tmp_path / "envs").mkdir()
+    (tmp_path / "envs" / "__init__.py").write_text("MINE = True\n")
+    code = """
+import gymnasium as gym
+import drillgym
+env = gym.make("drillgym/UR5BoneDrill-v0")
+obs, _ = env.reset(seed=0)
+import envs
+assert envs.MINE, "the user's own envs package"
+assert drillgym.envs.__name__ == "drillgym.envs"
+print("ok", drillgym.__version__)
+"""
+    proc = _python(code, tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "ok" in proc.stdout
+
+
+def test_gym_make_imports_drillgym_from_the_id():
+    proc = _python('import gymnasium as gym; gym.make("drillgym:drillgym/UR5BoneDrill-v0").reset(seed=0)', ROOT / "docs")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+
+
+def test_no_top_level_envs_or_eval_module_is_installed(tmp_path):
+    for name in PARTS:
+        proc = _python(f"import {name}", tmp_path)
+        assert proc.returncode != 0 and "ModuleNotFoundError" in proc.stderr, name
+
+
+def test_the_project_imports_its_parts_only_through_drillgym():
+    bare = []
+    for path in ROOT.glob("*/**/*.py"):
+        if path.parts[len(ROOT.parts)] in (".venv", "src", "runs", "results"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module]
+            bare += [f"{path.relative_to(ROOT)}:{node.lineno} {n}" for n in names if n.split(".")[0] in PARTS]
+    assert not bare, bare
