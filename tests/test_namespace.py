@@ -32,7 +32,9 @@ print("ok", drillgym.__version__)
 
 
 def test_gym_make_imports_drillgym_from_the_id():
-    proc = _python('import gymnasium as gym; gym.make("drillgym:drillgym/UR5BoneDrill-v0").reset(seed=0)', ROOT / "docs")
+    proc = _python(
+        'import gymnasium as gym; gym.make("drillgym:drillgym/UR5BoneDrill-v0").reset(seed=0)', ROOT / "docs"
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
 
 
