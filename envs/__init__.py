@@ -1,6 +1,6 @@
 """drillgym environments: the simulated UR5 bone-drilling cell (and, later, the real one).
 
-``gym.make("drillgym/UR5BoneDrill-v0", **scenario)`` builds the simulated cell; ``ENV_IDS`` lists every
+``gym.make("drillgym/UR5BoneDrill-v1", **scenario)`` builds the simulated cell; ``ENV_IDS`` lists every
 registered id.
 """
 
@@ -9,7 +9,12 @@ from gymnasium.envs.registration import register, registry
 from drillgym.envs.constants import MAX_EPISODE_STEPS
 from drillgym.envs.scenario import Scenario
 
-ENV_IDS = ["drillgym/UR5BoneDrill-v0"]
+SIM_ENV_ID = "drillgym/UR5BoneDrill-v1"
+"""The simulated cell (the only place the id is written)."""
+REAL_ENV_ID = "drillgym/UR5BoneDrillReal-v1"
+"""The real-cell backend."""
+
+ENV_IDS = [SIM_ENV_ID]
 
 if ENV_IDS[0] not in registry:
     register(
@@ -18,7 +23,7 @@ if ENV_IDS[0] not in registry:
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 
-REAL_ENV_IDS = ["drillgym/UR5BoneDrillReal-v0"]
+REAL_ENV_IDS = [REAL_ENV_ID]
 """The real-cell backend (needs a robot or the emulator: ``robot_host=...``); not in ``ENV_IDS``."""
 
 if REAL_ENV_IDS[0] not in registry:
@@ -29,4 +34,4 @@ if REAL_ENV_IDS[0] not in registry:
         disable_env_checker=True,
     )
 
-__all__ = ["ENV_IDS", "REAL_ENV_IDS", "Scenario"]
+__all__ = ["ENV_IDS", "REAL_ENV_ID", "REAL_ENV_IDS", "SIM_ENV_ID", "Scenario"]

@@ -177,6 +177,11 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     ## Version History
 
+    * v1: the entry is guided by the hole wall (the drill walks on the inclined surface until the hole it
+      cuts holds it) and the cutting coefficients are refitted to Li's uncompensated run
+      (``docs/physics.md``); unknown arguments and ``reset`` options are errors; metrics on truncation too;
+      ``render_width_px``/``render_height_px``. Results differ from v0 for every controller, so v0 is no
+      longer registered: ``gym.make`` of the v0 id raises Gymnasium's ``DeprecatedEnv`` naming v1.
     * v0: initial release.
     """
 

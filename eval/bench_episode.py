@@ -23,10 +23,11 @@ import numpy as np
 from drillgym import envs  # noqa: F401  (registers the ids)
 from drillgym.controllers import make_controller
 from drillgym.controllers.base import Controller
+from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.metrics import METRIC_NAMES
 from drillgym.envs.scenario import Scenario
 
-ENV_ID = "drillgym/UR5BoneDrill-v0"
+ENV_ID = SIM_ENV_ID
 ENV_CACHE_SIZE = 2
 """Envs kept per process (jobs arrive scenario by scenario, so two cover a switch)."""
 

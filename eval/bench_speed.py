@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs import SIM_ENV_ID
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI arguments."""
@@ -33,7 +35,7 @@ def measure(runs: int = 7) -> dict[str, Any]:
     if runs < 1:
         raise ValueError(f"runs={runs} must be >= 1")
     t0 = time.perf_counter()
-    env = gym.make("drillgym/UR5BoneDrill-v0")
+    env = gym.make(SIM_ENV_ID)
     construct_s = time.perf_counter() - t0
     action = np.zeros(ACTION_DIM, dtype=np.float32)
     rtf, wall, steps = [], [], 0
@@ -77,7 +79,7 @@ def controller_cycle_times(
     from drillgym import envs  # noqa: F401
     from drillgym.controllers import make_controller
 
-    env = gym.make("drillgym/UR5BoneDrill-v0")
+    env = gym.make(SIM_ENV_ID)
     out: dict[str, Any] = {}
     for spec in specs:
         controller = make_controller(spec)

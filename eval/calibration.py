@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.drilling.bone import BUFFALO_CORTICAL, CANCELLOUS_RATIO, BonePreset
 from drillgym.envs.scenario import Scenario
@@ -104,7 +105,7 @@ def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float
     from drillgym import envs  # noqa: F401  (registers the ids)
 
     return gym.make(
-        "drillgym/UR5BoneDrill-v0",
+        SIM_ENV_ID,
         cell_params=CellParams(**asdict(structure)),
         bone_material=bone_with_lateral_scale(lateral_scale),
         stickout_mm=stickout_mm,

@@ -20,12 +20,13 @@ import gymnasium as gym
 import numpy as np
 
 from drillgym import envs  # noqa: F401  (registers the ids)
+from drillgym.envs import REAL_ENV_ID
 from drillgym.envs.real.config import SafetyLimits
 from drillgym.envs.real.emulator.cli import parse_scenario
 from drillgym.envs.real.metrics import OBSERVABLE_METRICS
 from drillgym.envs.real.netft import NetFTCalibration
 
-ENV_ID = "drillgym/UR5BoneDrillReal-v0"
+ENV_ID = REAL_ENV_ID
 
 
 def _limits(max_gap_ms: float) -> SafetyLimits:
@@ -101,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         calibration = NetFTCalibration(args.counts_per_force, args.counts_per_torque)
         limits = _limits(args.max_gap_ms)
     except (ValueError, TypeError) as e:
-        print(f"drillgym run: {e}", file=sys.stderr)
+        print(f"drillgym run: error: {e}", file=sys.stderr)
         return 2
     if not _confirm(args, args.scenario or "the default plan"):
         print("not confirmed; nothing moved")
@@ -121,8 +122,8 @@ def run(args: argparse.Namespace) -> int:
             **scenario,
         )
     except (RuntimeError, OSError, ValueError) as e:
-        print(f"drillgym run: cannot open the cell: {e}", file=sys.stderr)
-        return 1
+        print(f"drillgym run: error: cannot open the cell: {e}", file=sys.stderr)
+        return 2
     results, code = [], 0
     try:
         for k in range(args.episodes):

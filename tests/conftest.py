@@ -16,7 +16,7 @@ import pytest
 from drillgym import envs  # noqa: F401  (registers the ids)
 from drillgym.eval.rollout import EpisodeResult, run_episode
 
-ENV_ID = "drillgym/UR5BoneDrill-v0"
+ENV_ID = "drillgym/UR5BoneDrill-v1"
 
 
 @pytest.fixture(scope="session", autouse=True)

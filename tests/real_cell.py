@@ -17,7 +17,7 @@ from drillgym import envs  # noqa: F401
 from drillgym.envs.real.config import SafetyLimits
 from drillgym.envs.real.emulator.process import EmulatorProcess, ports_free
 
-REAL_ENV_ID = "drillgym/UR5BoneDrillReal-v0"
+REAL_ENV_ID = "drillgym/UR5BoneDrillReal-v1"
 CI_LIMITS = SafetyLimits(max_cycle_gap_s=0.5, rtde_stale_s=0.5, ft_stale_s=0.5)
 """Timing limits for long episodes on a shared CI machine (the defaults are exercised by the fault tests)."""
 

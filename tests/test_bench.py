@@ -103,7 +103,7 @@ def test_an_episode_that_raises_keeps_its_partial_log_and_the_bench_goes_on(tmp_
 def test_killed_run_leaves_a_readable_partial_log(tmp_path):
     from drillgym.eval.logs import EpisodeLogger, build_header
 
-    env = gym.make("drillgym/UR5BoneDrill-v0")
+    env = gym.make("drillgym/UR5BoneDrill-v1")
     path = tmp_path / "killed.parquet"
     logger = EpisodeLogger(env, path, build_header(env, None))
     logger.reset(seed=0)

@@ -69,7 +69,7 @@ def scripted_channels(env: gym.Env) -> dict[str, np.ndarray]:
 
 def run_open_loop(spec: str | None) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """Channels of a scripted episode, and the replay's engaged share per sample."""
-    env = gym.make("drillgym/UR5BoneDrill-v0", **QUIET)
+    env = gym.make("drillgym/UR5BoneDrill-v1", **QUIET)
     env.unwrapped.set_effects(build_effects(spec) if spec else None)
     out = scripted_channels(env)
     u = env.unwrapped
@@ -155,7 +155,7 @@ def test_effects_at_their_defaults_leave_the_episode_bit_identical(baseline):
 
 
 def test_switching_effects_off_again_restores_the_default_cell(baseline):
-    env = gym.make("drillgym/UR5BoneDrill-v0", **QUIET)
+    env = gym.make("drillgym/UR5BoneDrill-v1", **QUIET)
     env.reset(seed=1, options={"effects": build_effects(SETTINGS["tool_length"] + "+" + SETTINGS["kinematic_offset"])})
     env.reset(seed=1, options={"effects": None})
     cell = env.unwrapped.cell

@@ -21,7 +21,7 @@ RTDE_T0 = 5321.25
 def sim_log(path: Path, controller: str = "li2023", seed: int = 0, **scenario) -> tuple[dict, pd.DataFrame]:
     """Run one episode and log it (sim schema); return ``read_episode_log``'s answer."""
     kw = {"depth_mm": 3.0, "feed_mm_s": 1.0, **scenario}
-    env = gym.make("drillgym/UR5BoneDrill-v0", **kw)
+    env = gym.make("drillgym/UR5BoneDrill-v1", **kw)
     ctrl = make_controller(controller)
     logger = EpisodeLogger(env, path, build_header(env, ctrl.describe(), seed), overwrite=True)
     obs, _ = logger.reset(seed=seed)

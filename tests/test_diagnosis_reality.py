@@ -33,7 +33,7 @@ UNTOUCHED = {"force": 1e-12, "torque": 1e-12, "tracker": 1e-12, "q": 1e-7, "tcp"
 def run(spec: str | None):
     import gymnasium as gym
 
-    env = gym.make("drillgym/UR5BoneDrill-v0", **QUIET)
+    env = gym.make("drillgym/UR5BoneDrill-v1", **QUIET)
     effects = build_reality(spec) if spec else []
     for e in effects:
         e.seed(np.random.default_rng(5))
@@ -111,7 +111,7 @@ def test_unknown_reality_effects_are_refused():
 def _tool_offsets_after_steps(spec: str, steps: int = 5) -> tuple[np.ndarray, np.ndarray]:
     import gymnasium as gym
 
-    env = gym.make("drillgym/UR5BoneDrill-v0", **QUIET)
+    env = gym.make("drillgym/UR5BoneDrill-v1", **QUIET)
     env.unwrapped.set_effects(build_reality(spec))
     env.reset(seed=1)
     for _ in range(steps):

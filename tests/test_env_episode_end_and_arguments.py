@@ -7,7 +7,7 @@ import pytest
 from drillgym import envs  # noqa: F401
 from drillgym.envs.constants import MAX_EPISODE_STEPS
 
-ENV_ID = "drillgym/UR5BoneDrill-v0"
+ENV_ID = "drillgym/UR5BoneDrill-v1"
 
 
 def test_a_time_limit_truncation_still_reports_the_episode_metrics_flagged_as_truncated():

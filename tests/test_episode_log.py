@@ -20,7 +20,7 @@ from drillgym.eval.logs import (
 )
 from drillgym.eval.logs.writer import schema_for
 
-ENV_ID = "drillgym/UR5BoneDrill-v0"
+ENV_ID = "drillgym/UR5BoneDrill-v1"
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -19,7 +19,7 @@ def test_drillgym_works_beside_a_users_own_envs_package(tmp_path):
     code = """
 import gymnasium as gym
 import drillgym
-env = gym.make("drillgym/UR5BoneDrill-v0")
+env = gym.make("drillgym/UR5BoneDrill-v1")
 obs, _ = env.reset(seed=0)
 import envs
 assert envs.MINE, "the user's own envs package"
@@ -33,7 +33,7 @@ print("ok", drillgym.__version__)
 
 def test_gym_make_imports_drillgym_from_the_id():
     proc = _python(
-        'import gymnasium as gym; gym.make("drillgym:drillgym/UR5BoneDrill-v0").reset(seed=0)', ROOT / "docs"
+        'import gymnasium as gym; gym.make("drillgym:drillgym/UR5BoneDrill-v1").reset(seed=0)', ROOT / "docs"
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
 
@@ -57,3 +57,15 @@ def test_the_project_imports_its_parts_only_through_drillgym():
                 names = [node.module]
             bare += [f"{path.relative_to(ROOT)}:{node.lineno} {n}" for n in names if n.split(".")[0] in PARTS]
     assert not bare, bare
+
+
+def test_the_v0_ids_name_v1_when_made():
+    import gymnasium as gym
+    import pytest
+
+    import drillgym
+
+    assert drillgym.envs.ENV_IDS == [drillgym.envs.SIM_ENV_ID] and drillgym.envs.SIM_ENV_ID.endswith("-v1")
+    for old in ("drillgym/UR5BoneDrill-v0", "drillgym/UR5BoneDrillReal-v0"):
+        with pytest.raises(gym.error.DeprecatedEnv, match="-v1"), pytest.warns(DeprecationWarning):
+            gym.make(old)

@@ -73,7 +73,7 @@ def test_small_sweep_runs_stops_a_trial_early_and_exports_the_best_policy(tmp_pa
     assert meta["sweep"]["best"]["trial_id"] == best["trial_id"]
     assert meta["config"]["residual_scale"] == best["config"]["residual_scale"]
     controller = make_controller(f"residual:{out / 'policy.zip'}")
-    env = gym.make("drillgym/UR5BoneDrill-v0")
+    env = gym.make("drillgym/UR5BoneDrill-v1")
     obs, _ = env.reset(seed=0)
     controller.set_plan(env.unwrapped.plan)
     action, _ = controller.predict(obs, episode_start=np.array([True]))

@@ -1,4 +1,4 @@
-"""Whole episodes through drillgym/UR5BoneDrillReal-v0 against the emulator, with the real ur_rtde client,
+"""Whole episodes through drillgym/UR5BoneDrillReal-v1 against the emulator, with the real ur_rtde client,
 compared with the pure simulation of the same scenario and seed.
 
 Tolerances (measured over seeds 0-4 with li2023 on the paper scenario, see docs/deployment.md): the emulator
@@ -69,7 +69,7 @@ POLICIES = sorted(glob.glob(str(ROOT / "training" / "policies" / "*.zip")))
 
 
 def _sim_run(spec, seed):
-    env = gym.make("drillgym/UR5BoneDrill-v0")
+    env = gym.make("drillgym/UR5BoneDrill-v1")
     try:
         _, info, _ = run_steps(env, make_controller(spec), seed)
         u = env.unwrapped
@@ -100,7 +100,7 @@ def _real_vs_sim(start_emulator, tmp_path, spec, tolerances, seed=0):  # noqa: F
         assert abs(real[name] - sim[name]) <= max(rel * abs(sim[name]), abs_), (name, real[name], sim[name])
     assert math.isnan(info["metrics"]["deviation_mean_mm"]) and math.isnan(info["metrics"]["hole_offset_mm"])
     header, df = read_episode_log(log)
-    assert header["source"] == "real" and header["env_id"] == "drillgym/UR5BoneDrillReal-v0"
+    assert header["source"] == "real" and header["env_id"] == "drillgym/UR5BoneDrillReal-v1"
     assert header["plan"]["depth_m"] == pytest.approx(6e-3) and header["seed"] == seed
     assert list(df.columns) == schema_for("real").names and not df.attrs["partial"]
     assert len(df) == n_rows and abs(len(df) - 5 * steps) <= 5
@@ -153,6 +153,6 @@ def test_reset_refuses_to_move_from_too_far_away(start_emulator):  # noqa: F811
 def test_connecting_to_nothing_says_where():
     host = free_loopback_host()
     with pytest.raises(LinkError, match=host):
-        gym.make("drillgym/UR5BoneDrillReal-v0", robot_host=host)
+        gym.make("drillgym/UR5BoneDrillReal-v1", robot_host=host)
     with pytest.raises(TypeError, match="robot_host"):
-        gym.make("drillgym/UR5BoneDrillReal-v0")
+        gym.make("drillgym/UR5BoneDrillReal-v1")

@@ -40,7 +40,7 @@ def test_rtde_stream_time_stamps_are_multiples_of_8_ms():
 
 
 def _rigid_tip_after(latency_s: float, steps: int) -> np.ndarray:
-    env = gym.make("drillgym/UR5BoneDrill-v0", latency_s=latency_s, servo_time_constant_s=0.001)
+    env = gym.make("drillgym/UR5BoneDrill-v1", latency_s=latency_s, servo_time_constant_s=0.001)
     env.reset(seed=0)
     action = np.array([0.5, 0.0, 0.0, 0.0], np.float32)
     for _ in range(steps):
@@ -60,7 +60,7 @@ def test_a_correction_takes_effect_only_after_the_command_latency():
 
 
 def test_rtde_tcp_error_observes_the_commanded_correction():
-    env = gym.make("drillgym/UR5BoneDrill-v0", latency_s=0.0, servo_time_constant_s=0.001)
+    env = gym.make("drillgym/UR5BoneDrill-v1", latency_s=0.0, servo_time_constant_s=0.001)
     env.reset(seed=0)
     for _ in range(3):
         obs, *_ = env.step(np.array([0.0, -0.5, 0.0, 0.0], np.float32))

@@ -21,7 +21,7 @@ from drillgym.training.residual_wrapper import (
     plan_support,
 )
 
-ENV_ID = "drillgym/UR5BoneDrill-v0"
+ENV_ID = "drillgym/UR5BoneDrill-v1"
 SHIPPED = Path(__file__).resolve().parents[1] / "training" / "policies" / "residual_li2023_sac.zip"
 
 

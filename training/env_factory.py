@@ -9,6 +9,7 @@ import gymnasium as gym
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
+from drillgym.envs import SIM_ENV_ID
 from drillgym.training.config import TrainConfig
 from drillgym.training.domain_randomization import (
     VALIDATION_SEED,
@@ -19,7 +20,7 @@ from drillgym.training.domain_randomization import (
 )
 from drillgym.training.residual_wrapper import ResidualWrapper, plan_support
 
-ENV_ID = "drillgym/UR5BoneDrill-v0"
+ENV_ID = SIM_ENV_ID
 
 
 def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:

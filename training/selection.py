@@ -37,10 +37,11 @@ import numpy as np
 from scipy import stats
 
 from drillgym.controllers import Controller, make_controller
+from drillgym.envs import SIM_ENV_ID
 from drillgym.training.config import TrainConfig
 from drillgym.training.domain_randomization import VALIDATION_SEED, ScenarioCycle, merged_ranges, validation_scenarios
 
-ENV_ID = "drillgym/UR5BoneDrill-v0"
+ENV_ID = SIM_ENV_ID
 MAX_TIME_RATIO = 1.3
 """A candidate may drill at most this much longer than the base on the validation episodes (mean)."""
 CONFIDENCE = 0.95

@@ -36,7 +36,7 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     ## Description
 
-    Same task, spaces and scaling as ``drillgym/UR5BoneDrill-v0`` (see its docstring): any controller runs
+    Same task, spaces and scaling as ``drillgym/UR5BoneDrill-v1`` (see its docstring): any controller runs
     unchanged. Motion: ``servoL`` streamed at 125 Hz from a background thread (``initPeriod`` /
     ``waitPeriod``); each cycle the nominal path advances by the elapsed time at the commanded feed override
     and the latest commanded correction is added (held between agent steps). ``step`` lasts one control
@@ -91,6 +91,8 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     ## Version History
 
+    * v1: follows the simulated env's version (the same task, reward and observation); v0 is no longer
+      registered.
     * v0: initial release.
     """
 

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from drillgym.envs import REAL_ENV_ID
 from drillgym.envs.constants import CONTROL_DT_S, FT_RATE_HZ, RTDE_RATE_HZ, TRACKER_RATE_HZ
 from drillgym.eval.diagnosis.validate import LogCheckError
 from drillgym.eval.logs.schema import LOG_SCHEMA_VERSION
@@ -112,7 +113,7 @@ def import_session(session: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:
     header = {
         "schema_version": LOG_SCHEMA_VERSION,
         "source": "real",
-        "env_id": meta.get("env_id", "drillgym/UR5BoneDrillReal-v0"),
+        "env_id": meta.get("env_id", REAL_ENV_ID),
         "seed": None,
         "scenario": meta["scenario"],
         "controller": meta.get("controller"),

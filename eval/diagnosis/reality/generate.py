@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.effects.registry import parse_effect_spec
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 from drillgym.eval.diagnosis.reality.bone import ForceScaleReset
@@ -71,7 +72,7 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
     build_reality(spec)  # validate before running anything
     rng = np.random.default_rng(seed)
     plans = [episode_plan(i, rng) for i in range(episodes)]
-    env = gym.make("drillgym/UR5BoneDrill-v0")
+    env = gym.make(SIM_ENV_ID)
     try:
         for i, plan in enumerate(plans):
             controller = make_controller(plan["controller"])
