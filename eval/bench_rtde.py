@@ -129,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
     if args.robot and not args.yes:
         print("bench-rtde streams servoL to a real robot (within 1 µm of its pose): pass --yes to confirm")
         return 2
+    if not args.seconds > 0:
+        raise ValueError(f"--seconds={args.seconds:g} must be > 0")
     emulator = None if args.robot else EmulatorProcess(max_lifetime_s=args.seconds + 120).start()
     host = args.robot or emulator.host  # type: ignore[union-attr]
     try:

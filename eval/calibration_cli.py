@@ -119,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     if args.seeds < 1 or args.workers < 1:
-        raise SystemExit("drillgym calibrate: --seeds and --workers must be >= 1")
+        raise ValueError("--seeds and --workers must be >= 1")
     grid = [
         EntryStructure(r, k, g, f, w * 1e-3)
         for r, k, g, f, w in product(

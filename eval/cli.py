@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("drillgym.eval.demo", "Run the paper scenario end to end and print where the results are."),
@@ -70,9 +72,51 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, OSError, LookupError)
+"""What a command raises on bad input: a bad value or spec (``ValueError``, which argparse's type errors and
+YAML's parse errors are too), a missing, existing or unreadable file, a refused or dropped connection, a port
+in use (``OSError``), an unknown name (``LookupError``). The top-level handler prints these on one line; set
+``DRILLGYM_TRACEBACK=1`` to see the traceback instead."""
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Show each option's default, unless its help already says it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        if "default" in text.lower() or action.default is None or action.default is False:
+            return text
+        return super()._get_help_string(action)
+
+
+class CommandParser(argparse.ArgumentParser):
+    """A sub-command's parser: a usage error is one line, ``drillgym CMD: error: ...``, exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        """Print the error and where the options are listed, exit 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("drillgym")
+    except PackageNotFoundError:  # pragma: no cover - a source tree that was never installed
+        return "unknown"
+
+
+def _one_line(error: BaseException) -> str:
+    text = " ".join(str(error).split()) or type(error).__name__
+    if isinstance(error, KeyError) and error.args:
+        text = f"unknown name {error.args[0]!r}"
+    return text
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Argument parser with one sub-parser per command (arguments added lazily)."""
     parser = argparse.ArgumentParser(prog="drillgym", description="Robot-assisted bone drilling with a UR5.")
+    parser.add_argument("--version", action="version", version=f"drillgym {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (_, help_text) in COMMANDS.items():
         sub.add_parser(name, help=help_text.replace("%", "%%"), description=help_text)
@@ -83,17 +127,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``drillgym`` console script."""
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
-    if not argv or argv[0] in ("-h", "--help") or argv[0] not in COMMANDS:
-        if argv and argv[0] not in ("-h", "--help"):
+    if not argv or argv[0] in ("-h", "--help", "--version") or argv[0] not in COMMANDS:
+        if argv and argv[0] not in ("-h", "--help", "--version"):
             parser.error(f"unknown command {argv[0]!r}; choose from {', '.join(COMMANDS)}")
+        if argv and argv[0] == "--version":
+            parser.parse_args(argv[:1])  # prints the version, exits 0
         parser.print_help()
         return 0
     name = argv[0]
     module = importlib.import_module(COMMANDS[name][0])
-    sub = argparse.ArgumentParser(prog=f"drillgym {name}", description=COMMANDS[name][1])
+    sub = CommandParser(prog=f"drillgym {name}", description=COMMANDS[name][1], formatter_class=HelpFormatter)
     module.add_arguments(sub)
     args = sub.parse_args(argv[1:])
-    return int(module.run(args) or 0)
+    try:
+        return int(module.run(args) or 0)
+    except KeyboardInterrupt:
+        print(f"drillgym {name}: interrupted", file=sys.stderr)
+        return 130
+    except USER_ERRORS as e:
+        if os.environ.get("DRILLGYM_TRACEBACK"):
+            raise
+        print(f"drillgym {name}: error: {_one_line(e)}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -98,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
     from drillgym.eval.reproduce_report import headline, write_report
 
     if args.seeds < 2:
-        raise SystemExit(f"--seeds={args.seeds} must be >= 2 (confidence intervals need two)")
+        raise ValueError(f"--seeds={args.seeds} must be >= 2 (confidence intervals need two)")
     seeds = list(range(3 if args.quick else args.seeds))
     kp_values = KP_SWEEP[::2] if args.quick else KP_SWEEP
     out: Path = args.out

@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         unknown = sorted(wanted - {c.name for c in cases})
         if unknown:
             print(
-                f"drillgym bench-diagnosis: unknown case(s) {unknown}; cases: {', '.join(c.name for c in cases)}",
+                f"drillgym bench-diagnosis: error: unknown case(s) {unknown}; cases: {', '.join(c.name for c in cases)}",
                 file=sys.stderr,
             )
             return 2
@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
             cases, episodes, candidates, args.out, args.workers, progress=not args.no_progress, rows_of=rows_of
         )
     except ConnectionError as e:
-        print(f"drillgym bench-diagnosis: {e}", file=sys.stderr)
+        print(f"drillgym bench-diagnosis: error: {e}", file=sys.stderr)
         return 2
     for k, v in result["summary"]["figures"].items():
         print(f"{k}: {v}")

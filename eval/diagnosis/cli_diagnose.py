@@ -37,14 +37,12 @@ def run(args: argparse.Namespace) -> int:
     candidates = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
     unknown = sorted(set(candidates) - set(EFFECTS))
     if unknown:
-        print(f"unknown candidate effect(s) {unknown}; choose from {sorted(EFFECTS)}", file=sys.stderr)
-        return 2
+        raise ValueError(f"unknown candidate effect(s) {unknown}; choose from {sorted(EFFECTS)}")
     episodes, skipped = load_episodes(args.real, strict=args.strict)
     for s in skipped:
         print(f"skipped {s}", file=sys.stderr)
     if len(episodes) < 4:
-        print(f"{args.real}: {len(episodes)} usable episode(s); the diagnosis needs at least 4", file=sys.stderr)
-        return 1
+        raise ValueError(f"{args.real}: {len(episodes)} usable episode(s); the diagnosis needs at least 4")
     opts = DiagnoseOptions(workers=args.workers, candidates=candidates, seed=args.seed, progress=not args.no_progress)
     diag = run_diagnosis(episodes, opts)
     paths = write_outputs(diag, args.out, skipped, figures=not args.no_figures)

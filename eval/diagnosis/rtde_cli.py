@@ -39,5 +39,5 @@ def run(args: argparse.Namespace) -> int:
             print(f"{session} -> {path} ({len(frame)} samples)")
         except (LogCheckError, OSError, ValueError) as e:
             failed += 1
-            print(f"{session}: {e}", file=sys.stderr)
-    return 1 if failed else 0
+            print(f"drillgym import-rtde: error: {session}: {' '.join(str(e).split())}", file=sys.stderr)
+    return 2 if failed else 0

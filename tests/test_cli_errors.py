@@ -1,0 +1,68 @@
+"""Every ``drillgym`` command answers bad input with one line, ``drillgym CMD: error: ...``, and exit 2."""
+
+import pytest
+
+from drillgym.eval.cli import COMMANDS, main
+
+BAD_INPUT = {
+    "demo": ["--seeds", "0"],
+    "identify-stiffness": ["--poses", "9"],
+    "bench-speed": ["--runs", "0"],
+    "reproduce": ["--seeds", "1"],
+    "calibrate": ["--seeds", "0"],
+    "tune-entry": ["--suites", "papr"],
+    "train": ["--config", "no_such_config.yaml"],
+    "bench": ["--suite", "nope"],
+    "run": ["--robot", "127.0.0.1", "--scenario", "beta_deg=99", "--dry-run"],
+    "emulate": ["--scenario", "beta_deg=99"],
+    "bench-rtde": ["--seconds", "-1"],
+    "diagnose": ["--real", "no_such_folder"],
+    "make-reality": ["--effects", "no_such_effect"],
+    "bench-diagnosis": ["--only", "no_such_case"],
+    "import-rtde": ["no_such_session"],
+}
+"""One bad input per command, each caught before any long work starts."""
+
+
+def _run(argv):
+    try:
+        return main(argv)
+    except SystemExit as e:  # argparse's own errors
+        return e.code
+
+
+def test_every_command_has_a_bad_input_case():
+    assert set(BAD_INPUT) == set(COMMANDS)
+
+
+@pytest.mark.parametrize("command", sorted(BAD_INPUT))
+def test_bad_input_is_one_line_and_exit_2(command, tmp_path, capsys):
+    code = _run(
+        [command, *BAD_INPUT[command], "--out", str(tmp_path / "out")]
+        if command != "emulate"
+        else [command, *BAD_INPUT[command]]
+    )
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2, err
+    assert len(lines) == 1 and lines[0].startswith(f"drillgym {command}: error: "), err
+    assert "Traceback" not in err
+
+
+def test_an_unknown_option_names_the_help(capsys):
+    assert _run(["bench", "--no-such-option"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "drillgym bench: error: unrecognized arguments: --no-such-option (see drillgym bench --help)"
+
+
+def test_version_and_defaults_in_help(capsys):
+    assert _run(["--version"]) == 0
+    assert capsys.readouterr().out.startswith("drillgym ")
+    assert _run(["identify-stiffness", "--help"]) == 0
+    assert "tracker noise per axis (mm) (default: 0.05)" in capsys.readouterr().out  # added where help is silent
+
+
+def test_a_user_error_deep_in_a_command_shows_its_traceback_on_request(tmp_path, monkeypatch):
+    monkeypatch.setenv("DRILLGYM_TRACEBACK", "1")
+    with pytest.raises(ValueError, match="must be >= 2"):
+        main(["reproduce", "--seeds", "1", "--out", str(tmp_path)])
