@@ -27,10 +27,10 @@ CONTROLLERS: dict[str, tuple[Callable[[Any], Controller], type]] = {
 """name -> (class, config dataclass)."""
 
 PRESETS: dict[str, str] = {
-    "li2023_slow_entry": "li2023:entry_feed_scale=0.45,entry_depth_mm=1.25",
+    "li2023_slow_entry": "li2023:kp=3,entry_feed_scale=0.4,entry_depth_mm=1",
 }
-"""Named specs. ``li2023_slow_entry`` is the strongest classical baseline: li2023 with a slow entry tuned
-on the paper and sweep suites (``docs/controllers.md``, ``drillgym tune-entry``)."""
+"""Named specs. ``li2023_slow_entry`` is the strongest classical baseline: li2023 with a slow entry and its
+proportional gain tuned together on the paper and sweep suites (``docs/controllers.md``, ``drillgym tune-entry``)."""
 
 
 def parse_spec(spec: str) -> tuple[str, dict[str, str]]:
