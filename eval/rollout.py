@@ -38,8 +38,14 @@ class EpisodeResult:
 def run_episode(
     env: gym.Env, policy: PolicyPredictor | None = None, seed: int = 0, keep_trace: bool = True
 ) -> EpisodeResult:
-    """Reset with ``seed`` and run to the end; ``policy=None`` commands zero correction, nominal feed."""
+    """Reset with ``seed`` and run to the end; ``policy=None`` commands zero correction, nominal feed.
+
+    A policy with a ``set_plan`` method (every :class:`drillgym.controllers.Controller`) is handed the
+    episode's plan after the reset, as the benchmark does.
+    """
     obs, _ = env.reset(seed=seed)
+    if policy is not None and hasattr(policy, "set_plan"):
+        policy.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
     state, start = None, True
     zero = np.zeros(ACTION_DIM, dtype=np.float32)
     while True:

@@ -260,3 +260,16 @@ def test_reset_options_give_the_same_episode_as_a_fresh_env():
     finally:
         a.close()
         b.close()
+
+
+def test_the_rollout_hands_a_controller_its_plan_and_matches_the_benchmark():
+    from drillgym.controllers import make_controller
+    from drillgym.eval.bench_episode import run_controller_episode
+    from drillgym.eval.rollout import run_episode as rollout
+
+    env = gym.make(ENV_ID)
+    result = rollout(env, make_controller("li2023_slow_entry"), seed=3, keep_trace=False)
+    bench = run_controller_episode(env, make_controller("li2023_slow_entry"), seed=3)
+    env.close()
+    for name, value in result.metrics.items():
+        assert value == bench[name] or (np.isnan(value) and np.isnan(bench[name])), name

@@ -193,8 +193,6 @@ def test_shipped_policy_completes_an_episode_from_real_cell_signals_only():
 
     controller = make_controller(f"residual:{SHIPPED}")
     env = gym.make(ENV_ID)
-    env.reset(seed=0)
-    controller.set_plan(env.unwrapped.plan)
     result = run_episode(env, controller, seed=0)
     env.close()
     assert np.isfinite(result.metrics["deviation_mean_mm"])
