@@ -82,6 +82,9 @@ class PyBulletWorld:
         self.bone: int | None = None
         self.spindle: int | None = None
         self.drill: int | None = None
+        self.visual_meshes = visual_meshes
+        self.floor: int | None = None
+        self.stand: int | None = None
 
     # frames: PyBullet's world is the URDF base_link; UR base = base_link turned by pi about z.
     @staticmethod
@@ -129,6 +132,32 @@ class PyBulletWorld:
             self.bone = pb.createMultiBody(0, col, vis, position, orientation, physicsClientId=self.client)
         else:
             pb.resetBasePositionAndOrientation(self.bone, position, orientation, physicsClientId=self.client)
+        if self.visual_meshes:
+            corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * np.asarray(half)
+            lowest_m = float((centre_base + corners @ r_base_block.T)[:, 2].min())
+            self._place_stand(centre_base, lowest_m)
+
+    STAND_HALF_HEIGHT_M = 0.15
+    """The stand is one fixed box moved so that its top meets the bone; what reaches below the floor is hidden."""
+
+    def _place_stand(self, bone_centre_base: np.ndarray, top_m: float) -> None:
+        """Draw the floor (the robot's mounting plane, base z = 0) and a stand up to ``top_m`` under the bone.
+
+        Visual only, made once and moved: the arm is driven kinematically, so nothing collides with them.
+        """
+        if self.floor is None:
+            self.floor = self._box([0.9, 0.9, 0.002], [0.80, 0.80, 0.82, 1.0])
+            floor_centre = self._to_world(np.array([-0.3, 0.0, -0.002])).tolist()
+            pb.resetBasePositionAndOrientation(self.floor, floor_centre, [0, 0, 0, 1], physicsClientId=self.client)
+            self.stand = self._box([0.05, 0.04, self.STAND_HALF_HEIGHT_M], [0.45, 0.47, 0.52, 1.0])
+        centre = np.array([bone_centre_base[0], bone_centre_base[1], top_m - self.STAND_HALF_HEIGHT_M])
+        pb.resetBasePositionAndOrientation(
+            self.stand, self._to_world(centre).tolist(), [0, 0, 0, 1], physicsClientId=self.client
+        )
+
+    def _box(self, half_extents_m: list[float], rgba: list[float]) -> int:
+        vis = pb.createVisualShape(pb.GEOM_BOX, halfExtents=half_extents_m, rgbaColor=rgba, physicsClientId=self.client)
+        return int(pb.createMultiBody(0, -1, vis, physicsClientId=self.client))
 
     def place_drill(self, T_base_flange: np.ndarray, spindle_m: float, stickout_m: float, diameter_m: float) -> None:
         """Draw the spindle (flange to chuck) and the drill (chuck to tip) along the flange z axis."""
@@ -147,13 +176,26 @@ class PyBulletWorld:
         )
         return int(pb.createMultiBody(0, -1, vis, physicsClientId=self.client))
 
+    CAMERA_DISTANCE_M = 0.85
+    CAMERA_YAW_DEG, CAMERA_PITCH_DEG = 35.0, -20.0
+
     def render(self, target_base: np.ndarray, width: int = 320, height: int = 240) -> np.ndarray:
-        """An RGB image (H, W, 3) uint8 from a camera looking at ``target_base``; headless."""
-        target = self._to_world(target_base)
+        """An RGB image (H, W, 3) uint8 of the whole arm and the drill at ``target_base`` (m, base); headless.
+
+        The camera looks at a point 0.6 of the way from the robot's base to the target, 0.2 m up, so the arm
+        is not cropped and the drill stays in view.
+        """
+        target = self._to_world(0.6 * np.asarray(target_base, dtype=float) + np.array([0.0, 0.0, 0.2]))
         view = pb.computeViewMatrixFromYawPitchRoll(
-            target.tolist(), 0.45, 60.0, -25.0, 0.0, 2, physicsClientId=self.client
+            target.tolist(),
+            self.CAMERA_DISTANCE_M,
+            self.CAMERA_YAW_DEG,
+            self.CAMERA_PITCH_DEG,
+            0.0,
+            2,
+            physicsClientId=self.client,
         )
-        proj = pb.computeProjectionMatrixFOV(50.0, width / height, 0.01, 3.0, physicsClientId=self.client)
+        proj = pb.computeProjectionMatrixFOV(50.0, width / height, 0.01, 5.0, physicsClientId=self.client)
         img = pb.getCameraImage(width, height, view, proj, renderer=pb.ER_TINY_RENDERER, physicsClientId=self.client)
         rgba = np.reshape(np.asarray(img[2], dtype=np.uint8), (height, width, 4))
         return rgba[:, :, :3].copy()

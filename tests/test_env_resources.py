@@ -120,3 +120,25 @@ def test_creating_and_closing_twenty_envs_does_not_grow_connected_clients():
         assert not pb.isConnected(physicsClientId=client)
     assert connected_clients() == before
     assert not any(pb.isConnected(physicsClientId=i) for i in ids)
+
+
+@pytest.mark.parametrize("beta_deg", [10.0, 40.0])
+def test_the_bone_stands_on_a_stand_on_the_floor_and_the_arm_is_in_frame(beta_deg):
+    import pybullet as pb
+
+    env = gym.make(ENV_ID, render_mode="rgb_array", beta_deg=beta_deg)
+    try:
+        env.reset(seed=0)
+        world = env.unwrapped.world
+        bone_low = pb.getAABB(world.bone, physicsClientId=world.client)[0]  # the bone has a collision shape
+        stand_z = pb.getBasePositionAndOrientation(world.stand, physicsClientId=world.client)[0][2]
+        floor_z = pb.getBasePositionAndOrientation(world.floor, physicsClientId=world.client)[0][2]
+        half = world.STAND_HALF_HEIGHT_M
+        # the stand's top meets the bone's lowest corner and its foot reaches below the floor (world z up)
+        assert stand_z + half == pytest.approx(bone_low[2], abs=1e-3)
+        assert stand_z - half < floor_z
+        frame = env.render()
+        top_row = frame[0].reshape(-1, 3)
+        assert len(np.unique(top_row, axis=0)) == 1, "the arm reaches the image's top edge"
+    finally:
+        env.close()
