@@ -8,7 +8,9 @@ named spec whose fields a user's own fields override.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
+from importlib.metadata import EntryPoint, entry_points
 from typing import Any
 
 from drillgym.controllers.base import Controller
@@ -33,11 +35,28 @@ PRESETS: dict[str, str] = {
 proportional gain tuned together on the paper and sweep suites (``docs/controllers.md``, ``drillgym tune-entry``)."""
 
 
+LOADER_GROUP = "drillgym.controllers"
+"""Entry-point group of controller loaders: ``NAME = "module:function"``, where ``function(rest)`` builds the
+controller of the spec ``NAME:rest`` (the text after the colon, unparsed). The project registers
+``residual`` (:func:`drillgym.training.residual_policy.load_residual_controller`) in its ``pyproject.toml``, so
+the registry builds learnt controllers without importing the training package; other packages may
+register their own."""
+
+
+@functools.cache
+def loaders() -> dict[str, EntryPoint]:
+    """Controller loaders registered under :data:`LOADER_GROUP`, by name."""
+    return {ep.name: ep for ep in entry_points(group=LOADER_GROUP)}
+
+
 def parse_spec(spec: str) -> tuple[str, dict[str, str]]:
-    """Split ``"li2023:kp=1.0,ki=0.5"`` into ``("li2023", {"kp": "1.0", "ki": "0.5"})``."""
+    """Split ``"li2023:kp=1.0,ki=0.5"`` into ``("li2023", {"kp": "1.0", "ki": "0.5"})``.
+
+    The text after a loader's name (``residual:PATH``) is its own and is not split.
+    """
     name, _, rest = spec.strip().partition(":")
     overrides: dict[str, str] = {}
-    if rest and name != "residual":
+    if rest and name not in loaders():
         for item in rest.split(","):
             key, eq, value = item.partition("=")
             if not eq or not key.strip():
@@ -67,15 +86,13 @@ def make_controller(spec: str) -> Controller:
     if name in PRESETS:
         name, preset = parse_spec(PRESETS[name])
         overrides = {**preset, **overrides}
-    if name == "residual":
-        try:
-            from drillgym.training.residual_policy import load_residual_controller
-        except ImportError as e:
-            raise ValueError("residual:PATH needs training.residual_policy, which this install lacks") from e
-        return load_residual_controller(spec.partition(":")[2])
+    if name in loaders():
+        load: Callable[[str], Controller] = loaders()[name].load()
+        return load(spec.strip().partition(":")[2])
     if name not in CONTROLLERS:
+        plugins = " or ".join(f"{n}:..." for n in sorted(loaders()))
         raise ValueError(
-            f"unknown controller {name!r}; choose from {sorted([*CONTROLLERS, *PRESETS])} or residual:PATH"
+            f"unknown controller {name!r}; choose from {sorted([*CONTROLLERS, *PRESETS])}{' or ' if plugins else ''}{plugins}"
         )
     cls, cfg_cls = CONTROLLERS[name]
     schedule = {k: overrides.pop(k) for k in SCHEDULE_FIELDS if k in overrides}

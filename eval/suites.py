@@ -12,16 +12,9 @@ from collections.abc import Callable
 from typing import Any, NamedTuple
 
 from drillgym.envs.scenario import Scenario
+from drillgym.training.domain_randomization import TRAINING_BONES, TRAINING_RANGES
 
-TRAINING_RANGES: dict[str, tuple[float, float]] = {
-    "beta_deg": (15.0, 35.0),
-    "feed_mm_s": (0.3, 1.0),
-    "stickout_mm": (30.0, 42.0),
-    "cortical_thickness_mm": (3.0, 10.0),
-}
-"""Numeric scenario parameters a residual policy is trained on: name -> (low, high), inclusive, user units."""
-TRAINING_BONES: tuple[str, ...] = ("buffalo_femur", "bovine_tibia", "porcine_femur")
-"""Bone presets a residual policy is trained on."""
+__all__ = ["SUITES", "TRAINING_BONES", "TRAINING_RANGES", "SuiteScenario", "outside_training", "suite_scenarios"]
 
 
 class SuiteScenario(NamedTuple):

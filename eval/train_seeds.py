@@ -59,6 +59,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Single run (no ``--seeds``) or train several seeds, benchmark them and write the seed report."""
+    if args.sweep is not None or args.ray or args.address:  # a Ray Tune sweep (imports nothing of Ray before)
+        from drillgym.eval.scale import sweep_run
+
+        return sweep_run.run(args)
     if args.seeds is None:
         return train.run(args)
     try:

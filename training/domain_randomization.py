@@ -1,7 +1,7 @@
 """Domain randomisation: a new scenario for every episode, drawn inside the training ranges.
 
 Ranges (user units) live in :data:`DR_RANGES`; they are disjoint from the ``heldout`` suite's
-conditions (``eval.suites``), which is what makes that suite a test of generalisation.
+conditions (:mod:`drillgym.eval.suites` checks it), which is what makes that suite a test of generalisation.
 """
 
 from __future__ import annotations
@@ -11,7 +11,15 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from drillgym.eval.suites import TRAINING_BONES, TRAINING_RANGES
+TRAINING_RANGES: dict[str, tuple[float, float]] = {
+    "beta_deg": (15.0, 35.0),
+    "feed_mm_s": (0.3, 1.0),
+    "stickout_mm": (30.0, 42.0),
+    "cortical_thickness_mm": (3.0, 10.0),
+}
+"""Numeric scenario parameters a residual policy is trained on: name -> (low, high), inclusive, user units."""
+TRAINING_BONES: tuple[str, ...] = ("buffalo_femur", "bovine_tibia", "porcine_femur")
+"""Bone presets a residual policy is trained on."""
 
 DR_RANGES: dict[str, tuple[float, float]] = {
     **TRAINING_RANGES,

@@ -18,7 +18,7 @@ from gymnasium import spaces
 from drillgym.controllers import Controller, make_controller
 from drillgym.envs.constants import ACTION_DIM
 from drillgym.envs.drilling.bone import nominal_hardness
-from drillgym.eval.suites import TRAINING_BONES
+from drillgym.training.domain_randomization import TRAINING_BONES
 
 BASE_ACTION_KEY = "base_action"
 PLAN_KEY = "plan"

@@ -1,4 +1,4 @@
-"""``drillgym train --sweep SPEC.yaml [--ray] [--address ADDR]``: tune residual training on Ray Tune.
+"""Sweep files for ``drillgym train --sweep SPEC.yaml``: read and check them (without Ray).
 
 A sweep file (``training/sweeps/*.yaml``) names a base training configuration, fixed overrides, a
 search space over :class:`drillgym.training.config.TrainConfig` fields and the ASHA early-stopping schedule::
@@ -24,9 +24,7 @@ sweep without Ray; running it (:mod:`drillgym.eval.scale.tune_sweep`) needs ``dr
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -149,32 +147,3 @@ def load_sweep(path: Path, overrides: dict[str, Any] | None = None, base_config:
     if spec.evaluations < 1:
         raise ValueError(f"{path}: total_timesteps {base.total_timesteps} < eval_freq {base.eval_freq}: no evaluation")
     return spec
-
-
-def run(args: argparse.Namespace) -> int:
-    """``drillgym train --sweep``: check the arguments, run the sweep, export the best policy."""
-    try:
-        if args.sweep is None:
-            raise ValueError("--ray/--address need --sweep SPEC.yaml (a single run trains on one machine)")
-        if args.resume:
-            raise ValueError("--resume does not apply to --sweep (a failed trial restarts from its checkpoint)")
-        from drillgym.eval.scale.cluster import require_ray
-
-        require_ray()
-        overrides = {
-            k: v
-            for k, v in (("total_timesteps", args.timesteps), ("n_envs", args.n_envs), ("seed", args.seed))
-            if v is not None
-        }
-        spec = load_sweep(args.sweep, overrides, args.config)
-    except (ValueError, RuntimeError, OSError) as e:
-        print(f"drillgym train: error: {e}", file=sys.stderr)
-        return 2
-    from drillgym.eval.scale.tune_sweep import run_sweep
-
-    try:
-        outcome = run_sweep(spec, args.out, args.address, export=args.export)
-    except ConnectionError as e:
-        print(f"drillgym train: error: {e}", file=sys.stderr)
-        return 2
-    return 0 if outcome.best is not None else 1

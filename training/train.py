@@ -189,11 +189,7 @@ def select_only(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Train (or resume), export the best policy bundle, plot the curves; ``--sweep``: see training.sweep."""
-    if getattr(args, "sweep", None) is not None or getattr(args, "ray", False) or getattr(args, "address", None):
-        from drillgym.training import sweep
-
-        return sweep.run(args)
+    """Train (or resume), export the best policy bundle, plot the curves (a sweep: :mod:`drillgym.eval.scale.sweep_run`)."""
     if getattr(args, "select_only", False):
         return select_only(args)
     import torch
