@@ -10,17 +10,17 @@ import numpy as np
 import pytest
 
 from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
-from drillgym.envs.robot.stiffness_id import (
+from drillgym.envs.robot.load_tests import (
     DEFAULT_TCP_OFFSET_M,
     IDENTIFICATION_POSES_Q_RAD,
     LI_TABLE1_POSES_Q_RAD,
     axis_loads_n,
     equilibrium_deflection,
-    identify_joint_stiffness,
     linear_deflection_m,
     point_kinematics,
     simulate_load_experiments,
 )
+from drillgym.envs.robot.stiffness_id import identify_joint_stiffness
 from drillgym.envs.robot.stiffness_table1 import reproduce_li_table1
 from drillgym.envs.robot.ur5 import UR5Kinematics
 from drillgym.eval.cli import main

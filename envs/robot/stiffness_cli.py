@@ -17,16 +17,15 @@ from typing import Any
 import numpy as np
 
 from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
-from drillgym.envs.robot.stiffness_id import (
+from drillgym.envs.robot.load_tests import (
     DEFAULT_TCP_OFFSET_M,
     IDENTIFICATION_POSES_Q_RAD,
     LI_TABLE1_MEASURED_Z_MM,
     LI_TABLE1_MODEL_Z_MM,
-    StiffnessIdentification,
     axis_loads_n,
-    identify_joint_stiffness,
     simulate_load_experiments,
 )
+from drillgym.envs.robot.stiffness_id import StiffnessIdentification, identify_joint_stiffness
 from drillgym.envs.robot.stiffness_table1 import Table1Comparison, reproduce_li_table1
 from drillgym.envs.robot.ur5 import TCP_FRAME, UR5Kinematics
 

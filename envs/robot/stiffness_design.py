@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drillgym.envs.robot.stiffness_id import (
+from drillgym.envs.robot.load_tests import (
     IDENTIFICATION_POSES_Q_RAD,
     REL_STD_ERROR_MAX,
     LoadExperiments,

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drillgym.envs.robot.stiffness_id import (
+from drillgym.envs.robot.load_tests import (
     LI_TABLE1_LOADS_N,
     LI_TABLE1_POSES_Q_RAD,
     equilibrium_deflection,

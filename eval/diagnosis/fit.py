@@ -23,7 +23,7 @@ import numpy as np
 from drillgym.envs.effects.base import Param
 from drillgym.envs.effects.registry import EFFECTS
 from drillgym.eval.diagnosis.context import Evaluator, Spec
-from drillgym.eval.diagnosis.gap import Terms
+from drillgym.eval.diagnosis.gap import Terms, pooled
 
 GRID_FRACTIONS = (1 / 16, 1 / 4, 1.0)
 """Grid levels of a one-sided parameter, as fractions of its span from the off value."""
@@ -347,7 +347,5 @@ def _worth_refining(f_off: float, f_best: float, data: Any) -> bool:
     Only if it removes at least :data:`REFINE_MIN_GAIN` of the calibration excess (an effect that does
     nothing on the grid explains nothing here).
     """
-    from drillgym.eval.diagnosis.rank import pooled
-
     excess = f_off - pooled([data.null_terms[i] for i in data.cal])
     return excess > 0 and f_off - f_best >= REFINE_MIN_GAIN * excess

@@ -178,6 +178,13 @@ class Terms:
         )
 
 
+def pooled(terms: list[Terms]) -> float:
+    """Σ J / Σ N."""
+    j = sum(t.j for t in terms)
+    n = sum(t.n for t in terms)
+    return j / n if n > 0 else float("nan")
+
+
 def gap_terms(real: Features, sim: Features, blocks: Blocks, null: EpisodeNull) -> Terms:
     """Terms of one episode: ``real`` against the replay ``sim`` (hardness profiled out)."""
     out = Terms.zeros()

@@ -28,7 +28,7 @@ import numpy as np
 from drillgym.envs.effects.registry import EFFECTS
 from drillgym.eval.diagnosis.channels import ALL_CHANNELS, GROUP_OF, STAGES
 from drillgym.eval.diagnosis.fit import FitResult
-from drillgym.eval.diagnosis.gap import Terms
+from drillgym.eval.diagnosis.gap import Terms, pooled
 
 BOOTSTRAP = 1000
 """Bootstrap resamples of the held-out episodes."""
@@ -48,13 +48,6 @@ the pair removes the gap where only the second effect's physics reaches: :func:`
 PAIR_TRY_RESIDUAL = 2.0
 """Pairs (the best single plus each other candidate) are tried when the best single leaves a held-out gap
 of at least this many times ``G₀``."""
-
-
-def pooled(terms: list[Terms]) -> float:
-    """Σ J / Σ N."""
-    j = sum(t.j for t in terms)
-    n = sum(t.n for t in terms)
-    return j / n if n > 0 else math.nan
 
 
 def gap_significance(real: list[Terms], null: list[Terms], seed: int = 0) -> dict[str, Any]:
