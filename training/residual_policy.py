@@ -17,9 +17,9 @@ from drillgym.envs.plan import DrillPlan
 from drillgym.training.domain_randomization import merged_ranges
 from drillgym.training.policy_bundle import load_bundle, resolve_policy
 from drillgym.training.residual_wrapper import (
-    BASE_ACTION_KEY,
     PLAN_KEY,
     PREV_RESIDUAL_KEY,
+    augment,
     combine,
     plan_features,
     plan_support,
@@ -61,14 +61,15 @@ class ResidualPolicyController(Controller):
         """Base action plus the policy's residual."""
         base_action, _ = self.base.predict(obs, episode_start=np.array([self._start]))
         self._start = False
-        aug = {**obs, BASE_ACTION_KEY: base_action}
+        prev = None
         if self._prev_shape is not None:
             prev = self._prev_residual if self._prev_residual is not None else np.zeros(self._prev_shape, np.float32)
-            aug[PREV_RESIDUAL_KEY] = prev
+        plan = None
         if self._observes_plan:
             if self.plan is None:
                 raise RuntimeError("this residual policy observes the plan: call set_plan(plan) first")
-            aug[PLAN_KEY] = plan_features(self.plan, self._plan_support)
+            plan = plan_features(self.plan, self._plan_support)
+        aug = augment(obs, base_action, prev, plan)
         if self.bundle.normalizer is not None:
             aug = self.bundle.normalizer(aug)
         residual, _ = self.bundle.model.predict(aug, deterministic=True)

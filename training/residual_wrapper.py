@@ -91,6 +91,26 @@ def plan_support(
     return low, high
 
 
+def augment(
+    obs: Mapping[str, np.ndarray],
+    base_action: np.ndarray,
+    prev_residual: np.ndarray | None = None,
+    plan: np.ndarray | None = None,
+) -> dict[str, np.ndarray]:
+    """The residual policy's observation, built in one place for training and deployment.
+
+    The cell's observation plus the base's action and, if given, the policy's previous residual and the
+    plan features; :class:`ResidualWrapper` (training) and
+    :class:`drillgym.training.residual_policy.ResidualPolicyController` (deployment) both call it.
+    """
+    out = {**obs, BASE_ACTION_KEY: base_action}
+    if prev_residual is not None:
+        out[PREV_RESIDUAL_KEY] = prev_residual
+    if plan is not None:
+        out[PLAN_KEY] = plan
+    return out
+
+
 def residual_dims(residual_feed: bool, axes: str = "lateral") -> int:
     """Size of the residual: 2 lateral axes (across the drill) or 3 base axes, plus the feed if enabled."""
     if axes not in RESIDUAL_AXES:
@@ -199,12 +219,12 @@ class ResidualWrapper(gym.Wrapper):
         self._base_action, _ = self.base.predict(obs, episode_start=np.array([episode_start]))
         if episode_start:
             self._prev_residual = np.zeros(self._n_residual, dtype=np.float32)
-        out = {**obs, BASE_ACTION_KEY: self._base_action.copy()}
-        if self.observe_prev_residual:
-            out[PREV_RESIDUAL_KEY] = self._prev_residual.copy()
-        if self.observe_plan:
-            out[PLAN_KEY] = self._plan.copy()
-        return out
+        return augment(
+            obs,
+            self._base_action.copy(),
+            self._prev_residual.copy() if self.observe_prev_residual else None,
+            self._plan.copy() if self.observe_plan else None,
+        )
 
     def reset(self, **kwargs: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Reset the env, hand the base controller the new plan, return the augmented observation."""
