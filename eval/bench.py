@@ -40,6 +40,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--no-logs", action="store_true", help="do not write per-episode Parquet logs")
     parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace a previous run in --out (its CSVs, report and logs/); without it such an --out is an error",
+    )
+    parser.add_argument(
         "--ray",
         action="store_true",
         help="run the episodes as Ray tasks (local Ray unless --address; docs/scale-out.md)",
@@ -72,6 +77,28 @@ def controller_label(spec: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "_", label).strip("._") or "controller"
 
 
+RUN_FILES = ("episodes.csv", "summary.csv", "paired.csv", "summary.md", "errors.log")
+"""What a benchmark run writes at the top of its folder (plus plots and ``logs/``)."""
+
+
+def previous_run(out: Path) -> list[str]:
+    """Names of a previous run's files in ``out`` (empty when there is none)."""
+    found = [name for name in RUN_FILES if (out / name).exists()]
+    logs = out / "logs"
+    if logs.is_dir() and any(logs.glob("*.parquet")):
+        found.append("logs/")
+    return found
+
+
+def clear_previous_run(out: Path) -> None:
+    """Remove a previous run's files, plots and Parquet logs from ``out`` (nothing else)."""
+    for name in RUN_FILES:
+        (out / name).unlink(missing_ok=True)
+    plots = [*out.glob("*_deviation_force.png"), *out.glob("sweep_*_vs_*.png")]
+    for path in [*plots, *(out / "logs").glob("*.parquet")]:
+        path.unlink()
+
+
 def check_arguments(args: argparse.Namespace) -> list[str]:
     """Controller specs after validating every argument (raises ``ValueError`` with a clear message)."""
     from drillgym.controllers import make_controller
@@ -82,6 +109,12 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
         raise ValueError(f"--seeds={args.seeds} must be >= 1")
     if args.workers < 1:
         raise ValueError(f"--workers={args.workers} must be >= 1")
+    previous = previous_run(args.out)
+    if previous and not getattr(args, "overwrite", False):
+        raise ValueError(
+            f"{args.out} holds a previous run ({', '.join(previous[:3])}{', ...' if len(previous) > 3 else ''}); "
+            "pass --overwrite to replace it, or another --out (logs of two runs side by side would mix in a diagnosis)"
+        )
     if getattr(args, "ray", False) or getattr(args, "address", None):
         from drillgym.eval.scale.cluster import require_ray
 
@@ -123,6 +156,8 @@ def run(args: argparse.Namespace) -> int:
                 name = f"logs/{args.suite}__{sc.name}__{controller_label(spec)}__seed{seed}.parquet"
                 log = None if args.no_logs else out / name
                 jobs.append(EpisodeJob(args.suite, sc.name, sc.kwargs, spec, seed, log, "" if log is None else name))
+    if getattr(args, "overwrite", False):
+        clear_previous_run(out)
     (out if args.no_logs else out / "logs").mkdir(parents=True, exist_ok=True)
     if getattr(args, "ray", False) or getattr(args, "address", None):
         from drillgym.eval.scale.bench_ray import run_jobs_ray

@@ -150,3 +150,19 @@ def test_a_scenario_the_env_rejects_becomes_an_error_row():
     row = run_job(EpisodeJob("paper", "bad", {"beta_deg": 80.0}, "none", 0))
     assert "beta_deg" in row["error"] and np.isnan(row["deviation_mean_mm"])
     assert bench_episode.run_job(EpisodeJob("paper", "paper", {}, "none", 0))["error"] == ""
+
+
+def test_a_second_run_into_the_same_folder_needs_overwrite_and_then_leaves_no_stale_logs(tmp_path, capsys):
+    out = tmp_path / "bench"
+    base = ["bench", "--controllers", "none", "--seeds", "2", "--out", str(out)]
+    assert main(base) == 0
+    assert len(list((out / "logs").glob("*.parquet"))) == 2
+    assert main(["bench", "--controllers", "none", "--seeds", "1", "--out", str(out)]) == 2
+    assert "previous run" in capsys.readouterr().err
+    assert len(list((out / "logs").glob("*.parquet"))) == 2  # nothing touched
+    (out / "notes.txt").write_text("mine")
+    assert main(["bench", "--controllers", "none", "--seeds", "1", "--out", str(out), "--overwrite"]) == 0
+    logs = sorted(p.name for p in (out / "logs").glob("*.parquet"))
+    assert logs == ["paper__paper__none__seed0.parquet"]
+    assert (out / "notes.txt").read_text() == "mine"
+    assert len(pd.read_csv(out / "episodes.csv")) == 1
