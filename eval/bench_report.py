@@ -93,6 +93,11 @@ def _plots(out: Path, suite: str, summary: pd.DataFrame, ok: pd.DataFrame, contr
     return [name]
 
 
+def _count(n: int, noun: str) -> str:
+    """``"1 episode"``, ``"3 episodes"``."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
 def _markdown(
     suite: str,
     summary: pd.DataFrame,
@@ -106,8 +111,9 @@ def _markdown(
     parts = [
         f"# drillgym bench: {suite} suite",
         "",
-        f"{len(episodes)} episodes: seeds 0..{seeds - 1} (the same seeds for every controller), controllers {ctrl}.",
-        "Cells: mean [95% CI of the mean, Student t]; n counts the episodes that define the metric.",
+        f"{_count(len(episodes), 'episode')}: {'seed 0' if seeds == 1 else f'seeds 0..{seeds - 1}'} "
+        f"(the same seeds for every controller), controllers {ctrl}.",
+        "Cells: mean [95% CI of the mean, Student t; – with one episode]; n counts the episodes that define the metric.",
         "",
         "## Metrics",
         "",

@@ -23,7 +23,10 @@ CONFIDENCE = 0.95
 
 
 def mean_ci(values: Sequence[float] | np.ndarray, confidence: float = CONFIDENCE) -> tuple[float, float, float, int]:
-    """``(mean, ci_low, ci_high, n)`` of the finite values; NaNs and n = 0 if there are none."""
+    """``(mean, ci_low, ci_high, n)`` of the finite values; NaNs and n = 0 if there are none.
+
+    One value has a mean but no interval: its bounds are NaN, not a zero-width interval.
+    """
     x = np.asarray(values, dtype=float)
     x = x[np.isfinite(x)]
     n = int(x.size)
@@ -31,7 +34,7 @@ def mean_ci(values: Sequence[float] | np.ndarray, confidence: float = CONFIDENCE
         return math.nan, math.nan, math.nan, 0
     mean = float(x.mean())
     if n == 1:
-        return mean, mean, mean, 1
+        return mean, math.nan, math.nan, 1
     half = float(stats.t.ppf(0.5 + confidence / 2.0, n - 1)) * float(x.std(ddof=1)) / math.sqrt(n)
     return mean, mean - half, mean + half, n
 
@@ -67,9 +70,11 @@ def paired_differences(
 
 
 def format_ci(mean: float, low: float, high: float) -> str:
-    """``"0.712 [0.69, 0.734]"`` (3 significant digits), ``"-"`` if undefined."""
+    """``"0.712 [0.69, 0.734]"`` (3 significant digits), ``"0.712 [–]"`` without an interval, ``"-"`` if undefined."""
     if not math.isfinite(mean):
         return "-"
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return f"{mean:.3g} [–]"
     return f"{mean:.3g} [{low:.3g}, {high:.3g}]"
 
 

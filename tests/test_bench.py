@@ -1,4 +1,5 @@
 import dataclasses
+import re
 
 import gymnasium as gym
 import numpy as np
@@ -166,3 +167,12 @@ def test_a_second_run_into_the_same_folder_needs_overwrite_and_then_leaves_no_st
     assert logs == ["paper__paper__none__seed0.parquet"]
     assert (out / "notes.txt").read_text() == "mine"
     assert len(pd.read_csv(out / "episodes.csv")) == 1
+
+
+def test_one_seed_reports_no_interval_and_counts_in_the_singular(tmp_path):
+    out = tmp_path / "one"
+    assert main(["bench", "--controllers", "none", "--seeds", "1", "--no-logs", "--out", str(out)]) == 0
+    text = (out / "summary.md").read_text()
+    assert "1 episode: seed 0 " in text
+    assert " [–] |" in text
+    assert not re.search(r"\[([-\d.e+]+), \1\]", text), "a zero-width interval"

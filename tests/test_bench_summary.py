@@ -15,8 +15,10 @@ def test_ci_of_the_mean_uses_student_t_with_n_minus_1_dof():
 
 
 def test_ci_of_a_single_value_is_the_value_and_nans_are_left_out():
-    assert mean_ci([0.7]) == (0.7, 0.7, 0.7, 1)
-    assert mean_ci([0.7, math.nan]) == (0.7, 0.7, 0.7, 1)
+    for one in ([0.7], [0.7, math.nan]):  # one value: a mean, no interval
+        mean, low, high, n = mean_ci(one)
+        assert (mean, n) == (0.7, 1) and math.isnan(low) and math.isnan(high)
+    assert format_ci(*mean_ci([0.7])[:3]) == "0.7 [–]"
     mean, low, high, n = mean_ci([])
     assert n == 0 and math.isnan(mean) and math.isnan(low) and math.isnan(high)
     assert format_ci(math.nan, math.nan, math.nan) == "-"
