@@ -6,28 +6,30 @@ from pathlib import Path
 from typing import Any
 
 from drillgym.controllers.models import LI2023_MODEL_PEAK_N
-from drillgym.eval.summary import mean_ci
+from drillgym.eval.summary import md_table, mean_ci
+
+ZERO = 1e-9
+"""Magnitudes below this print as 0: the quantities are mm, N and s, and 1e-16 is rounding, not a result."""
 
 
 def _fmt(v: float | None, digits: int = 3) -> str:
     if v is None:
         return "-"
-    return f"{v:.{digits}g}"
+    return "0" if abs(v) < ZERO else f"{v:.{digits}g}"
 
 
-def _row_line(r: Any) -> str:
+def _cells(r: Any) -> list[str]:
     ci = f" [{_fmt(r.ci[0])}, {_fmt(r.ci[1])}]" if r.ci else ""
     rel = f"{100 * r.rel_err:+.0f} %" if r.rel_err is not None else ""
-    note = f" {r.note}" if r.note else ""
-    return f"| {r.name} | {r.unit} | {_fmt(r.paper)} | {_fmt(r.sim)}{ci} | {rel} | {r.kind} |{note}"
+    return [r.name, r.unit, _fmt(r.paper), f"{_fmt(r.sim)}{ci}", rel, r.kind, r.note or ""]
 
 
 def headline(rows: list) -> str:
     """Plain-text table for the terminal."""
-    lines = [f"{'':60s} {'paper':>8s} {'sim':>9s} {'rel.err':>8s}  kind"]
+    lines = [f"{'':60s} {'unit':>5s} {'paper':>8s} {'sim':>9s} {'rel.err':>8s}  kind"]
     for r in rows:
         rel = f"{100 * r.rel_err:+7.0f}%" if r.rel_err is not None else f"{'':>8s}"
-        lines.append(f"{r.name[:60]:60s} {_fmt(r.paper):>8s} {_fmt(r.sim):>9s} {rel}  {r.kind}")
+        lines.append(f"{r.name[:60]:60s} {r.unit:>5s} {_fmt(r.paper):>8s} {_fmt(r.sim):>9s} {rel}  {r.kind}")
     return "\n".join(lines)
 
 
@@ -59,9 +61,7 @@ def write_report(
         "(`li2023_slow_entry`, the strongest hand-made baseline, `docs/controllers.md`); **learned** = the shipped "
         "residual policy (not in the paper). Regenerate with `drillgym reproduce`.",
         "",
-        "| quantity | unit | paper | sim [95% CI] | rel. err | kind |",
-        "|---|---|---|---|---|---|",
-        *(_row_line(r) for r in rows),
+        md_table(["quantity", "unit", "paper", "sim [95% CI]", "rel. err", "kind", "note"], [_cells(r) for r in rows]),
         "",
         "## Calibration (uncompensated run only)",
         "",

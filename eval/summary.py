@@ -78,6 +78,18 @@ def format_ci(mean: float, low: float, high: float) -> str:
     return f"{mean:.3g} [{low:.3g}, {high:.3g}]"
 
 
+def md_cell(value: object) -> str:
+    """One Markdown table cell: ``|`` escaped, line breaks as spaces."""
+    return " ".join(str(value).split()).replace("|", "\\|")
+
+
+def md_table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
+    """A Markdown table with every cell escaped (:func:`md_cell`), so text in a cell never splits a row."""
+    lines = ["| " + " | ".join(md_cell(h) for h in headers) + " |", "|" + "---|" * len(headers)]
+    lines += ["| " + " | ".join(md_cell(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
 def markdown_table(long: pd.DataFrame, metrics: Sequence[str], label: str = "") -> str:
     """Rows scenario × controller, one column per metric as ``mean [ci_low, ci_high]``, plus n."""
     head = ["scenario", "controller", "n", *(f"{label}{m}" for m in metrics)]

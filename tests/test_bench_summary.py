@@ -52,3 +52,18 @@ def test_summary_is_long_form_in_group_order():
     assert list(summary.columns) == ["suite", "scenario", "controller", "metric", "mean", "ci_low", "ci_high", "n"]
     assert list(summary.controller) == ["pid", "none"]
     assert summary.iloc[1]["mean"] == pytest.approx(2.0)
+
+
+def test_markdown_cells_are_escaped_so_a_bar_never_splits_a_row():
+    from drillgym.eval.summary import md_table
+
+    table = md_table(["a", "b"], [["x | y", "two\nlines"]])
+    header, rule, row = table.splitlines()
+    assert row == "| x \\| y | two lines |"
+    assert row.replace("\\|", "").count("|") == header.count("|") == 3
+
+
+def test_rounding_noise_prints_as_zero_in_the_reproduction_report():
+    from drillgym.eval.reproduce_report import _fmt
+
+    assert _fmt(3.36e-16) == "0" and _fmt(-2e-14) == "0" and _fmt(0.0123) == "0.0123" and _fmt(None) == "-"
