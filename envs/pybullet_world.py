@@ -9,15 +9,50 @@ kinematic cross-checks (PyBullet's own forward kinematics of the same URDF).
 
 from __future__ import annotations
 
+import ctypes
 import functools
+import importlib
 import math
+import os
+import sys
 import tempfile
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
-import pybullet as pb
 
 from drillgym.envs.robot.ur5 import R_BASE_BASELINK, ur5_urdf_path
+
+
+def _import_pybullet_quietly() -> ModuleType:
+    """Import PyBullet without its "pybullet build time" line, which its C code prints at import.
+
+    Every command imports it (``--help`` included), and a user reading a command's output or its log
+    should see the command's lines only.
+    """
+    if "pybullet" in sys.modules:
+        return sys.modules["pybullet"]
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    try:
+        saved = [os.dup(1), os.dup(2)]
+    except OSError:  # no standard streams to silence (a daemon): import as is
+        return importlib.import_module("pybullet")
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        os.dup2(devnull, 2)
+        module = importlib.import_module("pybullet")
+        ctypes.CDLL(None).fflush(None)  # what the C code buffered goes to /dev/null too
+    finally:
+        for fd, copy in zip((1, 2), saved, strict=True):
+            os.dup2(copy, fd)
+            os.close(copy)
+        os.close(devnull)
+    return module
+
+
+pb = _import_pybullet_quietly()
 
 UR5_JOINTS = (
     "shoulder_pan_joint",

@@ -191,7 +191,7 @@ def run_jobs(jobs: list[Any], workers: int, desc: str = "bench") -> list[dict[st
 
     from drillgym.eval.bench_episode import close_cached, run_job
 
-    with tqdm(total=len(jobs), desc=desc, unit="ep") as bar:
+    with tqdm(total=len(jobs), desc=desc, unit="ep", disable=None) as bar:  # no bar when not a terminal
         if workers == 1:
             try:
                 return [_tick(bar, run_job(job)) for job in jobs]

@@ -134,7 +134,10 @@ def run(args: argparse.Namespace) -> int:
     rows: list[dict[str, Any]] = [{} for _ in grid]
     csv_path = args.out / "calibration.csv"
     writer = None
-    with csv_path.open("w", newline="") as fh, tqdm(total=len(grid), desc="calibrate", unit="model") as bar:
+    with (
+        csv_path.open("w", newline="") as fh,
+        tqdm(total=len(grid), desc="calibrate", unit="model", disable=None) as bar,
+    ):
         for i, row in _evaluate_all(grid, args.seeds, args.workers):
             if writer is None:
                 writer = csv.DictWriter(fh, fieldnames=list(row))

@@ -123,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
     for kp in kp_values:
         conditions[f"sweep_kp{kp:g}"] = Condition("paper", {}, f"li2023:kp={kp:g}")
     results: dict[str, list] = {}
-    bar = tqdm(total=len(conditions) * len(seeds), desc="reproduce", unit="ep")
+    bar = tqdm(total=len(conditions) * len(seeds), desc="reproduce", unit="ep", disable=None)
     for key, cond in conditions.items():
         results[key] = run_condition(cond, seeds, keep_hole=key in ("none", "kp4"), progress=bar)
     bar.close()

@@ -58,7 +58,7 @@ def test_markdown_cells_are_escaped_so_a_bar_never_splits_a_row():
     from drillgym.eval.summary import md_table
 
     table = md_table(["a", "b"], [["x | y", "two\nlines"]])
-    header, rule, row = table.splitlines()
+    header, _rule, row = table.splitlines()
     assert row == "| x \\| y | two lines |"
     assert row.replace("\\|", "").count("|") == header.count("|") == 3
 

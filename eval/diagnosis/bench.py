@@ -181,7 +181,7 @@ def run_bench(
     run_jobs = rows_of or (lambda js: local_rows(js, workers))
     t0 = time.perf_counter()
     rows: list[dict[str, Any]] = []
-    bar = tqdm(total=len(jobs), desc="bench-diagnosis", file=sys.stderr, disable=not progress)
+    bar = tqdm(total=len(jobs), desc="bench-diagnosis", file=sys.stderr, disable=None if progress else True)
     for row in run_jobs(jobs):
         diagnosis = row.pop(DIAGNOSIS_KEY, None)
         if diagnosis is not None:

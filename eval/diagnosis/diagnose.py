@@ -88,7 +88,12 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     cal, ho = split_episodes(episodes, opt.seed)
     data = DiagnosisData.from_episodes(episodes, cal, ho)
     runner = Runner(opt.workers)
-    bar = tqdm(total=len(episodes) + len(opt.candidates), desc="diagnose", file=sys.stderr, disable=not opt.progress)
+    bar = tqdm(
+        total=len(episodes) + len(opt.candidates),
+        desc="diagnose",
+        file=sys.stderr,
+        disable=None if opt.progress else True,
+    )
     timings: dict[str, float] = {}
     bar.set_postfix_str("replaying (nominal + null)")
     results: list[Any] = [None] * len(episodes)

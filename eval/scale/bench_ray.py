@@ -160,7 +160,7 @@ def run_jobs_ray(
         chunks = [list(jobs[i : i + size]) for i in range(0, len(jobs), size)]
         jobs_of = {task.remote(chunk, runner, driver_node): chunk for chunk in chunks}
         waiting = list(jobs_of)
-        with tqdm(total=len(jobs), desc=desc, unit="ep") as bar:
+        with tqdm(total=len(jobs), desc=desc, unit="ep", disable=None) as bar:
             while waiting:
                 done, waiting = ray.wait(waiting, num_returns=1)  # block for one, then take all that are ready
                 more, waiting = ray.wait(waiting, num_returns=len(waiting), timeout=0) if waiting else ([], [])
