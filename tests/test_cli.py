@@ -31,3 +31,19 @@ def test_demo_runs_the_reproduction_and_says_where_the_results_are(tmp_path, cap
     out = capsys.readouterr().out
     assert "mean tip deviation, uncompensated" in out and str(tmp_path.resolve()) in out
     assert (tmp_path / "report.md").exists()
+
+
+def test_no_command_prints_pybullets_build_line(tmp_path):
+    import subprocess
+    import sys
+
+    code = "from drillgym.eval.cli import main; main(['diagnose', '--help'])"
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "usage: drillgym diagnose" in proc.stdout
+    assert "build time" not in proc.stdout + proc.stderr
+
+
+def test_progress_bars_stay_out_of_a_log_that_is_not_a_terminal(tmp_path, capsys):
+    assert main(["bench", "--controllers", "none", "--seeds", "1", "--no-logs", "--out", str(tmp_path)]) == 0
+    captured = capsys.readouterr()
+    assert "\r" not in captured.out + captured.err
