@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shutil
 import sys
 from pathlib import Path
 from typing import Any
@@ -46,8 +47,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", default=None, help="the plan: env arguments as JSON or key=value,...")
     parser.add_argument("--episodes", type=int, default=1, help="holes to drill, one after the other")
     parser.add_argument("--seed", type=int, default=0, help="reset seed of the first episode (logged)")
-    parser.add_argument("--counts-per-force", type=float, default=NetFTCalibration.counts_per_force)
-    parser.add_argument("--counts-per-torque", type=float, default=NetFTCalibration.counts_per_torque)
+    parser.add_argument(
+        "--counts-per-force",
+        type=float,
+        default=NetFTCalibration.counts_per_force,
+        help="the F/T sensor's counts per N (its calibration page, netftapi2.xml 'cfgcpf'); a wrong value "
+        "rescales every force, the force limit included (default %(default)g, the emulator's)",
+    )
+    parser.add_argument(
+        "--counts-per-torque",
+        type=float,
+        default=NetFTCalibration.counts_per_torque,
+        help="the F/T sensor's counts per N·m ('cfgcpt'; default %(default)g, the emulator's)",
+    )
     parser.add_argument(
         "--max-gap-ms",
         type=float,
@@ -108,7 +120,15 @@ def run(args: argparse.Namespace) -> int:
         print("not confirmed; nothing moved")
         return 2
     scenario.pop("tracker", None)
+    created = not args.out.exists()
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.dry_run:
+        print(
+            "DRY RUN: nothing is sent to the robot. The episode follows the commanded path with the robot at rest; "
+            f"{args.out / 'commands.jsonl'} logs every command that would have been sent. Forces and metrics "
+            "below describe a robot that did not move, and the servo loop's timing (missed_cycles in metrics.json) "
+            "times a loop that sends nothing."
+        )
     try:
         env = gym.make(
             ENV_ID,
@@ -122,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
             **scenario,
         )
     except (RuntimeError, OSError, ValueError) as e:
+        if created:  # leave no empty output folder behind
+            shutil.rmtree(args.out, ignore_errors=True)
         print(f"drillgym run: error: cannot open the cell: {e}", file=sys.stderr)
         return 2
     results, code = [], 0
@@ -152,7 +174,8 @@ def run(args: argparse.Namespace) -> int:
                     "missed_cycles": info.get("missed_cycles"),
                 }
             )
-            print(f"episode {k} ({args.controller}, log {args.out / 'logs' / name}):")
+            dry = " DRY RUN, nothing sent;" if args.dry_run else ""
+            print(f"episode {k} ({args.controller},{dry} log {args.out / 'logs' / name}):")
             if info.get("failure"):
                 print(f"  ENDED ON A FAULT: {info['failure']}: {info['error']}; stop: {info.get('stop_result')}")
                 code = 3

@@ -66,3 +66,17 @@ def test_a_user_error_deep_in_a_command_shows_its_traceback_on_request(tmp_path,
     monkeypatch.setenv("DRILLGYM_TRACEBACK", "1")
     with pytest.raises(ValueError, match="must be >= 2"):
         main(["reproduce", "--seeds", "1", "--out", str(tmp_path)])
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["make-reality", "--effects", "no_such_effect"],
+        ["import-rtde", "no_such_session"],
+        ["run", "--robot", "127.0.0.1", "--yes"],  # nothing listens on this loopback address's UR ports
+    ],
+)
+def test_a_failed_command_leaves_no_output_folder(argv, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert _run([*argv, "--out", str(out)]) == 2
+    assert not out.exists(), sorted(p.name for p in out.iterdir())

@@ -26,13 +26,13 @@ def run(args: argparse.Namespace) -> int:
     from drillgym.eval.diagnosis.validate import LogCheckError
     from drillgym.eval.logs import EpisodeLogWriter
 
-    args.out.mkdir(parents=True, exist_ok=True)
     failed = 0
     for session in args.sessions:
         try:
             header, frame = import_session(session)
             ep = episode_from_log(session.name, header, frame)  # the diagnosis's checks, before writing
             header["run"]["repairs"] = header["run"].get("repairs", []) + ep.repairs
+            args.out.mkdir(parents=True, exist_ok=True)  # only once a session has passed its checks
             writer = EpisodeLogWriter(args.out / f"{session.name}.parquet", header, overwrite=args.overwrite)
             writer.append({c: frame[c].to_numpy() for c in writer.schema.names})
             path = writer.close()

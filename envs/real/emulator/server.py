@@ -234,6 +234,13 @@ class Emulator:
             "tracker": cfg.tracker_port,
         }
         print("READY " + json.dumps({"host": cfg.host, "ports": ports, "pid": os.getpid()}), flush=True)
+        print(  # for a person (stdout's READY line is for programs)
+            f"UR CB3 emulator on {cfg.host} (RTDE {cfg.rtde_port}, dashboard {cfg.dashboard_port}, Net F/T "
+            f"{cfg.ft_port}, tracker UDP {cfg.tracker_port}); exits after {cfg.max_lifetime_s:g} s or on Ctrl-C.\n"
+            f"Drill a hole on it: drillgym run --robot {cfg.host} --tracker udp:{cfg.host} --out runs/emulated --yes",
+            file=sys.stderr,
+            flush=True,
+        )
         self.next_phys = self.next_ctrl = self.next_check = self.now()
         while not self.shutdown:
             self._loop_once()

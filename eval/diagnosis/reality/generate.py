@@ -67,9 +67,9 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
 
     if episodes < 1:
         raise ValueError(f"episodes={episodes} must be >= 1")
+    build_reality(spec)  # validate before creating or running anything
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    build_reality(spec)  # validate before running anything
     rng = np.random.default_rng(seed)
     plans = [episode_plan(i, rng) for i in range(episodes)]
     env = gym.make(SIM_ENV_ID)
