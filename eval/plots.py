@@ -16,25 +16,40 @@ from drillgym.eval.rollout import EpisodeResult
 STAGE_COLOURS = {1: "#fde0c5", 2: "#facba6", 3: "#f8b58b", 4: "#e0ecf4"}
 
 
-def shade_stages(ax: plt.Axes, t_s: np.ndarray, stage: np.ndarray) -> None:
-    """Shade the engagement stages 1-4 behind a time plot."""
+def label_span(ax: plt.Axes, lo: float, hi: float, text: str, xlim: tuple[float, float]) -> None:
+    """Label the part of ``[lo, hi]`` inside ``xlim`` at its centre, at the top of the axes; nothing outside.
+
+    A span narrower than 8 % of the axis gets its text without the word "stage".
+    """
+    lo, hi = max(lo, xlim[0]), min(hi, xlim[1])
+    if hi <= lo:
+        return
+    short = (hi - lo) < 0.08 * (xlim[1] - xlim[0])
+    ax.text(
+        0.5 * (lo + hi),
+        0.97,
+        text.removeprefix("stage ") if short else text,
+        transform=ax.get_xaxis_transform(),
+        ha="center",
+        va="top",
+        fontsize=7,
+        color="0.35",
+        clip_on=True,
+    )
+
+
+def shade_stages(ax: plt.Axes, t_s: np.ndarray, stage: np.ndarray, xlim: tuple[float, float] | None = None) -> None:
+    """Shade the engagement stages 1-4 behind a time plot and label each inside ``xlim`` (default: the data)."""
+    if xlim is None:
+        xlim = (float(t_s[0]), float(t_s[-1]))
+    ax.set_xlim(*xlim)
     start = 0
     for i in range(1, len(stage) + 1):
         if i == len(stage) or stage[i] != stage[start]:
             s = int(stage[start])
             if s in STAGE_COLOURS:
                 ax.axvspan(t_s[start], t_s[i - 1], color=STAGE_COLOURS[s], lw=0, zorder=0)
-                if t_s[i - 1] - t_s[start] > 0.3:
-                    ax.text(
-                        0.5 * (t_s[start] + t_s[i - 1]),
-                        0.97,
-                        f"stage {s}",
-                        transform=ax.get_xaxis_transform(),
-                        ha="center",
-                        va="top",
-                        fontsize=7,
-                        color="0.35",
-                    )
+                label_span(ax, float(t_s[start]), float(t_s[i - 1]), f"stage {s}", xlim)
             start = i
 
 

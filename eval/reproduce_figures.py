@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from drillgym.envs.metrics import FORCE_FILTER_SAMPLES, moving_average
-from drillgym.eval.plots import STAGE_COLOURS, shade_stages
+from drillgym.eval.plots import STAGE_COLOURS, label_span, shade_stages
 from drillgym.eval.summary import mean_ci
 
 
@@ -33,18 +33,19 @@ def fig9(out: Path, trends: dict[str, Any], none: list) -> str:
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
     d_mm = trends["depth_m"] * 1e3
     stage = trends["stage"]
+    a_xlim = (-0.05, 1.2)
     for s, colour in STAGE_COLOURS.items():
         sel = stage == s
         if sel.any():
             a.axvspan(d_mm[sel].min(), d_mm[sel].max(), color=colour, lw=0)
-            a.text(d_mm[sel].mean(), 0.97, f"{s}", transform=a.get_xaxis_transform(), ha="center", va="top", fontsize=8)
+            label_span(a, float(d_mm[sel].min()), float(d_mm[sel].max()), f"stage {s}", a_xlim)
     a.plot(d_mm, trends["lateral_n"], color="C3")
-    a.set(xlim=(-0.05, 1.2), xlabel="tip depth past the surface (mm)", ylabel="unbalanced lateral force (N)")
+    a.set(xlim=a_xlim, xlabel="tip depth past the surface (mm)", ylabel="unbalanced lateral force (N)")
     a.set_title("(a) force model, tip held on the axis (Li Fig. 9a)", fontsize=9)
     tr = none[0].trace
-    shade_stages(b, tr["t_s"], tr["stage"])
+    shade_stages(b, tr["t_s"], tr["stage"], xlim=(1.5, 8.0))
     b.plot(tr["t_s"], _lateral(tr), color="C3")
-    b.set(xlim=(1.5, 8), xlabel="time (s)", ylabel="lateral force |Fxy| (N)")
+    b.set(xlabel="time (s)", ylabel="lateral force |Fxy| (N)")
     b.set_title("(b) full run, no compensation (Li Fig. 9b)", fontsize=9)
     return _save(fig, out / "fig9_force_stages.png")
 
@@ -89,14 +90,14 @@ def fig13(out: Path, results: dict[str, list]) -> str:
     """Lateral force with and without compensation, stages of the uncompensated run shaded."""
     fig, ax = plt.subplots(figsize=(8, 3.6))
     tr = results["none"][0].trace
-    shade_stages(ax, tr["t_s"], tr["stage"])
+    shade_stages(ax, tr["t_s"], tr["stage"], xlim=(1.5, 14.5))
     lines = [("none", "no compensation", "C3"), ("kp1", "li2023 KP = 1", "C1"), ("kp4", "li2023 KP = 4", "C0")]
     if "residual" in results:
         lines.append(("residual", "residual SAC on li2023", "C2"))
     for key, label, colour in lines:
         t = results[key][0].trace
         ax.plot(t["t_s"], _lateral(t), color=colour, label=label)
-    ax.set(xlim=(1.5, 14.5), xlabel="time (s)", ylabel="lateral force |Fxy| (N)")
+    ax.set(xlabel="time (s)", ylabel="lateral force |Fxy| (N)")
     ax.set_title("Deflection force with and without compensation (Li Fig. 13)", fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
@@ -147,17 +148,18 @@ def table1(out: Path, ident: dict[str, Any]) -> str:
 
 def zhang(out: Path, results: dict[str, list]) -> str:
     """Controlled MRR: thrust and progress with and without it; deformation compensation under thrust."""
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.6))
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11.5, 3.6))
+    depth_ax = a.twinx()  # depth in mm on its own axis, never on the force axis
     for key, label, colour in (("mrr_none", "constant feed", "C3"), ("mrr_zhang", "controlled MRR", "C0")):
         t = results[key][0].trace
         f = moving_average(t["ft_force_n"], FORCE_FILTER_SAMPLES)
         feed = t["phase"] == 1
         a.plot(t["t_s"][feed], -f[feed, 2], color=colour, label=f"{label}: thrust")
-        a.plot(t["t_s"][feed], t["depth_cmd_m"][feed] * 1e3, color=colour, ls=":", label=f"{label}: depth (mm)")
+        depth_ax.plot(t["t_s"][feed], t["depth_cmd_m"][feed] * 1e3, color=colour, ls=":", label=f"{label}: depth")
     a.axhline(8.0, color="0.5", ls="--", lw=0.8, label="thrust reference 8 N")
-    a.set(
-        xlabel="time (s)", ylabel="thrust (N) / depth (mm)", title="(a) cortical 2 mm over cancellous: controlled MRR"
-    )
+    a.set(xlabel="time (s)", ylabel="thrust (N), solid", title="(a) cortical 2 mm over cancellous: controlled MRR")
+    depth_ax.set_ylabel("commanded depth (mm), dotted")
+    depth_ax.legend(fontsize=7, loc="lower right")
     for key, label, colour in (
         ("thrust_none", "no compensation", "C3"),
         ("thrust_zhang", "deformation compensation", "C0"),
