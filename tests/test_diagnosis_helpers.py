@@ -126,3 +126,27 @@ def write_session(d: Path, header: dict, df: pd.DataFrame, host_t0: float = 100.
     }
     (d / "header.json").write_text(json.dumps(meta))
     return d
+
+
+def test_the_ranking_says_why_a_model_above_the_named_one_was_not_named():
+    from drillgym.eval.diagnosis.report import why_not_named
+
+    def model(name, shrink, low, named=False):
+        return {"name": name, "effects": name.split("+"), "shrink": shrink, "ci_low": low, "named": named}
+
+    effects = [model("a+b", 0.9, 0.6), model("c", 0.4, 0.1), model("a", 0.8, 0.5, named=True), model("d", 0.1, 0.0)]
+    res = {"effects": effects, "verdict": "explained", "possible_second_effects": [{"name": "a+b"}]}
+    assert "second effect is not shown" in why_not_named(effects[0], res)
+    assert "below the bar" in why_not_named(effects[1], res)
+    assert why_not_named(effects[3], res) == ""  # ranked below the named model: nothing to explain
+
+
+def test_gap_map_cells_print_noise_as_below_the_floor():
+    from drillgym.eval.diagnosis.figures import gap_text
+
+    assert (
+        gap_text(5.5e-12) == "<0.01"
+        and gap_text(0.5) == "0.5"
+        and gap_text(3.14159) == "3.1"
+        and gap_text(152.3) == "152"
+    )

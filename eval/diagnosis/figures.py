@@ -19,18 +19,26 @@ from drillgym.eval.diagnosis.channels import LF_CHANNELS, STAGES
 STAGE_COLOURS = ("#ffffff", "#fde0c5", "#facba6", "#f8b58b", "#dfe7f2", "#eeeeee")
 
 
+def gap_text(value: float) -> str:
+    """A normalised gap as printed in a cell: ``<0.01`` below the map's floor (no ``5.5e-12``), else 2-3 digits."""
+    if value < 0.01:
+        return "<0.01"
+    return f"{value:.2g}" if value < 10 else f"{value:.0f}"
+
+
 def plot_gap_map(where: dict[str, Any], after: dict[str, Any] | None, path: Path) -> Path:
     """Heat map of the normalised gap (channel × stage; 1 = the simulator's own scatter), before/after."""
     panels = [("gap before (all episodes)", where)] + (
         [("held-out gap with the named effect(s)", after)] if after else []
     )
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 7.5), squeeze=False)
-    for ax, (title, m) in zip(axes[0], panels, strict=True):
-        values = np.array([[np.nan if v is None else v for v in row] for row in m["normalised"]], dtype=float)
+    tables = [
+        np.array([[np.nan if v is None else v for v in row] for row in m["normalised"]], dtype=float) for _, m in panels
+    ]
+    top = max(3.0, *(float(np.nanmax(np.log10(np.clip(t, 1e-2, None)), initial=0.0)) for t in tables))
+    for ax, (title, m), values in zip(axes[0], panels, tables, strict=True):
         shown = np.log10(np.clip(values, 1e-2, None))
-        im = ax.imshow(
-            shown, cmap="magma_r", vmin=-1, vmax=max(3.0, float(np.nanmax(shown, initial=0.0))), aspect="auto"
-        )
+        im = ax.imshow(shown, cmap="magma_r", vmin=-1, vmax=top, aspect="auto")  # one colour scale for all panels
         ax.set_xticks(range(len(m["stages"])), m["stages"], rotation=35, ha="right")
         ax.set_yticks(range(len(m["channels"])), m["channels"])
         for (r, c), v in np.ndenumerate(values):
@@ -38,7 +46,7 @@ def plot_gap_map(where: dict[str, Any], after: dict[str, Any] | None, path: Path
                 ax.text(
                     c,
                     r,
-                    f"{v:.3g}",
+                    gap_text(v),
                     ha="center",
                     va="center",
                     fontsize=6,
@@ -55,7 +63,7 @@ def plot_gap_map(where: dict[str, Any], after: dict[str, Any] | None, path: Path
 def plot_ranking(effects: list[dict[str, Any]], path: Path, top: int = 10) -> Path:
     """Held-out shrink of each model with its 95 % interval, best score first."""
     rows = effects[:top][::-1]
-    fig, ax = plt.subplots(figsize=(7, 0.45 * len(rows) + 1.2))
+    fig, ax = plt.subplots(figsize=(7.5, max(2.6, 0.45 * len(rows) + 1.4)))
     y = np.arange(len(rows))
     shrink = np.array([r["shrink"] for r in rows], dtype=float)
     lo = np.array([r["ci_low"] for r in rows], dtype=float)
@@ -70,7 +78,7 @@ def plot_ranking(effects: list[dict[str, Any]], path: Path, top: int = 10) -> Pa
     ax.set_xlim(-0.2, 1.1)
     ax.set_xlabel("held-out gap shrink (share of the excess removed; green = named)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")  # the x label is never clipped
     plt.close(fig)
     return path
 

@@ -13,6 +13,7 @@ from drillgym.eval.diagnosis.channels import STAGES
 from drillgym.eval.diagnosis.context import build, make_spec
 from drillgym.eval.diagnosis.diagnose import Diagnosis
 from drillgym.eval.diagnosis.figures import plot_gap_map, plot_overlays, plot_ranking, plot_spectra
+from drillgym.eval.diagnosis.rank import NAME_CI_LOW_MIN, NAME_SHRINK_MIN
 from drillgym.eval.diagnosis.replay import Replayer, seed_for
 
 OVERLAY_CHANNELS = ["fz_n", "fx_n", "tracker_x_task_m", "q1_rad"]
@@ -66,8 +67,34 @@ def _figures(diag: Diagnosis, out: Path) -> dict[str, Path]:
     return figs
 
 
+def _ratio(gap: float, null: float) -> str:
+    """``"12×"``: how many times the simulator's own level a gap is."""
+    return f"{gap / null:.3g}×" if null > 0 and math.isfinite(gap) else "–"
+
+
 def _pct(v: Any) -> str:
     return "–" if v is None or not math.isfinite(v) else f"{100 * v:.0f} %"
+
+
+def why_not_named(effect: dict[str, Any], res: dict[str, Any]) -> str:
+    """Why a model ranked above the named one (or any model, when none is named) was not named."""
+    names = [e["name"] for e in res["effects"]]
+    named = next((n for n, e in zip(names, res["effects"], strict=True) if e["named"]), None)
+    if named is not None and names.index(effect["name"]) > names.index(named):
+        return ""
+    shrink, low = effect["shrink"], effect["ci_low"]
+    if not (math.isfinite(shrink) and math.isfinite(low)) or shrink < NAME_SHRINK_MIN or low < NAME_CI_LOW_MIN:
+        return f"no: below the bar (shrink ≥ {NAME_SHRINK_MIN:.0%}, CI low ≥ {NAME_CI_LOW_MIN:.0%})"
+    if named is None:
+        return "no: " + str(res["verdict"])
+    if set(named.split("+")) < set(effect["effects"]):
+        seconds = {p["name"] for p in res.get("possible_second_effects") or []}
+        if effect["name"] in seconds:
+            return "no: its second effect is not shown to be one (it must explain alone what it adds)"
+        return "no: not surely better than the named model"
+    if effect["name"] in {a.get("name") for a in res.get("alternatives") or []}:
+        return "no: an alternative the data do not rule out"
+    return "no: the named model scores better across resamples"
 
 
 def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
@@ -78,12 +105,16 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
         f"**Verdict: `{res['verdict']}`** — {res['summary']}.",
         "",
         f"{res['episodes']['n']} episodes ({len(res['episodes']['calibration'])} calibration, "
-        f"{len(res['episodes']['heldout'])} held-out). Gap over all episodes: {sig['gap']:.3g} "
-        f"(the simulator's own scatter: {sig['null']:.3g}; median episode {sig['median_episode_ratio']:.3g}× that; "
-        f"significant: {sig['significant']}). Gaps are mean squared block-mean differences in units of the "
-        "simulator's noise after profiling out each specimen's hardness (see docs/diagnosis.md).",
+        f"{len(res['episodes']['heldout'])} held-out). **The gap is {_ratio(sig['gap'], sig['null'])} the "
+        f"simulator's own scatter** (gap {sig['gap']:.3g}, scatter {sig['null']:.3g}; median episode "
+        f"{sig['median_episode_ratio']:.3g}×; significant: {sig['significant']}). Gaps are mean squared block-mean "
+        "differences in units of the simulator's noise after profiling out each specimen's hardness "
+        "(see docs/diagnosis.md).",
         "",
         "## Which effect",
+        "",
+        "Rows are ordered by the penalised held-out score (best first); a row above the named model says why "
+        "it was not named.",
         "",
         "| rank | model | parameters | held-out gap before | after | shrink (95 % CI) | P(best) | named |",
         "|---|---|---|---|---|---|---|---|",
@@ -93,7 +124,7 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
         lines.append(
             f"| {k} | {e['name']} | {params} | {e['heldout_gap_before']:.3g} | {e['heldout_gap_after']:.3g} | "
             f"{_pct(e['shrink'])} ({_pct(e['ci_low'])} to {_pct(e['ci_high'])}) | {e['p_best']:.2f} | "
-            f"{'**yes**' if e['named'] else ''} |"
+            f"{'**yes**' if e['named'] else why_not_named(e, res)} |"
         )
     ev = res.get("second_effect_evidence")
     if ev:
