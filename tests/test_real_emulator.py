@@ -97,6 +97,19 @@ def test_protective_stop_refuses_motion_and_the_dashboard_reports_it(start_emula
                 f.write(cmd + "\n")
                 f.flush()
                 assert f.readline().startswith(reply)
+            # UR's Dashboard Server manual: an unlock within 5 s of the stop is refused, with this answer
+            f.write("unlock protective stop\n")
+            f.flush()
+            assert f.readline().startswith("Cannot unlock protective stop until 5s after occurrence.")
+            assert r.isProtectiveStopped()
+            time.sleep(5.1)
+            f.write("unlock protective stop\n")
+            f.flush()
+            assert f.readline().strip() == "Protective stop releasing"
+            time.sleep(0.05)
+            assert not r.isProtectiveStopped()
+        emu.fault("protective_stop")  # again, for the harness's own clear
+        time.sleep(0.05)
         emu.control({"cmd": "clear_faults"})
         time.sleep(0.05)
         assert not r.isProtectiveStopped() and c.isProgramRunning()

@@ -7,6 +7,10 @@ from collections.abc import Callable
 from drillgym.envs.real.emulator.script import ControlProgram, RuntimeState
 
 WELCOME = "Connected: Universal Robots Dashboard Server\n"
+UNLOCK_REFUSED = (
+    "Cannot unlock protective stop until 5s after occurrence. Always inspect cause of protective stop before unlocking"
+)
+"""UR's answer to ``unlock protective stop`` sent within 5 s of the stop (Dashboard Server manual)."""
 POLYSCOPE_VERSION = "URSoftware 3.15.7.106331 (Sep 07 2022)"
 
 
@@ -16,11 +20,11 @@ class Dashboard:
     Args:
         program: the control program (play/stop/pause state).
         protective_stopped: whether the arm is protective-stopped.
-        unlock: releases a protective stop.
+        unlock: releases a protective stop at the given time; False when refused (within 5 s of the stop).
     """
 
     def __init__(
-        self, program: ControlProgram, protective_stopped: Callable[[], bool], unlock: Callable[[], None]
+        self, program: ControlProgram, protective_stopped: Callable[[], bool], unlock: Callable[[float], bool]
     ) -> None:
         self.program = program
         self.protective_stopped = protective_stopped
@@ -58,8 +62,7 @@ class Dashboard:
                 return "Starting program", False
             return "Failed to execute: Play", False
         if low == "unlock protective stop":
-            self.unlock()
-            return "Protective stop releasing", False
+            return ("Protective stop releasing" if self.unlock(t_s) else UNLOCK_REFUSED), False
         if low == "quit":
             return "Disconnected", True
         return f"Could not understand: '{cmd}'", False

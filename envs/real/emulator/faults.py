@@ -35,7 +35,7 @@ class FaultState:
         self.history.append(f"{t_s:.3f} {kind} {value:g}")
         emulator.log(f"fault injected: {kind} ({value:g})")
         if kind == "protective_stop":
-            emulator.world.protective_stop()
+            emulator.world.protective_stop(t_s)
             emulator.program.pause("protective stop", t_s)
         elif kind == "drop_link":
             emulator.drop_link()
@@ -58,7 +58,7 @@ class FaultState:
             self.link_down_until_s = None
             emulator.open_robot_ports()
         if emulator.world.halted:
-            emulator.unlock_protective_stop()
+            emulator.unlock_protective_stop(t_s, wait=False)
             emulator.program.resume(t_s)
         self.history.append(f"{t_s:.3f} clear")
 

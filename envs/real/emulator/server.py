@@ -30,6 +30,8 @@ from drillgym.envs.real.emulator.world import EmulatedCell
 
 CONTROLLER_DT_S = 1.0 / CB3_RATE_HZ
 ROBOT_PORTS = ("rtde", "dashboard", "script")
+UNLOCK_WAIT_S = 5.0
+"""A protective stop cannot be unlocked sooner than this after it occurred (UR Dashboard Server manual)."""
 """Listeners that a dropped link takes down (the control port stays up)."""
 
 
@@ -107,9 +109,16 @@ class Emulator:
             self._close_stream(s)
         self.log("link dropped: robot ports closed")
 
-    def unlock_protective_stop(self) -> None:
-        """Release a protective stop (the program stays paused until played)."""
+    def unlock_protective_stop(self, t_s: float, wait: bool = True) -> bool:
+        """Release a protective stop (the program stays paused until played); whether it was released.
+
+        As on a UR controller, an unlock within :data:`UNLOCK_WAIT_S` of the stop is refused (``wait=False``:
+        the test harness clearing its own fault).
+        """
+        if wait and self.world.halted and t_s - self.world.halted_at_s < UNLOCK_WAIT_S:
+            return False
         self.world.halted = False
+        return True
 
     # ------------------------------------------------------------------ sockets
     def _accept(self, name: str, listener: socket.socket) -> None:

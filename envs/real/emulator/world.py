@@ -75,6 +75,8 @@ class EmulatedCell:
         self.servo_gain = 1.0 - math.exp(-PHYSICS_DT_S / scenario.servo_time_constant_s)
         self.truth = TruthRecorder()
         self.halted = False
+        self.halted_at_s = -math.inf
+        """Emulator time (s) of the last protective stop."""
         self.orientation_warnings = 0
         self.new_specimen(np.array([0.0, 0.0, -HOME_STANDOFF_M]))
 
@@ -149,10 +151,11 @@ class EmulatedCell:
         self.move = None
         self.target_task = np.array(self.cell.rigid_tip)
 
-    def protective_stop(self) -> None:
-        """Halt: the arm stops where it is and ignores motion commands until cleared."""
+    def protective_stop(self, t_s: float) -> None:
+        """Halt at emulator time ``t_s``: the arm stops where it is and ignores motion commands until cleared."""
         self.stop_motion()
         self.halted = True
+        self.halted_at_s = t_s
 
     # ------------------------------------------------------------------ physics
     def physics_tick(self, t_s: float) -> ContactSample:
