@@ -117,7 +117,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     | feed_scale | feed override currently commanded | 0 | 4 | - | - |
 
     Sign convention: forces are those the environment (bone) exerts on the tool. Privileged state (true
-    tip position and deflection, stage, hole) is in ``info`` only.
+    tip position and deflection, stage, hole, the specimen's hardness factor ``specimen_hardness``) is in
+    ``info`` only.
 
     ## Rewards
 
@@ -464,6 +465,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             "depth_local_m": smp.depth_local,
             "reward_terms": dict(self.step_terms),
             "failure": self.failure,
+            "specimen_hardness": self.specimen_hardness,
         }
         if self.metrics is not None:
             info["metrics"] = dict(self.metrics)

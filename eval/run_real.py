@@ -83,6 +83,21 @@ def _confirm(args: argparse.Namespace, scenario_text: str) -> bool:
     return input("Type 'yes' to start: ").strip().lower() == "yes"
 
 
+def seed_emulated_specimen(host: str, seed: int) -> dict[str, Any] | None:
+    """On the UR emulator, draw the next specimen from ``seed`` (as the sim's ``reset(seed=seed)``); else None.
+
+    The emulator answers on its control port; a real controller has none there, so the probe costs one
+    refused connection and changes nothing.
+    """
+    from drillgym.envs.real.emulator.process import emulator_control
+
+    try:
+        reply = emulator_control(host, {"cmd": "specimen", "seed": int(seed)}, timeout_s=0.5)
+    except (OSError, RuntimeError):
+        return None
+    return {k: reply[k] for k in ("specimen", "seed", "hardness_factor", "replaced_now")}
+
+
 def _print_metrics(metrics: dict[str, float]) -> None:
     for name in OBSERVABLE_METRICS:
         value = metrics.get(name, math.nan)
@@ -152,6 +167,9 @@ def run(args: argparse.Namespace) -> int:
             seed = args.seed + k
             name = f"real__{args.controller.replace(':', '_').replace('/', '_')}__ep{k}.parquet"
             extra = {"controller_spec": args.controller, "robot": args.robot, "dry_run": args.dry_run}
+            specimen = seed_emulated_specimen(args.robot, seed)
+            if specimen is not None:
+                extra["emulator_specimen"] = specimen
             header = build_header(env, controller.describe(), seed, source="real", extra=extra)
             logger = EpisodeLogger(env, args.out / "logs" / name, header, overwrite=True)
             try:

@@ -30,6 +30,26 @@ def test_run_drills_logs_and_prints_the_measurable_metrics(start_emulator, tmp_p
     assert (tmp_path / "commands.jsonl").stat().st_size > 0
 
 
+def test_run_seeds_each_emulated_specimen_as_the_sim_does(start_emulator, tmp_path, capsys):  # noqa: F811
+    import gymnasium as gym
+
+    from drillgym.envs import SIM_ENV_ID
+
+    scenario = {"feed_mm_s": 3.0, "depth_mm": 3.0}
+    emu = start_emulator(seed=0, scenario=scenario)
+    argv = ["run", "--robot", emu.host, "--scenario", SHORT_PLAN, "--yes", "--max-gap-ms", "500"]
+    assert main([*argv, "--seed", "3", "--episodes", "2", "--out", str(tmp_path)]) == 0
+    results = json.loads((tmp_path / "metrics.json").read_text())
+    sim = gym.make(SIM_ENV_ID, **scenario)
+    for k, seed in enumerate((3, 4)):
+        header, _ = read_episode_log(tmp_path / results[k]["log"])
+        specimen = header["run"]["emulator_specimen"]
+        assert header["seed"] == seed and specimen["seed"] == seed and specimen["replaced_now"]
+        _, info = sim.reset(seed=seed)
+        assert specimen["hardness_factor"] == info["specimen_hardness"]  # the same specimen, bit for bit
+    sim.close()
+
+
 def test_run_asks_before_moving(start_emulator, tmp_path):  # noqa: F811
     emu = start_emulator()
     cmd = [sys.executable, "-m", "drillgym.eval.cli", "run", "--robot", emu.host, "--out", str(tmp_path)]

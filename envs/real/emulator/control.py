@@ -37,7 +37,23 @@ def handle_control(emulator: Emulator, line: str) -> tuple[dict[str, Any], bool]
             world = emulator.world
             centre = world.cell.hole.centre_at(world.scenario.entry_depth_m)
             metrics = world.truth.metrics(centre)
-            return {"ok": True, "specimen": world.specimen, "hardness_factor": world.hardness_factor, **metrics}, False
+            return {
+                "ok": True,
+                "specimen": world.specimen,
+                "specimen_seed": world.specimen_seed,
+                "hardness_factor": world.hardness_factor,
+                **metrics,
+            }, False
+        if cmd == "specimen":
+            world = emulator.world
+            now = world.seed_specimen(int(request["seed"]))
+            return {
+                "ok": True,
+                "replaced_now": now,
+                "specimen": world.specimen,
+                "seed": world.specimen_seed if now else world.next_specimen_seed,
+                "hardness_factor": world.hardness_factor if now else None,
+            }, False
         if cmd == "events":
             events = [{"t_s": e.t_s, "cmd": e.cmd, "detail": e.detail} for e in emulator.program.events]
             return {"ok": True, "events": events}, False

@@ -49,6 +49,31 @@ def free_loopback_host(rng: random.Random | None = None, attempts: int = 50) -> 
     raise RuntimeError(f"no loopback address with free emulator ports after {attempts} tries")
 
 
+def emulator_control(
+    host: str, request: dict[str, Any], port: int = CONTROL_PORT, timeout_s: float = 5.0
+) -> dict[str, Any]:
+    """One request on an emulator's control port (JSON line in, JSON line out).
+
+    Raises ``OSError`` when nothing answers there (a real controller has no such port) and ``RuntimeError``
+    when the emulator refuses the request.
+    """
+    with socket.create_connection((host, port), timeout=timeout_s) as s:
+        s.sendall((json.dumps(request) + "\n").encode())
+        buf = b""
+        while not buf.endswith(b"\n"):
+            chunk = s.recv(1 << 20)
+            if not chunk:
+                break
+            buf += chunk
+    try:
+        reply = json.loads(buf)
+    except ValueError as e:
+        raise OSError(f"{host}:{port} answered something other than the emulator's control protocol") from e
+    if not isinstance(reply, dict) or not reply.get("ok"):
+        raise RuntimeError(f"emulator control {request}: {reply.get('error') if isinstance(reply, dict) else reply}")
+    return dict(reply)
+
+
 class EmulatorProcess:
     """An emulator in a child process on ``host``; use as a context manager.
 
@@ -117,18 +142,7 @@ class EmulatorProcess:
 
     def control(self, request: dict[str, Any], timeout_s: float = 5.0) -> dict[str, Any]:
         """Send one control request and return the reply (raises ``RuntimeError`` if not ok)."""
-        with socket.create_connection((self.host, CONTROL_PORT), timeout=timeout_s) as s:
-            s.sendall((json.dumps(request) + "\n").encode())
-            buf = b""
-            while not buf.endswith(b"\n"):
-                chunk = s.recv(1 << 20)
-                if not chunk:
-                    break
-                buf += chunk
-        reply = json.loads(buf)
-        if not reply.get("ok"):
-            raise RuntimeError(f"emulator control {request}: {reply.get('error')}")
-        return dict(reply)
+        return emulator_control(self.host, request, timeout_s=timeout_s)
 
     def fault(self, kind: str, value: float = 0.0) -> None:
         """Inject a fault now."""

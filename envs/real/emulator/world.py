@@ -30,6 +30,8 @@ HOME_STANDOFF_M = 10e-3
 """The robot starts with the drill tip this far above the planned entry point, on the planned axis (m)."""
 MOVE_DONE_TOLERANCE_M = 1e-6
 """A straight move is done when the servo is this close to its end point (m)."""
+RETRACTED_M = 1e-3
+"""The drill is out of the specimen when its tip is this far above the surface (m): the operator may swap it."""
 FEED_WINDOW_S = 0.1
 """Commanded targets over this window give the axial speed the bone sees (s)."""
 
@@ -77,15 +79,25 @@ class EmulatedCell:
         self.halted = False
         self.halted_at_s = -math.inf
         """Emulator time (s) of the last protective stop."""
+        self.next_specimen_seed: int | None = None
+        """The seed a client asked for the next specimen (``control`` command ``specimen``)."""
+        self.specimen_seed = self.seed
         self.orientation_warnings = 0
         self.new_specimen(np.array([0.0, 0.0, -HOME_STANDOFF_M]))
 
     # ------------------------------------------------------------------ specimen
-    def new_specimen(self, start_tip_task_m: np.ndarray) -> None:
-        """A fresh bone (seed + specimen number) with the tip at ``start_tip_task_m`` (m, task)."""
+    def new_specimen(self, start_tip_task_m: np.ndarray, seed: int | None = None) -> None:
+        """A fresh bone with the tip at ``start_tip_task_m`` (m, task).
+
+        Its seed is ``seed``, else one a client asked for (:meth:`seed_specimen`), else the emulator's seed
+        plus the specimen number.
+        """
         self.specimen += 1
         sc = self.scenario
-        self.rng = np.random.default_rng(self.seed + self.specimen)
+        if seed is None:
+            seed, self.next_specimen_seed = self.next_specimen_seed, None
+        self.specimen_seed = self.seed + self.specimen if seed is None else int(seed)
+        self.rng = np.random.default_rng(self.specimen_seed)
         factor = 1.0 + sc.bone_variability * float(self.rng.standard_normal())
         self.cell.reset(np.asarray(start_tip_task_m, dtype=float))
         self.cell.solver.force_scale = min(max(factor, 0.5), 1.5)
@@ -95,6 +107,18 @@ class EmulatedCell:
         self.targets: deque[tuple[float, float]] = deque()
         self.tick = 0
         self.truth.clear()
+
+    def seed_specimen(self, seed: int) -> bool:
+        """Draw the specimen from ``seed``, as the sim's ``reset(seed=seed)`` does; whether it was drawn now.
+
+        The specimen is replaced at once when it is uncut or the drill is out of it (the tip stays where it
+        is); while the drill is in a hole the seeded one comes when the operator changes it, after the retract.
+        """
+        if self.bone_cut and self.cell.rigid_tip[2] >= -RETRACTED_M:
+            self.next_specimen_seed = int(seed)
+            return False
+        self.new_specimen(np.array(self.cell.rigid_tip), seed=seed)
+        return True
 
     @property
     def bone_cut(self) -> bool:
@@ -168,7 +192,7 @@ class EmulatedCell:
             self.targets.append((t_s, float(self.target_task[2])))
             if frac >= 1.0:
                 self.move = None
-                if self.bone_cut and self.target_task[2] < -1e-3:
+                if self.bone_cut and self.target_task[2] < -RETRACTED_M:
                     self.new_specimen(self.target_task)  # the operator puts a fresh specimen in
         if self.tick % SUBSTEPS_PER_STEP == 0:
             v = self._axial_speed_m_s(t_s)
