@@ -26,6 +26,7 @@ from drillgym.envs.real.config import SafetyLimits
 from drillgym.envs.real.emulator.cli import parse_scenario
 from drillgym.envs.real.metrics import OBSERVABLE_METRICS
 from drillgym.envs.real.netft import NetFTCalibration
+from drillgym.envs.real.netft_calibration import CAL_PORT, check_calibration, read_calibration
 
 ENV_ID = REAL_ENV_ID
 
@@ -50,15 +51,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--counts-per-force",
         type=float,
-        default=NetFTCalibration.counts_per_force,
-        help="the F/T sensor's counts per N (its calibration page, netftapi2.xml 'cfgcpf'); a wrong value "
-        "rescales every force, the force limit included (default %(default)g, the emulator's)",
+        default=None,
+        help="the F/T sensor's counts per N. By default read from the sensor (TCP 49151, READCALINFO); given, "
+        "it must match what the sensor reports, or the run is refused: a wrong value rescales every force, the "
+        f"force limit included. Without an answer from the sensor: {NetFTCalibration.counts_per_force:g}",
     )
     parser.add_argument(
         "--counts-per-torque",
         type=float,
-        default=NetFTCalibration.counts_per_torque,
-        help="the F/T sensor's counts per N·m ('cfgcpt'; default %(default)g, the emulator's)",
+        default=None,
+        help=f"counts per N·m, read and checked likewise (without an answer: {NetFTCalibration.counts_per_torque:g})",
     )
     parser.add_argument(
         "--max-gap-ms",
@@ -81,6 +83,32 @@ def _confirm(args: argparse.Namespace, scenario_text: str) -> bool:
         print("stdin is not a terminal: cannot ask; pass --yes to confirm", file=sys.stderr)
         return False
     return input("Type 'yes' to start: ").strip().lower() == "yes"
+
+
+def _given_calibration(args: argparse.Namespace) -> NetFTCalibration | None:
+    """The calibration given on the command line (None: read it from the sensor)."""
+    if args.counts_per_force is None and args.counts_per_torque is None:
+        return None
+    default = NetFTCalibration()
+    return NetFTCalibration(
+        default.counts_per_force if args.counts_per_force is None else args.counts_per_force,
+        default.counts_per_torque if args.counts_per_torque is None else args.counts_per_torque,
+    )
+
+
+def ft_calibration(ft_address: str, given: NetFTCalibration | None) -> tuple[NetFTCalibration, str]:
+    """The F/T calibration to use and where it came from: the sensor's (checked against ``given``), else ``given``.
+
+    Raises ``ValueError`` when the sensor's disagrees with ``given`` or is not in N and N·m. A sensor that
+    does not answer on its TCP port leaves ``given`` (or the default), with a warning.
+    """
+    host = ft_address.rsplit(":", 1)[0] if ft_address.count(":") == 1 else ft_address
+    try:
+        device = read_calibration(host, timeout_s=1.0)
+    except OSError as e:
+        print(f"warning: could not read the F/T sensor's calibration at {host}:{CAL_PORT} ({e})", file=sys.stderr)
+        return (given or NetFTCalibration()), ("command line" if given else "default, unchecked")
+    return check_calibration(given, device), "sensor" if given is None else "sensor, matches the command line"
 
 
 def seed_emulated_specimen(host: str, seed: int) -> dict[str, Any] | None:
@@ -126,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         scenario = parse_scenario(args.scenario).to_dict()
         controller = make_controller(args.controller)
-        calibration = NetFTCalibration(args.counts_per_force, args.counts_per_torque)
+        given = _given_calibration(args)
         limits = _limits(args.max_gap_ms)
     except (ValueError, TypeError) as e:
         print(f"drillgym run: error: {e}", file=sys.stderr)
@@ -135,6 +163,11 @@ def run(args: argparse.Namespace) -> int:
         print("not confirmed; nothing moved")
         return 2
     scenario.pop("tracker", None)
+    calibration, calibration_source = ft_calibration(args.ft or args.robot, given)
+    print(
+        f"F/T calibration ({calibration_source}): {calibration.counts_per_force:g} counts/N, "
+        f"{calibration.counts_per_torque:g} counts/N-m"
+    )
     created = not args.out.exists()
     args.out.mkdir(parents=True, exist_ok=True)
     if args.dry_run:
@@ -167,6 +200,11 @@ def run(args: argparse.Namespace) -> int:
             seed = args.seed + k
             name = f"real__{args.controller.replace(':', '_').replace('/', '_')}__ep{k}.parquet"
             extra = {"controller_spec": args.controller, "robot": args.robot, "dry_run": args.dry_run}
+            extra["ft_calibration"] = {
+                "counts_per_force": calibration.counts_per_force,
+                "counts_per_torque": calibration.counts_per_torque,
+                "source": calibration_source,
+            }
             specimen = seed_emulated_specimen(args.robot, seed)
             if specimen is not None:
                 extra["emulator_specimen"] = specimen

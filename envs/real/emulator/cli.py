@@ -21,7 +21,8 @@ from drillgym.envs.real.emulator.config import (
     EmulatorConfig,
     ScheduledFault,
 )
-from drillgym.envs.real.netft import RDT_PORT
+from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
+from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT
 from drillgym.envs.scenario import Scenario
 
@@ -63,6 +64,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="inject a fault SECONDS after the first servoL: protective_stop, drop_link[:SECONDS], delay:SECONDS, "
         "freeze_rtde[:SECONDS], stale_ft, stale_tracker (repeatable)",
     )
+    parser.add_argument(
+        "--counts-per-force",
+        type=float,
+        default=NetFTCalibration.counts_per_force,
+        help="the emulated Net F/T's calibration: counts per N (served on its TCP port, READCALINFO)",
+    )
+    parser.add_argument(
+        "--counts-per-torque", type=float, default=NetFTCalibration.counts_per_torque, help="counts per N·m"
+    )
+    parser.add_argument("--ft-cal-port", type=int, default=CAL_PORT, help="the Net F/T's TCP port (calibration)")
     parser.add_argument("--max-lifetime-s", type=float, default=3600.0, help="exit by itself after this long (s)")
     parser.add_argument("--parent-pid", type=int, default=None, help="exit when this parent process is gone")
     for name, port in (
@@ -87,6 +98,8 @@ def config_from_args(args: argparse.Namespace) -> EmulatorConfig:
         script_port=args.script_port,
         control_port=args.control_port,
         ft_port=args.ft_port,
+        ft_cal_port=args.ft_cal_port,
+        calibration=NetFTCalibration(args.counts_per_force, args.counts_per_torque),
         tracker_port=args.tracker_port,
         ft_rate_hz=args.ft_rate_hz,
         max_lifetime_s=args.max_lifetime_s,

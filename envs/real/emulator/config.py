@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
+from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT
 from drillgym.envs.scenario import Scenario
 
@@ -55,6 +56,8 @@ class EmulatorConfig:
     script_port: int = SCRIPT_PORT
     control_port: int = CONTROL_PORT
     ft_port: int = RDT_PORT
+    ft_cal_port: int = CAL_PORT
+    """The Net F/T's TCP interface (``READCALINFO``: its counts per N and per N·m)."""
     tracker_port: int = TRACKER_PORT
     ft_rate_hz: float = 500.0
     """Net F/T record rate (Hz)."""

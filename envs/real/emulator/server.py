@@ -27,6 +27,7 @@ from drillgym.envs.real.emulator.script import ControlProgram
 from drillgym.envs.real.emulator.sensor_streams import SensorStreams
 from drillgym.envs.real.emulator.state import controller_state
 from drillgym.envs.real.emulator.world import EmulatedCell
+from drillgym.envs.real.netft_calibration import CAL_REQUEST, CMD_READCALINFO, pack_calinfo
 
 CONTROLLER_DT_S = 1.0 / CB3_RATE_HZ
 ROBOT_PORTS = ("rtde", "dashboard", "script")
@@ -179,6 +180,9 @@ class Emulator:
             self._close_stream(sock)
             return
         buf.extend(data)
+        if kind == "ft_cal":
+            self._answer_ft_tcp(sock, buf)
+            return
         if kind == "script":
             if buf.startswith(b"def ") and buf.endswith(b"\nend\n"):
                 self.program.load(buf.decode(errors="replace"), self.now())
@@ -197,6 +201,16 @@ class Emulator:
             if close:
                 self._close_stream(sock)
                 return
+
+    def _answer_ft_tcp(self, sock: socket.socket, buf: bytearray) -> None:
+        """The Net F/T's TCP interface: ``READCALINFO`` answered with the configured calibration, nothing else."""
+        if len(buf) < CAL_REQUEST.size:
+            return
+        if buf[0] == CMD_READCALINFO:
+            self._send_all(sock, pack_calinfo(self.config.calibration))
+        else:
+            self.log(f"ft tcp: command {buf[0]} not emulated (only READCALINFO); closing")
+        self._close_stream(sock)
 
     def _close_stream(self, sock: socket.socket) -> None:
         if self.streams.pop(sock, None) is not None:
@@ -233,6 +247,7 @@ class Emulator:
         cfg = self.config
         self.open_robot_ports()
         self._listen("control", cfg.control_port)
+        self._listen("ft_cal", cfg.ft_cal_port)
         self.sensors.open()
         ports = {
             "rtde": cfg.rtde_port,
@@ -240,6 +255,7 @@ class Emulator:
             "script": cfg.script_port,
             "control": cfg.control_port,
             "ft": cfg.ft_port,
+            "ft_cal": cfg.ft_cal_port,
             "tracker": cfg.tracker_port,
         }
         print("READY " + json.dumps({"host": cfg.host, "ports": ports, "pid": os.getpid()}), flush=True)
