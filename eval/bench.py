@@ -137,12 +137,8 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Entry point of ``drillgym bench``."""
-    try:
-        specs = check_arguments(args)
-    except ValueError as e:
-        print(f"drillgym bench: error: {e}", file=sys.stderr)
-        return 2
+    """Entry point of ``drillgym bench`` (bad arguments raise ``ValueError`` for the CLI's one-line error)."""
+    specs = check_arguments(args)
     from drillgym.eval.bench_episode import EpisodeJob
     from drillgym.eval.bench_report import write_report
     from drillgym.eval.suites import suite_scenarios
@@ -163,11 +159,7 @@ def run(args: argparse.Namespace) -> int:
         from drillgym.eval.scale.bench_ray import run_jobs_ray
 
         cpus = args.workers if args.workers > 1 else None  # a local Ray's CPUs (default: the machine's)
-        try:
-            rows = run_jobs_ray(jobs, out, args.address, desc=f"bench {args.suite}", num_cpus=cpus).rows
-        except ConnectionError as e:
-            print(f"drillgym bench: error: {e}", file=sys.stderr)
-            return 2
+        rows = run_jobs_ray(jobs, out, args.address, desc=f"bench {args.suite}", num_cpus=cpus).rows
     else:
         rows = run_jobs(jobs, args.workers, desc=f"bench {args.suite}")
     episodes = write_report(out, rows, args.suite, [s.name for s in scenarios], specs, args.seeds)

@@ -20,7 +20,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from drillgym import envs  # noqa: F401  (registers the ids)
 from drillgym.controllers import make_controller
 from drillgym.controllers.base import Controller
 from drillgym.envs import SIM_ENV_ID

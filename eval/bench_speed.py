@@ -29,7 +29,6 @@ def measure(runs: int = 7) -> dict[str, Any]:
     """Time ``runs`` paper-scenario episodes; return RTF statistics and peak memory."""
     import gymnasium as gym
 
-    from drillgym import envs  # noqa: F401  (registers the ids)
     from drillgym.envs.constants import ACTION_DIM
 
     if runs < 1:
@@ -76,7 +75,6 @@ def controller_cycle_times(
     """Per-call ``predict`` time of each controller over whole paper-scenario episodes (µs: p50, p99, max)."""
     import gymnasium as gym
 
-    from drillgym import envs  # noqa: F401
     from drillgym.controllers import make_controller
 
     env = gym.make(SIM_ENV_ID)

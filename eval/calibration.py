@@ -102,8 +102,6 @@ def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float
     """The paper scenario with this structure and these scales."""
     import gymnasium as gym
 
-    from drillgym import envs  # noqa: F401  (registers the ids)
-
     return gym.make(
         SIM_ENV_ID,
         cell_params=CellParams(**asdict(structure)),

@@ -81,11 +81,14 @@ def write_report(
         "",
         "Paired differences to `none` (li2023 minus none):",
         "",
-        "| metric | KP = 1 | KP = 4 |",
-        "|---|---|---|",
+        md_table(
+            ["metric", "KP = 1", "KP = 4"],
+            [
+                [metric, _paired(kp1, none, metric), _paired(kp4, none, metric)]
+                for metric in ("deviation_mean_mm", "lateral_force_max_n", "lateral_force_stable_n", "hole_offset_mm")
+            ],
+        ),
     ]
-    for metric in ("deviation_mean_mm", "lateral_force_max_n", "lateral_force_stable_n", "hole_offset_mm"):
-        lines.append(f"| {metric} | {_paired(kp1, none, metric)} | {_paired(kp4, none, metric)} |")
     lines += [
         "",
         f"KP = 4 minus KP = 1, deviation: {_paired(kp4, kp1, 'deviation_mean_mm')} mm; "

@@ -20,12 +20,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from drillgym import envs  # noqa: F401  (registers the ids)
 from drillgym.envs import REAL_ENV_ID
 from drillgym.envs.real.config import SafetyLimits
+from drillgym.envs.real.devices import split_host_port
 from drillgym.envs.real.emulator.cli import parse_scenario
 from drillgym.envs.real.metrics import OBSERVABLE_METRICS
-from drillgym.envs.real.netft import NetFTCalibration
+from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
 from drillgym.envs.real.netft_calibration import CAL_PORT, check_calibration, read_calibration
 
 ENV_ID = REAL_ENV_ID
@@ -102,7 +102,7 @@ def ft_calibration(ft_address: str, given: NetFTCalibration | None) -> tuple[Net
     Raises ``ValueError`` when the sensor's disagrees with ``given`` or is not in N and N·m. A sensor that
     does not answer on its TCP port leaves ``given`` (or the default), with a warning.
     """
-    host = ft_address.rsplit(":", 1)[0] if ft_address.count(":") == 1 else ft_address
+    host, _ = split_host_port(ft_address, RDT_PORT)
     try:
         device = read_calibration(host, timeout_s=1.0)
     except OSError as e:

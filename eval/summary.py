@@ -93,7 +93,7 @@ def md_table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
 def markdown_table(long: pd.DataFrame, metrics: Sequence[str], label: str = "") -> str:
     """Rows scenario × controller, one column per metric as ``mean [ci_low, ci_high]``, plus n."""
     head = ["scenario", "controller", "n", *(f"{label}{m}" for m in metrics)]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     keys = list(dict.fromkeys(zip(long["scenario"], long["controller"], strict=True)))
     cells = {
         (r["scenario"], r["controller"], r["metric"]): (
@@ -108,5 +108,5 @@ def markdown_table(long: pd.DataFrame, metrics: Sequence[str], label: str = "") 
         stats_ = [cells.get((scenario, controller, m)) for m in metrics]
         n = max((s[3] for s in stats_ if s is not None), default=0)
         vals = [format_ci(*s[:3]) if s is not None else "-" for s in stats_]
-        lines.append("| " + " | ".join([str(scenario), f"`{controller}`", str(n), *vals]) + " |")
-    return "\n".join(lines)
+        rows.append([scenario, f"`{controller}`", n, *vals])
+    return md_table(head, rows)

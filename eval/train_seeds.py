@@ -65,18 +65,10 @@ def run(args: argparse.Namespace) -> int:
         return sweep_run.run(args)
     if args.seeds is None:
         return train.run(args)
-    try:
-        baselines = _check(args)
-    except ValueError as e:
-        print(f"drillgym train: error: {e}", file=sys.stderr)
-        return 2
+    baselines = _check(args)  # bad arguments raise ValueError: the CLI prints it on one line
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
-    try:
-        failed = train_seeds(args, out)
-    except ValueError as e:
-        print(f"drillgym train: error: {e}", file=sys.stderr)
-        return 2
+    failed = train_seeds(args, out)
     if failed:
         print(f"drillgym train: seeds {failed} failed; see {out}/seed<N>.log", file=sys.stderr)
         return 1

@@ -107,30 +107,33 @@ def best_candidate(grid: pd.DataFrame) -> str:
     return str(feasible.sort_values("objective_mm").iloc[0]["controller"])
 
 
+def check_arguments(args: argparse.Namespace) -> tuple[list[str], list[str]]:
+    """The tuning suites and the candidate specs; bad arguments raise ``ValueError`` (the CLI's one-line error)."""
+    from drillgym.controllers import make_controller
+
+    suites = [s.strip() for s in args.suites.split(",") if s.strip()]
+    unknown = [s for s in suites if s not in SUITES]
+    if unknown or not suites:
+        raise ValueError(f"unknown suite(s) {unknown}; choose from {', '.join(SUITES)}")
+    if "heldout" in suites:
+        raise ValueError("the heldout suite judges learnt policies; tune on paper and sweep only")
+    if args.seeds < 1 or args.workers < 1:
+        raise ValueError("--seeds and --workers must be >= 1")
+    if args.kps and "kp=" in args.base:
+        raise ValueError("--kps tunes the base's kp: leave kp out of --base")
+    specs = candidate_specs(args.base, args.scales, args.depths_mm, args.kps)
+    for spec in specs:
+        make_controller(spec)
+    return suites, specs
+
+
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym tune-entry``."""
-    from drillgym.controllers import make_controller
     from drillgym.eval.bench import run_jobs
     from drillgym.eval.bench_episode import grid_jobs
     from drillgym.eval.bench_report import episodes_frame
 
-    suites = [s.strip() for s in args.suites.split(",") if s.strip()]
-    try:
-        unknown = [s for s in suites if s not in SUITES]
-        if unknown or not suites:
-            raise ValueError(f"unknown suite(s) {unknown}; choose from {', '.join(SUITES)}")
-        if "heldout" in suites:
-            raise ValueError("the heldout suite judges learnt policies; tune on paper and sweep only")
-        if args.seeds < 1 or args.workers < 1:
-            raise ValueError("--seeds and --workers must be >= 1")
-        if args.kps and "kp=" in args.base:
-            raise ValueError("--kps tunes the base's kp: leave kp out of --base")
-        specs = candidate_specs(args.base, args.scales, args.depths_mm, args.kps)
-        for spec in specs:
-            make_controller(spec)
-    except ValueError as e:
-        print(f"drillgym tune-entry: error: {e}", file=sys.stderr)
-        return 2
+    suites, specs = check_arguments(args)
     rows = run_jobs(grid_jobs(suites, specs, args.seeds), args.workers, desc="tune-entry")
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)

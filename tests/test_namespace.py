@@ -1,12 +1,13 @@
 """One import name: ``drillgym``; the four folders are its sub-packages and nothing else is installed."""
 
-import ast
 import subprocess
 import sys
 from pathlib import Path
 
+from test_layering import LAYERS as PARTS
+from test_layering import imports_of
+
 ROOT = Path(__file__).resolve().parents[1]
-PARTS = ("envs", "controllers", "training", "eval")
 
 
 def _python(code: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -45,17 +46,13 @@ def test_no_top_level_envs_or_eval_module_is_installed(tmp_path):
 
 
 def test_the_project_imports_its_parts_only_through_drillgym():
-    bare = []
-    for path in ROOT.glob("*/**/*.py"):
-        if path.parts[len(ROOT.parts)] in (".venv", "src", "runs", "results"):
-            continue
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
-            names = []
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-                names = [node.module]
-            bare += [f"{path.relative_to(ROOT)}:{node.lineno} {n}" for n in names if n.split(".")[0] in PARTS]
+    bare = [
+        f"{path.relative_to(ROOT)}:{line} {module}"
+        for path in ROOT.glob("*/**/*.py")
+        if path.parts[len(ROOT.parts)] not in (".venv", "src", "runs", "results")
+        for line, module in imports_of(path)
+        if module.split(".")[0] in PARTS
+    ]
     assert not bare, bare
 
 

@@ -41,8 +41,6 @@ def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:
 
 def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | None = None) -> gym.Env:
     """One drilling env (optionally domain-randomised) under the residual wrapper."""
-    from drillgym import envs  # noqa: F401  (registers the ids in spawned workers)
-
     env: gym.Env = gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})})
     if randomize:
         env = DomainRandomization(env, merged_ranges(cfg.dr_ranges))
@@ -74,8 +72,6 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
 
     def factory() -> gym.Env:
         if cfg.eval_scenarios == "validation" and scenario is None:
-            from drillgym import envs  # noqa: F401
-
             env: gym.Env = gym.make(ENV_ID, **cfg.env_kwargs)
             scenarios = validation_scenarios(cfg.eval_episodes, ranges=merged_ranges(cfg.dr_ranges))
             env = ScenarioCycle(env, scenarios, seeds=[VALIDATION_SEED + i for i in range(len(scenarios))])

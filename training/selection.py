@@ -87,8 +87,6 @@ def validation_episodes(cfg: TrainConfig) -> list[tuple[dict[str, Any], int]]:
 
 def score(controller: Controller, cfg: TrainConfig, episodes: list[tuple[dict[str, Any], int]]) -> dict[str, list]:
     """Deviation (mm), peak lateral force (N) and drill time (s) of each validation episode."""
-    from drillgym import envs  # noqa: F401  (registers the ids)
-
     out: dict[str, list] = {"deviation_mean_mm": [], "lateral_force_max_n": [], "drill_time_s": []}
     scenarios, seeds = [sc for sc, _ in episodes], [seed for _, seed in episodes]
     env = ScenarioCycle(gym.make(ENV_ID, **cfg.env_kwargs), scenarios, seeds)

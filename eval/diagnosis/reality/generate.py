@@ -61,7 +61,6 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
     """
     import gymnasium as gym
 
-    from drillgym import envs  # noqa: F401  (registers the ids)
     from drillgym.controllers import make_controller
     from drillgym.eval.logs import EpisodeLogger, build_header
 
