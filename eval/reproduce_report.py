@@ -26,10 +26,11 @@ def _cells(r: Any) -> list[str]:
 
 def headline(rows: list) -> str:
     """Plain-text table for the terminal."""
-    lines = [f"{'':60s} {'unit':>5s} {'paper':>8s} {'sim':>9s} {'rel.err':>8s}  kind"]
+    width = max([len(r.name) for r in rows], default=0)
+    lines = [f"{'':{width}s} {'unit':>8s} {'paper':>8s} {'sim':>9s} {'rel.err':>8s}  kind"]
     for r in rows:
         rel = f"{100 * r.rel_err:+7.0f}%" if r.rel_err is not None else f"{'':>8s}"
-        lines.append(f"{r.name[:60]:60s} {r.unit:>5s} {_fmt(r.paper):>8s} {_fmt(r.sim):>9s} {rel}  {r.kind}")
+        lines.append(f"{r.name:{width}s} {r.unit:>8s} {_fmt(r.paper):>8s} {_fmt(r.sim):>9s} {rel}  {r.kind}")
     return "\n".join(lines)
 
 

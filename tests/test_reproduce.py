@@ -35,3 +35,18 @@ def test_reproduce_quick_writes_report_rows_and_figures(tmp_path, capsys):
         assert (tmp_path / png).stat().st_size > 10_000
         assert png in report
     assert "Report:" in capsys.readouterr().out
+
+
+def test_terminal_table_keeps_every_name_and_unit_whole(capsys):
+    from drillgym.eval.reproduce import Row
+    from drillgym.eval.reproduce_report import headline
+
+    long_name = "mean tip deviation, li2023_slow_entry (best classical baseline)"
+    rows = [
+        Row(long_name, "mm", None, 0.05, "baseline", None),
+        Row("identified K_theta1", "kN m/rad", 25.3, 25.0, "check"),
+    ]
+    lines = headline(rows).splitlines()
+    assert lines[1].startswith(long_name + " ")
+    assert "kN m/rad" in lines[2]
+    assert lines[1].index(" mm ") + len(" mm") == lines[2].index("kN m/rad") + len("kN m/rad")  # one unit column
