@@ -8,18 +8,12 @@ import pytest
 
 from drillgym import envs  # noqa: F401
 from drillgym.controllers import make_controller
+from drillgym.controllers.residual import BASE_ACTION_KEY, PLAN_KEY, PREV_RESIDUAL_KEY, combine, plan_support
 from drillgym.training.config import TrainConfig, load_config
-from drillgym.training.domain_randomization import merged_ranges
+from drillgym.training.domain_randomization import TRAINING_BONES, merged_ranges
 from drillgym.training.env_factory import make_train_vec_env
 from drillgym.training.model import build_model
-from drillgym.training.residual_wrapper import (
-    BASE_ACTION_KEY,
-    PLAN_KEY,
-    PREV_RESIDUAL_KEY,
-    ResidualWrapper,
-    combine,
-    plan_support,
-)
+from drillgym.training.residual_wrapper import ResidualWrapper
 
 ENV_ID = "drillgym/UR5BoneDrill-v1"
 SHIPPED = Path(__file__).resolve().parents[1] / "training" / "policies" / "residual_li2023_sac.zip"
@@ -197,9 +191,9 @@ def test_shipped_policy_completes_an_episode_from_real_cell_signals_only():
     env.close()
     assert np.isfinite(result.metrics["deviation_mean_mm"])
     # the policy's inputs are the env observation keys (real-cell signals) plus the base action
-    keys = set(controller.bundle.model.observation_space.spaces)
-    extra = {BASE_ACTION_KEY} | ({PREV_RESIDUAL_KEY} if controller.config.observe_prev_residual else set())
-    extra |= {PLAN_KEY} if controller.config.observe_plan else set()
+    keys = set(controller.policy.bundle.model.observation_space.spaces)
+    extra = {BASE_ACTION_KEY} | ({PREV_RESIDUAL_KEY} if controller.spec.observe_prev_residual else set())
+    extra |= {PLAN_KEY} if controller.spec.observe_plan else set()
     assert keys == set(env.observation_space.spaces) | extra
 
 
@@ -323,7 +317,7 @@ def test_plan_features_are_what_the_plan_says_in_si_units(bone, hardness):
 def test_the_plan_outside_the_training_ranges_is_clamped_to_their_edges():
     # 48 mm of drill and Sawbones (hardness 0.6) lie outside 30-42 mm and the training bones' 0.75-1.0;
     # beta 20 deg and feed 0.8 mm/s lie inside and pass unchanged
-    support = plan_support(merged_ranges({"stickout_mm": [30.0, 42.0]}))
+    support = plan_support(merged_ranges({"stickout_mm": [30.0, 42.0]}), TRAINING_BONES)
     env = ResidualWrapper(
         gym.make(ENV_ID, beta_deg=20.0, feed_mm_s=0.8, stickout_mm=48.0, bone="sawbones_20pcf"),
         observe_plan=True,
@@ -337,7 +331,7 @@ def test_the_plan_outside_the_training_ranges_is_clamped_to_their_edges():
 
 def test_the_shipped_policy_clamps_the_plan_as_its_training_did():
     ctl = make_controller(f"residual:{SHIPPED}")
-    low, high = ctl._plan_support
+    low, high = ctl.spec.plan_support
     assert low[2] == pytest.approx(30e-3) and high[2] == pytest.approx(42e-3)  # stick-out (m)
     assert low[4] == pytest.approx(0.75) and high[4] == pytest.approx(1.0)  # porcine .. buffalo
 

@@ -4,7 +4,8 @@
 ``make_controller("residual:PATH")`` runs it like any controller.
 """
 
+from drillgym.controllers.residual import combine
 from drillgym.training.config import TrainConfig, load_config
-from drillgym.training.residual_wrapper import ResidualWrapper, combine
+from drillgym.training.residual_wrapper import ResidualWrapper
 
 __all__ = ["ResidualWrapper", "TrainConfig", "combine", "load_config"]

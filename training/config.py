@@ -24,12 +24,12 @@ class TrainConfig:
     """Residual ±1 = ± this share of the env's action range (0.5: ±1 mm of correction)."""
     residual_mode: str = "add"
     """``add``: the residual adds ± ``residual_scale`` of the action range; ``gain``: it scales the base's
-    lateral correction by ``1 + residual_scale · residual`` (see :data:`drillgym.training.residual_wrapper.RESIDUAL_MODES`)."""
+    lateral correction by ``1 + residual_scale · residual`` (see :data:`drillgym.controllers.residual.RESIDUAL_MODES`)."""
     residual_feed: bool = False
     """Let the residual change the feed (off: compare at the base's feed, as Li does)."""
     residual_feed_ceiling: str = "base"
     """How fast the feed residual may drill: ``base`` (never faster than the base) or ``nominal`` (it may undo a
-    base's slowing, up to the plan's feed; :data:`drillgym.training.residual_wrapper.FEED_CEILINGS`)."""
+    base's slowing, up to the plan's feed; :data:`drillgym.controllers.residual.FEED_CEILINGS`)."""
     residual_axes: str = "lateral"
     """``lateral``: the residual moves the tip across the drill only; ``xyz``: along the base axes too."""
     observe_prev_residual: bool = False
@@ -96,8 +96,8 @@ class TrainConfig:
             raise ValueError(f"model_selection={self.model_selection!r}; choose reward or deviation")
         if self.eval_scenarios not in ("paper", "validation"):
             raise ValueError(f"eval_scenarios={self.eval_scenarios!r}; choose paper or validation")
+        from drillgym.controllers.residual import check_mode
         from drillgym.training.domain_randomization import check_ranges
-        from drillgym.training.residual_wrapper import check_mode
 
         check_mode(self.residual_mode, self.residual_feed_ceiling)
         check_ranges(self.dr_ranges)

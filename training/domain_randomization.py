@@ -11,6 +11,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from drillgym.controllers.residual import plan_support
+
 TRAINING_RANGES: dict[str, tuple[float, float]] = {
     "beta_deg": (15.0, 35.0),
     "feed_mm_s": (0.3, 1.0),
@@ -55,6 +57,14 @@ def merged_ranges(extra: dict[str, Any] | None = None) -> dict[str, tuple[float,
     for name, (lo, hi) in (extra or {}).items():
         out[name] = (float(lo), float(hi))
     return out
+
+
+def training_plan_support(extra: dict[str, Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The plan features a policy trained on :func:`merged_ranges` ``(extra)`` and :data:`TRAINING_BONES` has seen.
+
+    (:func:`drillgym.controllers.residual.plan_support` of them: a policy's plan is clamped to it.)
+    """
+    return plan_support(merged_ranges(extra), TRAINING_BONES)
 
 
 def sample_scenario(rng: np.random.Generator, ranges: dict[str, tuple[float, float]] = DR_RANGES) -> dict[str, Any]:

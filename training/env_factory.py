@@ -16,9 +16,10 @@ from drillgym.training.domain_randomization import (
     DomainRandomization,
     ScenarioCycle,
     merged_ranges,
+    training_plan_support,
     validation_scenarios,
 )
-from drillgym.training.residual_wrapper import ResidualWrapper, plan_support
+from drillgym.training.residual_wrapper import ResidualWrapper
 
 ENV_ID = SIM_ENV_ID
 
@@ -34,7 +35,7 @@ def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:
         cfg.observe_prev_residual,
         cfg.observe_plan,
         cfg.residual_mode,
-        plan_support(merged_ranges(cfg.dr_ranges)),
+        training_plan_support(cfg.dr_ranges),
         cfg.residual_feed_ceiling,
     )
 

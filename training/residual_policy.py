@@ -1,4 +1,7 @@
-"""A trained residual policy as a controller: base controller + scaled SB3 residual, SB3 ``predict``.
+"""A trained residual policy as a controller.
+
+:class:`drillgym.controllers.residual.ResidualController` over the saved bundle's base controller, with the
+bundle's SB3 model (deterministic) as its policy.
 
 ``make_controller("residual:PATH")`` builds one; it runs wherever the base controller runs (the
 observation holds only real-cell signals), on the simulated and on the real cell alike.
@@ -6,88 +9,44 @@ observation holds only real-cell signals), on the simulated and on the real cell
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from drillgym.controllers.base import Controller
 from drillgym.controllers.registry import make_controller
-from drillgym.envs.plan import DrillPlan
-from drillgym.training.domain_randomization import merged_ranges
-from drillgym.training.policy_bundle import load_bundle, resolve_policy
-from drillgym.training.residual_wrapper import (
-    PLAN_KEY,
-    PREV_RESIDUAL_KEY,
-    augment,
-    combine,
-    plan_features,
-    plan_support,
-)
+from drillgym.controllers.residual import PLAN_KEY, PREV_RESIDUAL_KEY, ResidualController, ResidualSpec
+from drillgym.training.config import TrainConfig
+from drillgym.training.domain_randomization import training_plan_support
+from drillgym.training.policy_bundle import PolicyBundle, load_bundle, resolve_policy
 
 
-class ResidualPolicyController(Controller):
-    """``clip(base(obs) + scale · π(normalise(obs + base action)))``, π deterministic.
+class BundlePolicy:
+    """A saved policy as a function: normalise the observation, SB3 ``predict`` (deterministic), clip to [-1, 1]."""
 
-    A ``gain`` residual instead scales the base's correction across the drill by ``1 + scale · π(...)``.
-    """
+    def __init__(self, bundle: PolicyBundle) -> None:
+        self.bundle = bundle
 
-    name = "residual"
-
-    def __init__(self, path: Path | str) -> None:
-        super().__init__()
-        _single_thread_inference()
-        self.path = resolve_policy(str(path))
-        self.bundle = load_bundle(self.path)
-        self.base = make_controller(self.bundle.config.base)
-        self.config = self.bundle.config
-        spaces = getattr(self.bundle.model.observation_space, "spaces", {})
-        prev = spaces.get(PREV_RESIDUAL_KEY)
-        self._prev_shape = None if prev is None else prev.shape
-        self._observes_plan = PLAN_KEY in spaces
-        self._plan_support = plan_support(merged_ranges(self.config.dr_ranges))
-
-    def set_plan(self, plan: DrillPlan) -> None:
-        """The base controller gets the plan too."""
-        self.base.set_plan(plan)
-        super().set_plan(plan)
-
-    def reset(self) -> None:
-        """Mark an episode start: the base controller resets on its next call."""
-        self._start = True
-        self._prev_residual: np.ndarray | None = None
-
-    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """Base action plus the policy's residual."""
-        base_action, _ = self.base.predict(obs, episode_start=np.array([self._start]))
-        self._start = False
-        prev = None
-        if self._prev_shape is not None:
-            prev = self._prev_residual if self._prev_residual is not None else np.zeros(self._prev_shape, np.float32)
-        plan = None
-        if self._observes_plan:
-            if self.plan is None:
-                raise RuntimeError("this residual policy observes the plan: call set_plan(plan) first")
-            plan = plan_features(self.plan, self._plan_support)
-        aug = augment(obs, base_action, prev, plan)
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """The residual for one policy observation."""
         if self.bundle.normalizer is not None:
-            aug = self.bundle.normalizer(aug)
-        residual, _ = self.bundle.model.predict(aug, deterministic=True)
-        residual = np.clip(np.asarray(residual, dtype=np.float32).reshape(-1), -1.0, 1.0)
-        self._prev_residual = residual
-        R = self.plan.R_base_task if self.config.residual_axes == "lateral" and self.plan is not None else None
-        return combine(
-            base_action,
-            residual,
-            self.config.residual_scale,
-            R,
-            self.config.residual_mode,
-            self.config.residual_feed_ceiling,
-        )
+            obs = self.bundle.normalizer(obs)
+        residual, _ = self.bundle.model.predict(obs, deterministic=True)
+        return np.clip(np.asarray(residual, dtype=np.float32).reshape(-1), -1.0, 1.0)
 
-    def describe(self) -> dict[str, Any]:
-        """Name, file and training configuration."""
-        return {"name": "residual", "config": {"path": str(self.path), **self.config.to_dict()}}
+
+def residual_spec(cfg: TrainConfig) -> ResidualSpec:
+    """The residual a training configuration describes (its plan support from its training ranges)."""
+    return ResidualSpec(
+        scale=cfg.residual_scale,
+        mode=cfg.residual_mode,
+        axes=cfg.residual_axes,
+        residual_feed=cfg.residual_feed,
+        feed_ceiling=cfg.residual_feed_ceiling,
+        observe_prev_residual=cfg.observe_prev_residual,
+        observe_plan=cfg.observe_plan,
+        plan_support=training_plan_support(cfg.dr_ranges),
+    )
 
 
 def _single_thread_inference() -> None:
@@ -102,8 +61,19 @@ def _single_thread_inference() -> None:
         torch.set_num_threads(1)
 
 
-def load_residual_controller(path: str) -> ResidualPolicyController:
-    """``residual:PATH`` -> controller (used by :func:`drillgym.controllers.make_controller`)."""
-    if not path:
+def load_residual_controller(path: Path | str) -> ResidualController:
+    """``residual:PATH`` (or a shipped policy's name) -> controller (used by :func:`drillgym.controllers.make_controller`)."""
+    if not str(path):
         raise ValueError("residual controllers need a path: residual:PATH/TO/policy.zip")
-    return ResidualPolicyController(path)
+    _single_thread_inference()
+    resolved = resolve_policy(str(path))
+    bundle = load_bundle(resolved)
+    spaces = getattr(bundle.model.observation_space, "spaces", {})
+    cfg = bundle.config
+    # What the saved model observes decides, as its observation space was built from it.
+    spec = replace(
+        residual_spec(cfg), observe_prev_residual=PREV_RESIDUAL_KEY in spaces, observe_plan=PLAN_KEY in spaces
+    )
+    return ResidualController(
+        make_controller(cfg.base), spec, BundlePolicy(bundle), {"path": str(resolved), **cfg.to_dict()}
+    )

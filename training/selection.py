@@ -152,7 +152,7 @@ def select(run: Path, cfg: TrainConfig, progress: bool = True) -> dict[str, Any]
     Returns the selection (``chosen``: the candidate's name, ``rule``: which rule chose it).
     """
     from drillgym.training.policy_bundle import save_bundle
-    from drillgym.training.residual_policy import ResidualPolicyController
+    from drillgym.training.residual_policy import load_residual_controller
 
     episodes = validation_episodes(cfg)
     base = score(make_controller(cfg.base), cfg, episodes)
@@ -161,7 +161,7 @@ def select(run: Path, cfg: TrainConfig, progress: bool = True) -> dict[str, Any]
     for cand in candidates(run):
         bundle = folder / f"{cand.name}.zip"
         save_bundle(cand.model_zip, cand.normalizer, cfg, {"candidate": cand.name}, bundle)
-        row = {"candidate": cand.name, **judge(score(ResidualPolicyController(bundle), cfg, episodes), base)}
+        row = {"candidate": cand.name, **judge(score(load_residual_controller(bundle), cfg, episodes), base)}
         rows.append(row)
         if progress:
             print(
