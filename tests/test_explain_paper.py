@@ -141,3 +141,15 @@ def test_explain_paper_quick_on_the_simulator_writes_its_json(tmp_path):
     pred = c["prediction"]["deviation_mean_mm"]
     assert pred["li"] == 0.305 and np.isfinite(pred["rel_err"])
     assert doc["chosen"] in (None, c["name"])
+
+
+def test_the_reproduction_section_reports_fit_prediction_and_what_is_unexplained(fake_sim):
+    from drillgym.eval.explain.report import reproduction_section
+
+    assert "drillgym explain-paper" in "\n".join(reproduction_section(None))
+    doc = json.loads(json.dumps(explain_cli.explain(NAMES, SETTINGS, workers=1)))  # as read from explanation.json
+    text = "\n".join(reproduction_section(doc, "x/explanation.json"))
+    assert f"**{doc['chosen']}**" in text and "Fitted:" in text
+    for metric in METRICS:
+        assert metric in text
+    assert "What remains unexplained" in text
