@@ -105,8 +105,9 @@ def run(args: argparse.Namespace) -> int:
 
     if args.seeds < 2:
         raise ValueError(f"--seeds={args.seeds} must be >= 2 (confidence intervals need two)")
-    explanation_path = args.explanation if args.explanation is not None else args.out / "explanation.json"
-    if args.explanation is not None and not explanation_path.is_file():
+    given = getattr(args, "explanation", None)  # other commands (demo) build their own arguments
+    explanation_path = given if given is not None else args.out / "explanation.json"
+    if given is not None and not explanation_path.is_file():
         raise FileNotFoundError(f"--explanation {explanation_path}: no such file")
     explanation = json.loads(explanation_path.read_text()) if explanation_path.is_file() else None
     seeds = list(range(3 if args.quick else args.seeds))
