@@ -30,6 +30,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "(a field=value item continues the spec before it; li2023_slow_entry is the strongest classical baseline; "
         "default none,li2023,li2023_slow_entry)",
     )
+    parser.add_argument(
+        "--cell",
+        default="ideal",
+        help="cell: ideal (no unmodelled effect) or li2023-lab (the effect fitted to Li's runs, docs/explain-paper.md); "
+        "default ideal",
+    )
     parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 per scenario and controller (default 5)")
     parser.add_argument("--out", type=Path, default=Path("results/bench"), help="output folder (default results/bench)")
     parser.add_argument(
@@ -102,11 +108,13 @@ def clear_previous_run(out: Path) -> None:
 def check_arguments(args: argparse.Namespace) -> list[str]:
     """Controller specs after validating every argument (raises ``ValueError`` with a clear message)."""
     from drillgym.controllers import make_controller
+    from drillgym.envs.effects.cells import cell_effects_spec
 
     if args.suite not in SUITES:
         raise ValueError(f"unknown suite {args.suite!r}; choose from {', '.join(SUITES)}")
     if args.seeds < 1:
         raise ValueError(f"--seeds={args.seeds} must be >= 1")
+    cell_effects_spec(getattr(args, "cell", "ideal"))
     if args.workers < 1:
         raise ValueError(f"--workers={args.workers} must be >= 1")
     previous = previous_run(args.out)
@@ -144,14 +152,19 @@ def run(args: argparse.Namespace) -> int:
     from drillgym.eval.suites import suite_scenarios
 
     out: Path = args.out
+    from drillgym.envs.effects.cells import cell_effects_spec
+
     scenarios = suite_scenarios(args.suite)
+    effects = cell_effects_spec(getattr(args, "cell", "ideal"))
     jobs = []
     for sc in scenarios:
         for spec in specs:
             for seed in range(args.seeds):
                 name = f"logs/{args.suite}__{sc.name}__{controller_label(spec)}__seed{seed}.parquet"
                 log = None if args.no_logs else out / name
-                jobs.append(EpisodeJob(args.suite, sc.name, sc.kwargs, spec, seed, log, "" if log is None else name))
+                jobs.append(
+                    EpisodeJob(args.suite, sc.name, sc.kwargs, spec, seed, log, "" if log is None else name, effects)
+                )
     if getattr(args, "overwrite", False):
         clear_previous_run(out)
     (out if args.no_logs else out / "logs").mkdir(parents=True, exist_ok=True)
@@ -163,6 +176,10 @@ def run(args: argparse.Namespace) -> int:
     else:
         rows = run_jobs(jobs, args.workers, desc=f"bench {args.suite}")
     episodes = write_report(out, rows, args.suite, [s.name for s in scenarios], specs, args.seeds)
+    if effects:
+        summary = out / "summary.md"
+        note = f"Cell: {args.cell} (unmodelled effects on: `{effects}`; docs/explain-paper.md).\n\n"
+        summary.write_text(note + summary.read_text())
     print((out / "summary.md").read_text())
     print(
         f"Results: {out.resolve()}/ (episodes.csv, summary.csv, paired.csv, summary.md, plots{', logs/' * (not args.no_logs)})"

@@ -43,6 +43,8 @@ class EpisodeJob:
     log_path: Path | None = None
     """``<out>/logs/<...>.parquet``, or None for no log."""
     log_name: str = ""
+    effects: str = ""
+    """Effect spec of the cell (:data:`drillgym.envs.effects.cells.CELLS`); empty: the ideal cell."""
     """``log_path`` as written in ``episodes.csv`` (relative to the output folder)."""
 
     @property
@@ -142,13 +144,15 @@ def run_job(job: EpisodeJob) -> dict[str, Any]:
 
 
 def _run(job: EpisodeJob) -> dict[str, Any]:
+    from drillgym.envs.effects import build_effects
     from drillgym.eval.logs import EpisodeLogger, build_header
 
     env = _env(job.kwargs)
+    env.unwrapped.set_effects(build_effects(job.effects) if job.effects else None)  # type: ignore[attr-defined]
     controller = _controller(job.controller)
     if job.log_path is None:
         return run_controller_episode(env, controller, job.seed)
-    extra = {"suite": job.suite, "scenario": job.scenario, "controller_spec": job.controller}
+    extra = {"suite": job.suite, "scenario": job.scenario, "controller_spec": job.controller, "effects": job.effects}
     header = build_header(env, controller.describe(), job.seed, extra=extra)
     logger = EpisodeLogger(env, job.log_path, header, overwrite=True)
     try:

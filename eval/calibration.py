@@ -98,16 +98,21 @@ def bone_with_lateral_scale(scale: float) -> BonePreset:
     return BonePreset("buffalo_femur", cortical, cortical.scaled(CANCELLOUS_RATIO), "calibration candidate")
 
 
-def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float) -> Any:
-    """The paper scenario with this structure and these scales."""
+def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float, effects: str = "") -> Any:
+    """The paper scenario with this structure and these scales (and the unmodelled effects of spec ``effects``)."""
     import gymnasium as gym
 
-    return gym.make(
+    from drillgym.envs.effects import build_effects
+
+    env = gym.make(
         SIM_ENV_ID,
         cell_params=CellParams(**asdict(structure)),
         bone_material=bone_with_lateral_scale(lateral_scale),
         stickout_mm=stickout_mm,
     )
+    if effects:
+        env.unwrapped.set_effects(build_effects(effects))  # type: ignore[attr-defined]
+    return env
 
 
 def _uncompensated(env: Any, seed: int) -> Any:
@@ -118,13 +123,14 @@ def _uncompensated(env: Any, seed: int) -> Any:
 
 
 def calibrate_entry(
-    structure: EntryStructure, seed: int = 0, max_runs: int = 40, rel_tol: float = 0.02
+    structure: EntryStructure, seed: int = 0, max_runs: int = 40, rel_tol: float = 0.02, effects: str = ""
 ) -> EntryCalibration:
     """Fit the lateral scale and the stick-out to Li's uncompensated deviation and peak force.
 
     Least squares on the log-ratios of the two metrics to their targets (SciPy's trust-region solver,
     finite differences), in log scale and log stick-out (10-100 mm), from the shipped values.
-    ``converged`` is whether both metrics end within ``rel_tol`` of their targets.
+    ``converged`` is whether both metrics end within ``rel_tol`` of their targets. ``effects``: an effect spec
+    switched on in the cell (e.g. the Li cell's, :data:`drillgym.envs.effects.cells.CELLS`).
 
     Raises:
         ValueError: ``max_runs`` < 3 or ``rel_tol`` not positive.
@@ -139,7 +145,7 @@ def calibrate_entry(
     def metrics_at(x: np.ndarray) -> dict[str, float]:
         key = (float(x[0]), float(x[1]))
         if key not in seen:
-            env = make_env(structure, math.exp(key[0]), math.exp(key[1]))
+            env = make_env(structure, math.exp(key[0]), math.exp(key[1]), effects)
             try:
                 m = _uncompensated(env, seed).metrics
             finally:
@@ -178,7 +184,7 @@ PAIRED = (("kp4", "none"), ("kp1", "kp4"))
 """Paired differences (same seeds) reported with their 95 % CI: ``{a}_minus_{b}_{metric}_ci_low/high``."""
 
 
-def predict_li2023(cal: EntryCalibration, seeds: range | list[int]) -> dict[str, float]:
+def predict_li2023(cal: EntryCalibration, seeds: range | list[int], effects: str = "") -> dict[str, float]:
     """Mean metrics over ``seeds`` of none and the :data:`PREDICTED` li2023 variants, plus the fitted model peak.
 
     li2023's model is fitted to the uncompensated run of the first seed.
@@ -186,7 +192,7 @@ def predict_li2023(cal: EntryCalibration, seeds: range | list[int]) -> dict[str,
     from drillgym.controllers.registry import make_controller
     from drillgym.eval.bench_episode import run_controller_episode
 
-    env = make_env(cal.structure, cal.lateral_scale, cal.stickout_mm)
+    env = make_env(cal.structure, cal.lateral_scale, cal.stickout_mm, effects)
     try:
         none = [_uncompensated(env, s) for s in seeds]
         peak = fit_controller_model_n(env, none[0].trace)

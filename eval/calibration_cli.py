@@ -56,15 +56,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--wall-guidance-floor", type=comma_floats, default=[d.wall_guidance_floor], help="comma list, each in (0, 1]"
     )
     parser.add_argument("--wall-length-mm", type=comma_floats, default=[d.wall_length_m * 1e3], help="comma list, mm")
+    parser.add_argument(
+        "--effects",
+        default="",
+        help="unmodelled effects switched on in the cell for the fit and the predictions, e.g. the Li cell's "
+        "joint_friction:coulomb_rad=0.000417 (default: none)",
+    )
     parser.add_argument("--seeds", type=int, default=3, help="seeds of the li2023 predictions (default 3)")
     parser.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
 
 
-def evaluate(structure: EntryStructure, seeds: int) -> dict[str, Any]:
-    """Calibrate one structure and predict li2023 on it: one CSV row."""
-    cal = calibrate_entry(structure)
+def evaluate(structure: EntryStructure, seeds: int, effects: str = "") -> dict[str, Any]:
+    """Calibrate one structure and predict li2023 on it (with the cell's ``effects``): one CSV row."""
+    cal = calibrate_entry(structure, effects=effects)
     row = cal.row()
-    pred = predict_li2023(cal, list(range(seeds)))
+    pred = predict_li2023(cal, list(range(seeds)), effects)
     row.update(pred)
     row.update(passes_li2023_checks(pred))
     return row
@@ -102,14 +108,16 @@ def _markdown(rows: list[dict[str, Any]]) -> str:
     return intro + head + "\n".join(lines) + "\n"
 
 
-def _evaluate_all(grid: list[EntryStructure], seeds: int, workers: int) -> Iterator[tuple[int, dict[str, Any]]]:
+def _evaluate_all(
+    grid: list[EntryStructure], seeds: int, workers: int, effects: str = ""
+) -> Iterator[tuple[int, dict[str, Any]]]:
     """``(grid index, row)`` as each structure finishes: in this process with one worker, else in a pool."""
     if workers == 1:
         for i, structure in enumerate(grid):
-            yield i, evaluate(structure, seeds)
+            yield i, evaluate(structure, seeds, effects)
         return
     with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
-        futures = {pool.submit(evaluate, s, seeds): i for i, s in enumerate(grid)}
+        futures = {pool.submit(evaluate, s, seeds, effects): i for i, s in enumerate(grid)}
         for fut in as_completed(futures):
             yield futures[fut], fut.result()
 
@@ -120,6 +128,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.seeds < 1 or args.workers < 1:
         raise ValueError("--seeds and --workers must be >= 1")
+    if args.effects:
+        from drillgym.envs.effects import build_effects
+
+        build_effects(args.effects)  # a bad spec is an error before any work
     grid = [
         EntryStructure(r, k, g, f, w * 1e-3)
         for r, k, g, f, w in product(
@@ -138,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
         csv_path.open("w", newline="") as fh,
         tqdm(total=len(grid), desc="calibrate", unit="model", disable=None) as bar,
     ):
-        for i, row in _evaluate_all(grid, args.seeds, args.workers):
+        for i, row in _evaluate_all(grid, args.seeds, args.workers, args.effects):
             if writer is None:
                 writer = csv.DictWriter(fh, fieldnames=list(row))
                 writer.writeheader()

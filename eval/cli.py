@@ -29,6 +29,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "drillgym.eval.calibration_cli",
         "Calibrate the entry mechanics on the uncompensated paper run and predict li2023 on each candidate.",
     ),
+    "explain-paper": (
+        "drillgym.eval.explain.cli",
+        "Which unmodelled effect explains Li's compensated runs: fit on the uncompensated and KP 1 runs, predict KP 4.",
+    ),
     "tune-entry": (
         "drillgym.eval.tune_entry",
         "Tune a slow entry (feed schedule) on top of a controller on the paper and sweep suites; pick the best.",

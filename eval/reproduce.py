@@ -80,6 +80,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("results/reproduce"), help="output folder")
     parser.add_argument("--seeds", type=int, default=10, help="seeds per compared condition (default 10)")
     parser.add_argument("--quick", action="store_true", help="3 seeds and a short KP sweep (for tests)")
+    parser.add_argument(
+        "--explanation",
+        type=Path,
+        default=None,
+        help="explanation.json of drillgym explain-paper for the report's section on it (default: OUT/explanation.json if present)",
+    )
 
 
 def _metric(results: list, name: str) -> tuple[float, float, float]:
@@ -99,6 +105,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.seeds < 2:
         raise ValueError(f"--seeds={args.seeds} must be >= 2 (confidence intervals need two)")
+    given = getattr(args, "explanation", None)  # other commands (demo) build their own arguments
+    explanation_path = given if given is not None else args.out / "explanation.json"
+    if given is not None and not explanation_path.is_file():
+        raise FileNotFoundError(f"--explanation {explanation_path}: no such file")
+    explanation = json.loads(explanation_path.read_text()) if explanation_path.is_file() else None
     seeds = list(range(3 if args.quick else args.seeds))
     kp_values = KP_SWEEP[::2] if args.quick else KP_SWEEP
     out: Path = args.out
@@ -135,6 +146,11 @@ def run(args: argparse.Namespace) -> int:
     (out / "reproduction.json").write_text(json.dumps([r.to_dict() for r in rows], indent=2))
     figures = write_figures(out, results, trends, ident, kp_values, sim)
     write_report(out, rows, results, trends, ident, figures, seeds, kp_values)
+    from drillgym.eval.explain.report import reproduction_section
+
+    section = reproduction_section(explanation, str(explanation_path) if explanation else "")
+    report = out / "report.md"
+    report.write_text(report.read_text() + "\n" + "\n".join(section) + "\n")
     print(headline(rows))
     print(f"\nReport: {(out / 'report.md').resolve()}  (reproduction.json and {len(figures)} figures beside it)")
     return 0

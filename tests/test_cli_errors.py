@@ -10,6 +10,7 @@ BAD_INPUT = {
     "bench-speed": ["--runs", "0"],
     "reproduce": ["--seeds", "1"],
     "calibrate": ["--seeds", "0"],
+    "explain-paper": ["--candidates", "no_such_candidate"],
     "tune-entry": ["--suites", "papr"],
     "train": ["--config", "no_such_config.yaml"],
     "bench": ["--suite", "nope"],

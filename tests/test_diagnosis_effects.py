@@ -33,6 +33,7 @@ SETTINGS = {
     "thermal_softening": "thermal_softening:softening=0.3,work_j=5",
     "skid_friction": "skid_friction:mu=0.2",
     "tool_runout": "tool_runout:runout_m=3e-5",
+    "servo_deadband": "servo_deadband:band_m=2e-4",
 }
 
 

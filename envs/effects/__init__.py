@@ -15,6 +15,7 @@ from drillgym.envs.effects.bone import DensityGradient, SkidFriction, ThermalSof
 from drillgym.envs.effects.joints import JointFriction, KinematicOffset, add_geometry_offset
 from drillgym.envs.effects.registry import EFFECTS, build_effects, parse_effect_spec
 from drillgym.envs.effects.sensor import FTDrift, ToolRunout
+from drillgym.envs.effects.servo import ServoDeadband
 from drillgym.envs.effects.timing import DelayLine, Latency
 from drillgym.envs.effects.tool import ToolLength
 
@@ -30,6 +31,7 @@ __all__ = [
     "KinematicOffset",
     "Latency",
     "Param",
+    "ServoDeadband",
     "SkidFriction",
     "ThermalSoftening",
     "ToolLength",

@@ -6,6 +6,7 @@ from drillgym.envs.effects.base import Effect
 from drillgym.envs.effects.bone import DensityGradient, SkidFriction, ThermalSoftening
 from drillgym.envs.effects.joints import JointFriction, KinematicOffset
 from drillgym.envs.effects.sensor import FTDrift, ToolRunout
+from drillgym.envs.effects.servo import ServoDeadband
 from drillgym.envs.effects.timing import Latency
 from drillgym.envs.effects.tool import ToolLength
 
@@ -21,6 +22,7 @@ EFFECTS: dict[str, type[Effect]] = {
         ThermalSoftening,
         SkidFriction,
         ToolRunout,
+        ServoDeadband,
     )
 }
 """The candidate unmodelled effects the diagnosis tries, by name."""

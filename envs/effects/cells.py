@@ -1,0 +1,23 @@
+"""Named cells: effect bundles that make the simulated cell behave like a particular real one.
+
+* ``ideal``: no unmodelled effect (the default env).
+* ``li2023-lab``: the effect that best explains Li et al. 2023's compensated runs, fitted on his
+  uncompensated and KP 1 runs only (``drillgym explain-paper``, ``docs/explain-paper.md``).
+
+Use ``drillgym bench --cell li2023-lab`` or ``env.unwrapped.set_effects(build_effects(CELLS["li2023-lab"]))``.
+"""
+
+from __future__ import annotations
+
+CELLS: dict[str, str] = {
+    "ideal": "",
+    "li2023-lab": "joint_friction:coulomb_rad=0.000417",
+}
+"""Cell name -> effect spec (:func:`drillgym.envs.effects.registry.build_effects`)."""
+
+
+def cell_effects_spec(name: str) -> str:
+    """The effect spec of cell ``name`` (raises ``ValueError`` listing the cells)."""
+    if name not in CELLS:
+        raise ValueError(f"unknown cell {name!r}; choose from {', '.join(CELLS)}")
+    return CELLS[name]

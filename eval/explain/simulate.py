@@ -1,0 +1,80 @@
+"""Simulate Li's runs with one candidate at one parameter value: the paper scenario over seeds.
+
+The cell keeps its shipped calibration; the candidate's effect (if any) is switched on for every run.
+li2023's force model is refitted to this cell's own uncompensated F/T force (seed of the first run), as Li
+fitted his to his own trial hole, then the candidate's controller overrides are applied.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from drillgym.eval.explain.candidates import Candidate
+from drillgym.eval.explain.observations import METRICS
+
+RUN_OVERRIDES = {"kp1": {"kp": 1.0}, "kp4": {"kp": 4.0}}
+"""li2023 gains of Li's compensated runs."""
+
+_ENV: dict[str, Any] = {}
+
+
+def _env() -> Any:
+    if "env" not in _ENV:
+        import gymnasium as gym
+
+        from drillgym.envs import SIM_ENV_ID
+
+        _ENV["env"] = gym.make(SIM_ENV_ID)
+    return _ENV["env"]
+
+
+def close() -> None:
+    """Close this process's env."""
+    env = _ENV.pop("env", None)
+    if env is not None:
+        env.close()
+
+
+def simulate(candidate: Candidate | None, value: float, runs: tuple[str, ...], seeds: list[int]) -> dict[str, Any]:
+    """Per-seed metrics of each run in ``runs`` (``none``, ``kp1``, ``kp4``) with the candidate at ``value``.
+
+    Returns:
+        ``{run: {metric: [value per seed]}}`` plus ``"model_peak_n"`` (li2023's fitted model peak, N).
+        ``candidate=None`` is the nominal cell.
+    """
+    from drillgym.controllers.registry import make_controller
+    from drillgym.envs.effects import build_effects
+    from drillgym.eval.bench_episode import run_controller_episode
+    from drillgym.eval.calibration import fit_controller_model_n
+    from drillgym.eval.rollout import run_episode
+
+    if not seeds:
+        raise ValueError("at least one seed is needed")
+    env = _env()
+    spec = candidate.effects_spec(value) if candidate else ""
+    env.unwrapped.set_effects(build_effects(spec) if spec else None)
+    try:
+        first = run_episode(env, None, seed=seeds[0])
+        peak = fit_controller_model_n(env, first.trace)
+        out: dict[str, Any] = {"model_peak_n": peak}
+        for run in runs:
+            if run == "none":
+                rows = [first.metrics] + [run_episode(env, None, seed=s).metrics for s in seeds[1:]]
+            else:
+                overrides = dict(RUN_OVERRIDES[run])
+                overrides.update(
+                    candidate.controller_overrides(value, peak) if candidate else {"model_peak_force_n": peak}
+                )
+                ctrl = "li2023:" + ",".join(f"{k}={v!r}" for k, v in overrides.items())
+                rows = [run_controller_episode(env, make_controller(ctrl), s) for s in seeds]
+            out[run] = {k: [float(r[k]) for r in rows] for k in METRICS}
+    finally:
+        env.unwrapped.set_effects(None)
+    return out
+
+
+def means(result: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """``{run: {metric: mean over seeds}}`` of a :func:`simulate` result."""
+    return {run: {k: float(np.mean(v)) for k, v in m.items()} for run, m in result.items() if run != "model_peak_n"}
