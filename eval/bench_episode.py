@@ -43,9 +43,9 @@ class EpisodeJob:
     log_path: Path | None = None
     """``<out>/logs/<...>.parquet``, or None for no log."""
     log_name: str = ""
+    """``log_path`` as written in ``episodes.csv`` (relative to the output folder)."""
     effects: str = ""
     """Effect spec of the cell (:data:`drillgym.envs.effects.cells.CELLS`); empty: the ideal cell."""
-    """``log_path`` as written in ``episodes.csv`` (relative to the output folder)."""
 
     @property
     def key(self) -> tuple[str, str, str, int]:

@@ -150,3 +150,11 @@ def test_gap_map_cells_print_noise_as_below_the_floor():
         and gap_text(3.14159) == "3.1"
         and gap_text(152.3) == "152"
     )
+
+
+def test_the_diagnosis_tries_every_library_effect_but_the_unbenchmarked_deadband_by_default():
+    from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS
+    from drillgym.eval.diagnosis.diagnose import DiagnoseOptions
+
+    assert set(DIAGNOSIS_CANDIDATES) == set(EFFECTS) - {"servo_deadband"}
+    assert DiagnoseOptions().candidates == DIAGNOSIS_CANDIDATES

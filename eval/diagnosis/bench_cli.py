@@ -33,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print its figures."""
-    from drillgym.envs.effects.registry import EFFECTS
+    from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
     from drillgym.eval.diagnosis.bench import run_bench
     from drillgym.eval.diagnosis.bench_cases import QUICK_CANDIDATES, full_cases, quick_cases
 
@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     if args.seed_offset:
         cases = [dataclasses.replace(c, seed=c.seed + args.seed_offset) for c in cases]
     episodes = args.episodes or (6 if args.quick else 12)
-    candidates = QUICK_CANDIDATES if args.quick else tuple(EFFECTS)
+    candidates = QUICK_CANDIDATES if args.quick else DIAGNOSIS_CANDIDATES
     rows_of = None
     if args.ray or args.address:
         from drillgym.eval.scale.cluster import require_ray

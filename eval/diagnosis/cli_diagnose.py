@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from drillgym.envs.effects.registry import EFFECTS
+from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -19,8 +19,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     parser.add_argument(
         "--candidates",
-        default=",".join(EFFECTS),
-        help=f"comma-separated candidate effects (default: all of {', '.join(EFFECTS)})",
+        default=",".join(DIAGNOSIS_CANDIDATES),
+        help=f"comma-separated candidate effects, any of {', '.join(EFFECTS)} (default: {', '.join(DIAGNOSIS_CANDIDATES)})",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the calibration/held-out split and the bootstrap")
     parser.add_argument("--strict", action="store_true", help="fail on the first bad log instead of skipping it")

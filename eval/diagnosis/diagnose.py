@@ -20,7 +20,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from drillgym.envs.effects.registry import EFFECTS
+from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
 from drillgym.eval.diagnosis.context import DiagnosisData, split_episodes
 from drillgym.eval.diagnosis.episodes import EpisodeData
 from drillgym.eval.diagnosis.fit import FitResult
@@ -52,7 +52,7 @@ class DiagnoseOptions:
 
     workers: int = os.cpu_count() or 1
     """Processes (each runs its own simulator)."""
-    candidates: tuple[str, ...] = tuple(EFFECTS)
+    candidates: tuple[str, ...] = DIAGNOSIS_CANDIDATES
     """Candidate effects to try (default: the whole library)."""
     pair_seeds: int = 2
     """Pairs are built on top of this many of the best singles (forward selection from each)."""
