@@ -14,7 +14,7 @@ import numpy as np
 
 from drillgym.envs.cell_params import R_BASE_TASK, CellParams
 from drillgym.envs.drilling.bone import BonePreset, get_bone_preset
-from drillgym.envs.drilling.contact import ContactSample, TipContactSolver
+from drillgym.envs.drilling.contact import ContactSample, SampleRow, TipContactSolver
 from drillgym.envs.drilling.force_model import EngagementTable
 from drillgym.envs.drilling.geometry import DrillGeometry
 from drillgym.envs.drilling.hole import Hole
@@ -138,6 +138,16 @@ class SimCell:
         self.sample = self.solver.update(target_task_m, servo_gain)
         return self.sample
 
+    def run(self, targets_task_m: list[tuple[float, float, float]], servo_gain: float) -> list[SampleRow]:
+        """Consecutive F/T samples, one per servo target (task frame, m): :meth:`update` for each, fused.
+
+        Returns the samples as plain rows (fields of :class:`ContactSample`); :attr:`sample` is the last.
+        """
+        rows = self.solver.run(targets_task_m, servo_gain)
+        if rows:
+            self.sample = ContactSample(*rows[-1])
+        return rows
+
     def end_step(self) -> None:
         """Track the servo target with the motor-side joint angles; refresh J and the compliance.
 
@@ -196,11 +206,15 @@ class SimCell:
         """Link-side joint angles: motor angles plus the elastic twist (rad)."""
         return self.q_motor_rad + self.joint_deflection_rad()
 
-    def tcp_rtde_base_m(self) -> np.ndarray:
-        """TCP position the controller reports (FK of the motor angles, base frame, m)."""
+    def tcp_rtde_base_m(self, rigid_task_m: tuple[float, float, float] | None = None) -> np.ndarray:
+        """TCP position the controller reports (FK of the motor angles, base frame, m).
+
+        ``rigid_task_m``: the servo-held tip (task frame, m) of an earlier sample; default the latest one.
+        """
+        rigid = self.rigid_tip if rigid_task_m is None else np.asarray(rigid_task_m)
         if self.geometry_offset_task_m is not None:
-            return self.entry_base_m + self.R_base_task @ (self.rigid_tip - self.geometry_offset_task_m)
-        return self.entry_base_m + self.R_base_task @ self.rigid_tip
+            return self.entry_base_m + self.R_base_task @ (rigid - self.geometry_offset_task_m)
+        return self.entry_base_m + self.R_base_task @ rigid
 
     def marker_base_m(self, q_rad: np.ndarray | None = None) -> np.ndarray:
         """Tracker-marker position (base frame, m): the true one (deflected arm) or, given ``q_rad``, the model's."""
