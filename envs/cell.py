@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+from numpy.linalg import _umath_linalg
 
 from drillgym.envs.cell_params import R_BASE_TASK, CellParams
 from drillgym.envs.drilling.bone import BonePreset, get_bone_preset
@@ -22,6 +23,9 @@ from drillgym.envs.drilling.tool import CantileverTool
 from drillgym.envs.robot.compliance import JointCompliance
 from drillgym.envs.robot.ur5 import FLANGE_FRAME, Q_HOME_RAD, TCP_FRAME, TRACKER_FRAME, UR5Kinematics
 from drillgym.envs.scenario import Scenario
+
+_solve1 = _umath_linalg.solve1
+"""The gufunc behind ``np.linalg.solve`` for a matrix and one right-hand side."""
 
 
 @functools.lru_cache(maxsize=64)
@@ -159,7 +163,7 @@ class SimCell:
             rigid = rigid - self.geometry_offset_task_m  # where the controller's model puts the tip
         target = self.tip_pose_base(rigid)
         err = self.kin.pose_error(self.q_motor_rad, target, TCP_FRAME)
-        self.q_motor_rad = self.q_motor_rad + np.linalg.solve(self.J_tcp, err)
+        self.q_motor_rad = self.q_motor_rad + solve6(self.J_tcp, err)
         self._update_compliance()
 
     @property
@@ -219,13 +223,24 @@ class SimCell:
     def marker_base_m(self, q_rad: np.ndarray | None = None) -> np.ndarray:
         """Tracker-marker position (base frame, m): the true one (deflected arm) or, given ``q_rad``, the model's."""
         if q_rad is None:
-            p = self.kin.fk(self.q_actual_rad(), TRACKER_FRAME)[:3, 3]
+            p = self.kin.position(self.q_actual_rad(), TRACKER_FRAME)
             return p if self.marker_offset_base_m is None else p + self.marker_offset_base_m
         return self.kin.fk(q_rad, TRACKER_FRAME)[:3, 3]
 
     def flange_pose_base(self, q_rad: np.ndarray) -> np.ndarray:
         """``T_base_flange`` at ``q_rad``."""
         return self.kin.fk(q_rad, FLANGE_FRAME)
+
+
+def solve6(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.linalg.solve(a, b)`` for one square system: the same LAPACK call without the wrapper's overhead.
+
+    A singular ``a`` (non-finite result) goes through ``np.linalg.solve``, which raises ``LinAlgError``.
+    """
+    x = _solve1(a, b, signature="dd->d")
+    if not np.isfinite(x).all():
+        return np.linalg.solve(a, b)
+    return x
 
 
 @functools.lru_cache(maxsize=64)

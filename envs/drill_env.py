@@ -26,7 +26,7 @@ from drillgym.envs.drilling.bone import BonePreset
 from drillgym.envs.drilling.contact import SampleRow
 from drillgym.envs.effects.base import Effect, EffectStack
 from drillgym.envs.metrics import EpisodeRecorder, episode_metrics
-from drillgym.envs.observation import observation_space, pack_observation
+from drillgym.envs.observation import OBS_SIZE, observation_space, pack_flat_observation
 from drillgym.envs.plan import DrillPlan
 from drillgym.envs.pybullet_world import PyBulletWorld
 from drillgym.envs.robot.ur5 import TRACKER_FRAME
@@ -321,7 +321,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         a = np.asarray(action, dtype=float)
         if a.shape != (ACTION_DIM,):
             raise ValueError(f"action must have shape ({ACTION_DIM},), got {np.shape(action)}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"action={a.tolist()} contains NaN or inf; rejected (env state unchanged)")
         if self.path.phase == Phase.DONE or self.failure is not None:
             raise RuntimeError("step() called after the episode ended; call reset()")
@@ -358,7 +358,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if rtde_time >= self.t_s - 1e-12:
             self.rtde_tcp_base = cell.tcp_rtde_base_m()
         self.ft_last = readings[-1]
-        self.ft_mean = readings.mean(axis=0)
+        self.ft_mean = np.add.reduce(readings, axis=0) / SUBSTEPS_PER_STEP  # readings.mean(axis=0), bit for bit
         self.cell.end_step()
         self._sample_tracker()
         rec.tracker_deviation_m.extend([self.tracker_lateral_m] * SUBSTEPS_PER_STEP)
@@ -367,7 +367,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         terms = {
             "deviation": -self.w_dev * dev_mean * 1e3,
             "force": -self.w_force * lat_mean,
-            "smooth": -self.w_smooth * float(np.sum((a - self.prev_action) ** 2)),
+            "smooth": -self.w_smooth * float(np.add.reduce((a - self.prev_action) ** 2)),  # np.sum's reduction
             "peak_force": -self.w_peak * max(lat_mean - self.peak_lateral_n, 0.0),
         }
         self.peak_lateral_n = max(self.peak_lateral_n, lat_mean)
@@ -448,7 +448,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         for t_apply, corr, _ in self.pending:
             if t_apply <= self.t_s + CONTROL_DT_S + 1e-12:
                 corr_end = corr
-        dz_corr = float(self.cell.R_base_task[:, 2] @ (corr_end - corr_now))
+        dz_corr = 0.0 if corr_end is corr_now else float(self.cell.R_base_task[:, 2] @ (corr_end - corr_now))
         per_step = self.path.speed_m_s(self.feed_scale) * CONTROL_DT_S + dz_corr
         return max(per_step / SUBSTEPS_PER_STEP, 0.0)
 
@@ -470,26 +470,22 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return self.cell.entry_base_m + self.cell.R_base_task @ np.array([0.0, 0.0, self.path.s_m])
 
     def _observation(self) -> dict[str, np.ndarray]:
-        if self.recorder.t_s:
-            tracker_err = self.tracker_error_base if self.scenario.tracker else np.zeros(3)
+        flat = np.empty(OBS_SIZE)  # the entries of OBS_BOUNDS end to end
+        flat[0:6] = self.ft_last
+        flat[6:12] = self.ft_mean
+        flat[12:18] = self.cell.q_motor_rad
+        flat[18:21] = self.rtde_tcp_base - self._nominal_tcp_base()
+        if self.recorder.t_s and self.scenario.tracker:
+            flat[21:24] = self.tracker_error_base
         else:
-            tracker_err = np.zeros(3)
-        phase = np.zeros(3)
-        phase[min(int(self.path.phase), 2)] = 1.0
-        return pack_observation(
-            {
-                "ft_wrench": self.ft_last,
-                "ft_wrench_mean": self.ft_mean,
-                "q_rad": self.cell.q_motor_rad,
-                "tcp_error_base_m": self.rtde_tcp_base - self._nominal_tcp_base(),
-                "tracker_error_base_m": tracker_err,
-                "tracker_valid": np.array([1.0 if self.scenario.tracker else 0.0]),
-                "path_depth_m": np.array([self.path.s_m]),
-                "phase": phase,
-                "correction_base_m": self.correction_base_m,
-                "feed_scale": np.array([self.feed_scale]),
-            }
-        )
+            flat[21:24] = 0.0
+        flat[24] = 1.0 if self.scenario.tracker else 0.0
+        flat[25] = self.path.s_m
+        flat[26:29] = 0.0
+        flat[26 + min(int(self.path.phase), 2)] = 1.0
+        flat[29:32] = self.correction_base_m
+        flat[32] = self.feed_scale
+        return pack_flat_observation(flat)
 
     def _info(self) -> dict[str, Any]:
         smp = self.cell.sample
