@@ -11,10 +11,11 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+from numpy.linalg import _umath_linalg
 
 from drillgym.envs.cell_params import R_BASE_TASK, CellParams
 from drillgym.envs.drilling.bone import BonePreset, get_bone_preset
-from drillgym.envs.drilling.contact import ContactSample, TipContactSolver
+from drillgym.envs.drilling.contact import ContactSample, SampleRow, TipContactSolver
 from drillgym.envs.drilling.force_model import EngagementTable
 from drillgym.envs.drilling.geometry import DrillGeometry
 from drillgym.envs.drilling.hole import Hole
@@ -22,6 +23,9 @@ from drillgym.envs.drilling.tool import CantileverTool
 from drillgym.envs.robot.compliance import JointCompliance
 from drillgym.envs.robot.ur5 import FLANGE_FRAME, Q_HOME_RAD, TCP_FRAME, TRACKER_FRAME, UR5Kinematics
 from drillgym.envs.scenario import Scenario
+
+_solve1 = _umath_linalg.solve1
+"""The gufunc behind ``np.linalg.solve`` for a matrix and one right-hand side."""
 
 
 @functools.lru_cache(maxsize=64)
@@ -138,6 +142,16 @@ class SimCell:
         self.sample = self.solver.update(target_task_m, servo_gain)
         return self.sample
 
+    def run(self, targets_task_m: list[tuple[float, float, float]], servo_gain: float) -> list[SampleRow]:
+        """Consecutive F/T samples, one per servo target (task frame, m): :meth:`update` for each, fused.
+
+        Returns the samples as plain rows (fields of :class:`ContactSample`); :attr:`sample` is the last.
+        """
+        rows = self.solver.run(targets_task_m, servo_gain)
+        if rows:
+            self.sample = ContactSample(*rows[-1])
+        return rows
+
     def end_step(self) -> None:
         """Track the servo target with the motor-side joint angles; refresh J and the compliance.
 
@@ -149,7 +163,7 @@ class SimCell:
             rigid = rigid - self.geometry_offset_task_m  # where the controller's model puts the tip
         target = self.tip_pose_base(rigid)
         err = self.kin.pose_error(self.q_motor_rad, target, TCP_FRAME)
-        self.q_motor_rad = self.q_motor_rad + np.linalg.solve(self.J_tcp, err)
+        self.q_motor_rad = self.q_motor_rad + solve6(self.J_tcp, err)
         self._update_compliance()
 
     @property
@@ -196,22 +210,37 @@ class SimCell:
         """Link-side joint angles: motor angles plus the elastic twist (rad)."""
         return self.q_motor_rad + self.joint_deflection_rad()
 
-    def tcp_rtde_base_m(self) -> np.ndarray:
-        """TCP position the controller reports (FK of the motor angles, base frame, m)."""
+    def tcp_rtde_base_m(self, rigid_task_m: tuple[float, float, float] | None = None) -> np.ndarray:
+        """TCP position the controller reports (FK of the motor angles, base frame, m).
+
+        ``rigid_task_m``: the servo-held tip (task frame, m) of an earlier sample; default the latest one.
+        """
+        rigid = self.rigid_tip if rigid_task_m is None else np.asarray(rigid_task_m)
         if self.geometry_offset_task_m is not None:
-            return self.entry_base_m + self.R_base_task @ (self.rigid_tip - self.geometry_offset_task_m)
-        return self.entry_base_m + self.R_base_task @ self.rigid_tip
+            return self.entry_base_m + self.R_base_task @ (rigid - self.geometry_offset_task_m)
+        return self.entry_base_m + self.R_base_task @ rigid
 
     def marker_base_m(self, q_rad: np.ndarray | None = None) -> np.ndarray:
         """Tracker-marker position (base frame, m): the true one (deflected arm) or, given ``q_rad``, the model's."""
         if q_rad is None:
-            p = self.kin.fk(self.q_actual_rad(), TRACKER_FRAME)[:3, 3]
+            p = self.kin.position(self.q_actual_rad(), TRACKER_FRAME)
             return p if self.marker_offset_base_m is None else p + self.marker_offset_base_m
         return self.kin.fk(q_rad, TRACKER_FRAME)[:3, 3]
 
     def flange_pose_base(self, q_rad: np.ndarray) -> np.ndarray:
         """``T_base_flange`` at ``q_rad``."""
         return self.kin.fk(q_rad, FLANGE_FRAME)
+
+
+def solve6(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.linalg.solve(a, b)`` for one square system: the same LAPACK call without the wrapper's overhead.
+
+    A singular ``a`` (non-finite result) goes through ``np.linalg.solve``, which raises ``LinAlgError``.
+    """
+    x = _solve1(a, b, signature="dd->d")
+    if not np.isfinite(x).all():
+        return np.linalg.solve(a, b)
+    return x
 
 
 @functools.lru_cache(maxsize=64)

@@ -23,9 +23,10 @@ from drillgym.envs.constants import (
     scale_action,
 )
 from drillgym.envs.drilling.bone import BonePreset
+from drillgym.envs.drilling.contact import SampleRow
 from drillgym.envs.effects.base import Effect, EffectStack
 from drillgym.envs.metrics import EpisodeRecorder, episode_metrics
-from drillgym.envs.observation import observation_space, pack_observation
+from drillgym.envs.observation import OBS_SIZE, observation_space, pack_flat_observation
 from drillgym.envs.plan import DrillPlan
 from drillgym.envs.pybullet_world import PyBulletWorld
 from drillgym.envs.robot.ur5 import TRACKER_FRAME
@@ -65,6 +66,17 @@ def _check_arguments(scenario_kwargs: dict[str, Any]) -> None:
         close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
         hints.append(f"{name!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
     raise TypeError(f"unknown argument(s) {', '.join(hints)}; accepted: {', '.join(known)}")
+
+
+def _max_norm_exceeds(forces_n: np.ndarray, limit_n: float) -> bool:
+    """Whether any row's Euclidean norm exceeds ``limit_n``: ``max(norm(rows)) > limit`` exactly, cheaply.
+
+    The norm is computed (as ``np.linalg.norm(..., axis=1)``) only when the rows' largest component is
+    within a factor √3 (rounded up) of the limit; below that no row can exceed it.
+    """
+    if float(np.abs(forces_n).max()) * 1.7320508075688774 * (1.0 + 1e-12) <= limit_n:
+        return False
+    return float(np.max(np.linalg.norm(forces_n, axis=1))) > limit_n
 
 
 class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
@@ -309,7 +321,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         a = np.asarray(action, dtype=float)
         if a.shape != (ACTION_DIM,):
             raise ValueError(f"action must have shape ({ACTION_DIM},), got {np.shape(action)}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"action={a.tolist()} contains NaN or inf; rejected (env state unchanged)")
         if self.path.phase == Phase.DONE or self.failure is not None:
             raise RuntimeError("step() called after the episode ended; call reset()")
@@ -321,55 +333,41 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         sc = self.scenario
         rt = self.cell.R_base_task.T
         rtde_time = latest_sample_time_s(self.t_s + CONTROL_DT_S, RTDE_RATE_HZ)
-        wrenches = np.empty((SUBSTEPS_PER_STEP, 6))
-        samples = []
         rec = self.recorder
+        cell = self.cell
         offset, hook = (None, None) if fx is None else self._effects_begin_step(fx)
-        self.cell.begin_step(self._chip_m(), self._advance_m())
-        cx, cy, cz = self._servo_xyz(rt, offset)
-        update = self.cell.update
-        for k in range(SUBSTEPS_PER_STEP):
-            t_next = self.t_s + PHYSICS_DT_S
-            while self.pending and self.pending[0][0] <= t_next + 1e-12:
-                _, self.correction_base_m, scale = self.pending.popleft()
-                if scale != self.feed_scale:
-                    self.feed_scale = scale
-                    self.cell.begin_step(self._chip_m(), self._advance_m())
-                cx, cy, cz = self._servo_xyz(rt, offset)
-            phase = self.path.phase
-            s = self.path.advance(PHYSICS_DT_S, self.feed_scale)
-            if self.t_s <= rtde_time < t_next:
-                self.rtde_tcp_base = self.cell.tcp_rtde_base_m()
-            smp = update((cx, cy, cz + s) if hook is None else hook(t_next, (cx, cy, cz + s)), self.servo_gain)
-            samples.append(smp)
-            self.t_s = t_next
-            wrenches[k] = self.cell.sensor_wrench(smp)
-            rec.t_s.append(self.t_s)
-            rec.phase.append(phase.value)
-            rec.stage.append(smp.stage)
-            rec.depth_cmd_m.append(s)
-            rec.deviation_m.append(math.hypot(smp.tip[0], smp.tip[1]))
-            rec.tip_task_m.append(smp.tip)  # for episode logs (eval/logs)
+        cell.begin_step(self._chip_m(), self._advance_m())
+        samples, times, phases, depths = self._run_samples(rt, offset, hook, rtde_time)
+        arm = cell.sensor_arm_m
+        wrenches = np.array([(f[0], f[1], f[2], -arm * f[1], arm * f[0], tq) for _, _, f, tq, _, _, _ in samples])
+        deviations = [math.hypot(tip[0], tip[1]) for tip, *_ in samples]
+        rec.t_s.extend(times)
+        rec.phase.extend(phases)
+        rec.stage.extend([smp[5] for smp in samples])
+        rec.depth_cmd_m.extend(depths)
+        rec.deviation_m.extend(deviations)
+        rec.tip_task_m.extend([smp[0] for smp in samples])  # for episode logs (eval/logs)
         if fx is not None:
             wrenches = fx.sensor_wrenches(self, wrenches, np.asarray(rec.t_s[-SUBSTEPS_PER_STEP:]))
         readings = self.ft.sample_block(wrenches)
-        rec.ft_force_n.extend(readings[:, :3])
+        forces = readings[:, :3]
+        rec.ft_force_n.extend(forces)
         rec.ft_torque_nm.extend(readings[:, 3:])  # for episode logs (eval/logs)
-        if self.failure is None and float(np.max(np.linalg.norm(readings[:, :3], axis=1))) > sc.force_limit_n:
+        if self.failure is None and _max_norm_exceeds(forces, sc.force_limit_n):
             self.failure = "force_limit"
         if rtde_time >= self.t_s - 1e-12:
-            self.rtde_tcp_base = self.cell.tcp_rtde_base_m()
+            self.rtde_tcp_base = cell.tcp_rtde_base_m()
         self.ft_last = readings[-1]
-        self.ft_mean = readings.mean(axis=0)
+        self.ft_mean = np.add.reduce(readings, axis=0) / SUBSTEPS_PER_STEP  # readings.mean(axis=0), bit for bit
         self.cell.end_step()
         self._sample_tracker()
         rec.tracker_deviation_m.extend([self.tracker_lateral_m] * SUBSTEPS_PER_STEP)
-        dev_mean = sum(math.hypot(x.tip[0], x.tip[1]) for x in samples) / SUBSTEPS_PER_STEP
-        lat_mean = sum(math.hypot(x.force[0], x.force[1]) for x in samples) / SUBSTEPS_PER_STEP
+        dev_mean = sum(deviations) / SUBSTEPS_PER_STEP
+        lat_mean = sum(math.hypot(f[0], f[1]) for _, _, f, *_ in samples) / SUBSTEPS_PER_STEP
         terms = {
             "deviation": -self.w_dev * dev_mean * 1e3,
             "force": -self.w_force * lat_mean,
-            "smooth": -self.w_smooth * float(np.sum((a - self.prev_action) ** 2)),
+            "smooth": -self.w_smooth * float(np.add.reduce((a - self.prev_action) ** 2)),  # np.sum's reduction
             "peak_force": -self.w_peak * max(lat_mean - self.peak_lateral_n, 0.0),
         }
         self.peak_lateral_n = max(self.peak_lateral_n, lat_mean)
@@ -384,6 +382,49 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return self._observation(), float(sum(terms.values())), terminated, truncated, self._info()
 
     # ------------------------------------------------------------------ helpers
+    def _run_samples(
+        self, rt: np.ndarray, offset: tuple[float, float, float] | None, hook: Any, rtde_time: float
+    ) -> tuple[list[SampleRow], list[float], list[int], list[float]]:
+        """The step's F/T samples: tip balance rows, their times (s), path phases and commanded depths (m).
+
+        The samples' servo targets follow the path and the queued commands, not the physics: they are
+        collected first and the tip balance runs over them in one pass, cut where a feed change
+        re-prepares the balance (the order of every operation is that of one sample after the other).
+        """
+        cell, path, pending = self.cell, self.path, self.pending
+        cx, cy, cz = self._servo_xyz(rt, offset)
+        times: list[float] = []
+        phases: list[int] = []
+        depths: list[float] = []
+        targets: list[tuple[float, float, float]] = []
+        samples: list[SampleRow] = []
+        rtde_k = -1
+        t_s = self.t_s
+        for k in range(SUBSTEPS_PER_STEP):
+            t_next = t_s + PHYSICS_DT_S
+            while pending and pending[0][0] <= t_next + 1e-12:
+                _, self.correction_base_m, scale = pending.popleft()
+                if scale != self.feed_scale:
+                    samples += cell.run(targets[len(samples) :], self.servo_gain)
+                    self.feed_scale = scale
+                    self.t_s = t_s  # _advance_m reads the time of this sample
+                    cell.begin_step(self._chip_m(), self._advance_m())
+                cx, cy, cz = self._servo_xyz(rt, offset)
+            phase = path.phase
+            s = path.advance(PHYSICS_DT_S, self.feed_scale)
+            if t_s <= rtde_time < t_next:
+                rtde_k = k
+            targets.append((cx, cy, cz + s) if hook is None else hook(t_next, (cx, cy, cz + s)))
+            times.append(t_next)
+            phases.append(phase.value)
+            depths.append(s)
+            t_s = t_next
+        samples += cell.run(targets[len(samples) :], self.servo_gain)
+        self.t_s = t_s
+        if rtde_k >= 0:  # the RTDE sample saw the servo-held tip before sample rtde_k
+            self.rtde_tcp_base = cell.tcp_rtde_base_m(samples[rtde_k - 1][1] if rtde_k > 0 else None)
+        return samples, times, phases, depths
+
     def _effects_begin_step(self, fx: EffectStack) -> tuple[tuple[float, float, float] | None, Any]:
         """Run the effects' step-start hooks; their servo/geometry offset (m, task frame) and target hook."""
         fx.begin_step(self)
@@ -407,7 +448,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         for t_apply, corr, _ in self.pending:
             if t_apply <= self.t_s + CONTROL_DT_S + 1e-12:
                 corr_end = corr
-        dz_corr = float(self.cell.R_base_task[:, 2] @ (corr_end - corr_now))
+        dz_corr = 0.0 if corr_end is corr_now else float(self.cell.R_base_task[:, 2] @ (corr_end - corr_now))
         per_step = self.path.speed_m_s(self.feed_scale) * CONTROL_DT_S + dz_corr
         return max(per_step / SUBSTEPS_PER_STEP, 0.0)
 
@@ -429,26 +470,22 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return self.cell.entry_base_m + self.cell.R_base_task @ np.array([0.0, 0.0, self.path.s_m])
 
     def _observation(self) -> dict[str, np.ndarray]:
-        if self.recorder.t_s:
-            tracker_err = self.tracker_error_base if self.scenario.tracker else np.zeros(3)
+        flat = np.empty(OBS_SIZE)  # the entries of OBS_BOUNDS end to end
+        flat[0:6] = self.ft_last
+        flat[6:12] = self.ft_mean
+        flat[12:18] = self.cell.q_motor_rad
+        flat[18:21] = self.rtde_tcp_base - self._nominal_tcp_base()
+        if self.recorder.t_s and self.scenario.tracker:
+            flat[21:24] = self.tracker_error_base
         else:
-            tracker_err = np.zeros(3)
-        phase = np.zeros(3)
-        phase[min(int(self.path.phase), 2)] = 1.0
-        return pack_observation(
-            {
-                "ft_wrench": self.ft_last,
-                "ft_wrench_mean": self.ft_mean,
-                "q_rad": self.cell.q_motor_rad,
-                "tcp_error_base_m": self.rtde_tcp_base - self._nominal_tcp_base(),
-                "tracker_error_base_m": tracker_err,
-                "tracker_valid": np.array([1.0 if self.scenario.tracker else 0.0]),
-                "path_depth_m": np.array([self.path.s_m]),
-                "phase": phase,
-                "correction_base_m": self.correction_base_m,
-                "feed_scale": np.array([self.feed_scale]),
-            }
-        )
+            flat[21:24] = 0.0
+        flat[24] = 1.0 if self.scenario.tracker else 0.0
+        flat[25] = self.path.s_m
+        flat[26:29] = 0.0
+        flat[26 + min(int(self.path.phase), 2)] = 1.0
+        flat[29:32] = self.correction_base_m
+        flat[32] = self.feed_scale
+        return pack_flat_observation(flat)
 
     def _info(self) -> dict[str, Any]:
         smp = self.cell.sample

@@ -40,8 +40,20 @@ _HI = np.concatenate([np.full(n, b) for n, b in OBS_BOUNDS.values()])
 _LO = np.concatenate([np.full(n, 0.0 if k in _NONNEG_KEYS else -b) for k, (n, b) in OBS_BOUNDS.items()])
 
 
+OBS_SIZE = int(_OFFSETS[-1])
+"""Length of the flat observation (the entries of :data:`OBS_BOUNDS` in order)."""
+_SLICES = [(k, int(_OFFSETS[i]), int(_OFFSETS[i + 1])) for i, k in enumerate(_KEYS)]
+
+
 def pack_observation(values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Cast to float32 and clip each entry into its box (a saturated sensor, never out of space)."""
-    flat = np.concatenate([np.ravel(values[k]) for k in _KEYS])
-    flat = np.clip(flat, _LO, _HI).astype(np.float32)
-    return {k: flat[_OFFSETS[i] : _OFFSETS[i + 1]] for i, k in enumerate(_KEYS)}
+    return pack_flat_observation(np.concatenate([np.ravel(values[k]) for k in _KEYS]))
+
+
+def pack_flat_observation(flat: np.ndarray) -> dict[str, np.ndarray]:
+    """:func:`pack_observation` of the entries already laid end to end (float64, :data:`OBS_BOUNDS` order).
+
+    Clips ``flat`` in place; the returned arrays are views of one new float32 array.
+    """
+    out = np.clip(flat, _LO, _HI, out=flat).astype(np.float32)
+    return {k: out[a:b] for k, a, b in _SLICES}

@@ -16,6 +16,7 @@ import math
 import os
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
@@ -234,6 +235,22 @@ class PyBulletWorld:
         img = pb.getCameraImage(width, height, view, proj, renderer=pb.ER_TINY_RENDERER, physicsClientId=self.client)
         rgba = np.reshape(np.asarray(img[2], dtype=np.uint8), (height, width, 4))
         return rgba[:, :, :3].copy()
+
+    def torque_mode(self, time_step_s: float = 1e-3) -> Callable[[], None]:
+        """Switch the arm to torque control (velocity motors off, zero torque) with ``time_step_s`` steps.
+
+        Returns a function that advances PyBullet's dynamics by one step: the reference cost for
+        ``drillgym bench-speed`` (a bare PyBullet step of the same UR5; the cell itself never steps it).
+        """
+        pb.setTimeStep(time_step_s, physicsClientId=self.client)
+        zero = [0.0] * len(self.joints)
+        pb.setJointMotorControlArray(
+            self.robot, self.joints, pb.VELOCITY_CONTROL, forces=zero, physicsClientId=self.client
+        )
+        pb.setJointMotorControlArray(
+            self.robot, self.joints, pb.TORQUE_CONTROL, forces=zero, physicsClientId=self.client
+        )
+        return functools.partial(pb.stepSimulation, physicsClientId=self.client)
 
     def close(self) -> None:
         """Disconnect the client (idempotent)."""

@@ -37,7 +37,9 @@ class ForceTorqueSensor:
         w = np.asarray(wrenches_sensor, dtype=float)
         if self.noise_n > 0:
             w = w + self._noise_std * self.rng.standard_normal(w.shape)
-        return np.round(w / FT_RESOLUTION) * FT_RESOLUTION
+        w = np.rint(w / FT_RESOLUTION)  # what np.round does for 0 decimals, without its Python wrapper
+        w *= FT_RESOLUTION
+        return w
 
 
 class PositionTracker:

@@ -1,7 +1,11 @@
-"""``drillgym bench-speed``: real-time factor and peak memory of the simulated cell.
+"""``drillgym bench-speed``: the simulated cell's speed as ratios measured in the same run, and its memory.
 
-One core, the paper scenario, zero action: each run is ``reset`` + a whole episode through
-``gym.make``; the real-time factor is simulated seconds per wall second. Reports the median over runs.
+One core, the paper scenario, zero action. Each run times a block of bare PyBullet steps of the same UR5
+(DIRECT, torque mode, 1 ms: :meth:`drillgym.envs.pybullet_world.PyBulletWorld.torque_mode`), one whole
+episode through ``gym.make`` (reset + steps), and the bare block again; the run's ratio is the env step's
+wall time over the mean of the two bare blocks' per-step times, so a machine that slows down (a shared
+one) slows both sides alike. Reported: the median over runs of that ratio and of the real-time factor
+(simulated seconds per wall second), the construction and warm-up times, and peak memory.
 """
 
 from __future__ import annotations
@@ -12,60 +16,104 @@ import os
 import resource
 import statistics
 import time
+import tracemalloc
 from typing import Any
 
 import numpy as np
 
 from drillgym.envs import SIM_ENV_ID
 
+BARE_STEPS_PER_BLOCK = 2000
+"""Bare PyBullet steps per timed block (~20 ms on a 2020s core)."""
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI arguments."""
-    parser.add_argument("--runs", type=int, default=7, help="episodes to time (median reported; default 7)")
-    parser.add_argument("--json", action="store_true", help="print the result as JSON")
+    parser.add_argument("--runs", type=int, default=7, help="timed runs (medians reported; default 7)")
+    parser.add_argument("--json", action="store_true", help="print the result as JSON (every figure)")
+
+
+def _bare_block_s(step: Any, n: int) -> float:
+    """Wall time (s) of ``n`` bare PyBullet steps."""
+    t0 = time.perf_counter()
+    for _ in range(n):
+        step()
+    return time.perf_counter() - t0
+
+
+def _episode(env: Any, seed: int, action: np.ndarray) -> tuple[float, int, float]:
+    """Wall time (s), agent steps and simulated time (s) of one zero-action episode (reset included)."""
+    t0 = time.perf_counter()
+    env.reset(seed=seed)
+    n = 0
+    while True:
+        _, _, terminated, truncated, info = env.step(action)
+        n += 1
+        if terminated or truncated:
+            break
+    return time.perf_counter() - t0, n, float(info["t_s"])
 
 
 def measure(runs: int = 7) -> dict[str, Any]:
-    """Time ``runs`` paper-scenario episodes; return RTF statistics and peak memory."""
+    """Time ``runs`` paper-scenario episodes against bare PyBullet steps; ratios, times and memory."""
     import gymnasium as gym
 
     from drillgym.envs.constants import ACTION_DIM
+    from drillgym.envs.pybullet_world import PyBulletWorld
 
     if runs < 1:
         raise ValueError(f"runs={runs} must be >= 1")
+    load_before = os.getloadavg()
     t0 = time.perf_counter()
     env = gym.make(SIM_ENV_ID)
+    env.reset(seed=0)
     construct_s = time.perf_counter() - t0
     action = np.zeros(ACTION_DIM, dtype=np.float32)
-    rtf, wall, steps = [], [], 0
-    for seed in range(runs + 1):  # the first episode warms caches and is not counted
-        t0 = time.perf_counter()
-        env.reset(seed=seed)
-        n = 0
-        while True:
-            _, _, terminated, truncated, info = env.step(action)
-            n += 1
-            if terminated or truncated:
-                break
-        dt = time.perf_counter() - t0
-        if seed > 0:
-            rtf.append(info["t_s"] / dt)
-            wall.append(dt)
-            steps = n
+    warmup_s, _, _ = _episode(env, 0, action)  # the first episode fills caches and is not counted
+    world = PyBulletWorld(visual_meshes=False)
+    bare_step = world.torque_mode(1e-3)
+    _bare_block_s(bare_step, BARE_STEPS_PER_BLOCK)  # warm-up
+    ratio, rtf, wall, step_us, bare_us = [], [], [], [], []
+    steps, sim_s = 0, 0.0
+    for seed in range(1, runs + 1):
+        before = _bare_block_s(bare_step, BARE_STEPS_PER_BLOCK)
+        dt, steps, sim_s = _episode(env, seed, action)
+        after = _bare_block_s(bare_step, BARE_STEPS_PER_BLOCK)
+        bare = 0.5 * (before + after) / BARE_STEPS_PER_BLOCK
+        ratio.append(dt / steps / bare)
+        rtf.append(sim_s / dt)
+        wall.append(dt)
+        step_us.append(dt / steps * 1e6)
+        bare_us.append(bare * 1e6)
+    world.close()
+    tracemalloc.start()
+    _episode(env, runs + 1, action)
+    _, traced_peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
     env.close()
     peak_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return {
+        "env_step_per_bare_pybullet_step_median": statistics.median(ratio),
+        "env_step_per_bare_pybullet_step_min": min(ratio),
+        "env_step_per_bare_pybullet_step_max": max(ratio),
+        "env_step_per_bare_pybullet_step_runs": ratio,
+        "env_step_us_median": statistics.median(step_us),
+        "bare_pybullet_step_us_median": statistics.median(bare_us),
         "real_time_factor_median": statistics.median(rtf),
         "real_time_factor_min": min(rtf),
         "real_time_factor_max": max(rtf),
         "episode_wall_s_median": statistics.median(wall),
-        "episode_sim_s": float(info["t_s"]),
+        "episode_sim_s": sim_s,
         "agent_steps_per_episode": steps,
-        "wall_us_per_agent_step": statistics.median(wall) / steps * 1e6,
+        "wall_us_per_agent_step": statistics.median(step_us),
         "construct_s": construct_s,
+        "warmup_episode_s": warmup_s,
+        "episode_python_peak_mib": traced_peak / 2**20,
         "peak_rss_mib": peak_kib / 1024.0,
         "runs": runs,
         "cpu_count": os.cpu_count(),
+        "loadavg_before": list(load_before),
+        "loadavg_after": list(os.getloadavg()),
     }
 
 
@@ -112,17 +160,33 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
-    print(f"paper scenario, zero action, {result['runs']} runs (median), one core")
+    load = result["loadavg_before"]
+    print(
+        f"paper scenario, zero action, {result['runs']} runs (medians), one core; "
+        f"load average {load[0]:.2f} on {result['cpu_count']} CPUs"
+    )
+    print(
+        f"  env step / bare PyBullet step  {result['env_step_per_bare_pybullet_step_median']:6.1f}  "
+        f"(min {result['env_step_per_bare_pybullet_step_min']:.1f}, max {result['env_step_per_bare_pybullet_step_max']:.1f}; "
+        f"{result['env_step_us_median']:.1f} µs vs {result['bare_pybullet_step_us_median']:.2f} µs, "
+        "UR5 in DIRECT torque mode, 1 ms)"
+    )
     print(
         f"  real-time factor   {result['real_time_factor_median']:8.1f}  "
         f"(min {result['real_time_factor_min']:.1f}, max {result['real_time_factor_max']:.1f})"
     )
     print(
         f"  episode            {result['episode_sim_s']:.2f} s simulated in {result['episode_wall_s_median'] * 1e3:.1f} ms "
-        f"({result['agent_steps_per_episode']} agent steps, {result['wall_us_per_agent_step']:.0f} µs each)"
+        f"({result['agent_steps_per_episode']} agent steps)"
     )
-    print(f"  env construction   {result['construct_s'] * 1e3:.0f} ms")
-    print(f"  peak memory (RSS)  {result['peak_rss_mib']:.0f} MiB")
+    print(
+        f"  env construction   {result['construct_s'] * 1e3:.0f} ms (gym.make + first reset); "
+        f"first episode {result['warmup_episode_s'] * 1e3:.0f} ms"
+    )
+    print(
+        f"  peak memory        {result['peak_rss_mib']:.0f} MiB RSS; "
+        f"{result['episode_python_peak_mib']:.2f} MiB Python peak within an episode"
+    )
     print("controller cycle time (one predict per 50 ms agent step; Li's budget: 50 ms)")
     for spec, t in result["controllers"].items():
         print(f"  {spec:10s} p50 {t['p50_us']:7.1f} µs   p99 {t['p99_us']:7.1f} µs   max {t['max_us']:7.1f} µs")

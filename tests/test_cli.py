@@ -22,6 +22,9 @@ def test_bench_speed_json_reports_a_real_time_factor(capsys):
     assert main(["bench-speed", "--runs", "1", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["real_time_factor_median"] > 0
+    assert result["env_step_per_bare_pybullet_step_median"] > 0
+    assert len(result["env_step_per_bare_pybullet_step_runs"]) == 1
+    assert result["bare_pybullet_step_us_median"] > 0 and result["construct_s"] > 0
     assert result["episode_sim_s"] > 10
     assert result["peak_rss_mib"] > 0
 

@@ -34,6 +34,11 @@ from drillgym.envs.drilling.force_model import EngagementTable, stage_bounds, st
 from drillgym.envs.drilling.geometry import DrillGeometry
 from drillgym.envs.drilling.hole import Hole
 
+SampleRow = tuple[
+    tuple[float, float, float], tuple[float, float, float], tuple[float, float, float], float, float, int, bool
+]
+"""One sample as a plain tuple: the fields of :class:`ContactSample`, in order."""
+
 
 @dataclass
 class ContactSample:
@@ -186,6 +191,124 @@ class TipContactSolver:
             stage,
             cutting,
         )
+
+    def run(self, targets: list[tuple[float, float, float]], servo_gain: float) -> list[SampleRow]:  # noqa: C901 (one loop, on purpose)
+        """Samples of consecutive targets (task frame, m): the same as :meth:`update` per target, fused.
+
+        One pass with the state in local variables (the per-sample path of an agent step); the
+        arithmetic is :meth:`update`'s, operation for operation, so the results are bit-identical
+        (``tests/test_contact_fused.py``). Rows are ``(tip, rigid, force, torque_axis, depth_local,
+        stage, cutting)``, the fields of :class:`ContactSample`.
+        """
+        out: list[SampleRow] = []
+        r0, r1, r2 = self.rigid
+        p0, p1, p2 = self.tip
+        tb = self.tan_beta
+        bounds = self._bounds
+        touch = bounds[0]
+        bottom = self.bottom_z
+        touching = self.touching
+        grid = self.grid
+        n = len(grid)
+        fx, fy, fz, mz = self._fx, self._fy, self._fz, self._mz
+        hole = self.hole
+        bin_m = hole.bin_m
+        g = servo_gain
+        v_cur = -1
+        m00 = m01 = m02 = m10 = m11 = m12 = m20 = m21 = m22 = 0.0
+        s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
+        k00 = k01 = k10 = k11 = k20 = k21 = kx = ky = 0.0
+        j = self._j
+        lam = 1.0
+        torque = 0.0
+        d = self.depth_local
+        for t0, t1, t2 in targets:
+            r0 += g * (t0 - r0)
+            r1 += g * (t1 - r1)
+            r2 += g * (t2 - r2)
+            v = 1 if touching and p2 + p0 * tb > touch else 0
+            if v != v_cur:
+                v_cur = v
+                m, s, mck, (kx, ky) = self._get_variant(v)
+                (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
+                (s00, s01, s02), (s10, s11, s12), (s20, s21, s22) = s
+                (k00, k01, _), (k10, k11, _), (k20, k21, _) = mck
+            b0 = m00 * r0 + m01 * r1 + m02 * r2 + k00 * p0 + k01 * p1
+            b1 = m10 * r0 + m11 * r1 + m12 * r2 + k10 * p0 + k11 * p1
+            b2 = m20 * r0 + m21 * r1 + m22 * r2 + k20 * p0 + k21 * p1
+            # depth: the stable root of d = front + tanβ (b0 + s_x · F(d)), as _solve_depth
+            front = max(bottom, p2)
+            rhs = front + tb * b0
+            if tb == 0.0:
+                d = rhs
+            else:
+                j = min(max(j, 1), n - 1)
+                for _ in range(4 * n):
+                    d0, d1 = grid[j - 1], grid[j]
+                    h0 = d0 - tb * (s00 * fx[j - 1] + s01 * fy[j - 1] + s02 * fz[j - 1]) - rhs
+                    h1 = d1 - tb * (s00 * fx[j] + s01 * fy[j] + s02 * fz[j]) - rhs
+                    if h0 > 0.0:
+                        if j == 1:
+                            d = rhs + tb * (s00 * fx[0] + s01 * fy[0] + s02 * fz[0])
+                            break
+                        j -= 1
+                    elif h1 < 0.0:
+                        if j == n - 1:
+                            d = rhs + tb * (s00 * fx[n - 1] + s01 * fy[n - 1] + s02 * fz[n - 1])
+                            break
+                        j += 1
+                    else:
+                        d = d0 + (d1 - d0) * (-h0) / (h1 - h0) if h1 != h0 else d0
+                        break
+                else:  # pragma: no cover
+                    raise RuntimeError("tip balance: no stable root found")
+            # table row at d, as _row
+            if d <= grid[0]:
+                i, t = 1, 0.0
+            elif d >= grid[-1]:
+                i, t = n - 1, 1.0
+            else:
+                i = bisect.bisect_right(grid, d)
+                t = (d - grid[i - 1]) / (grid[i] - grid[i - 1])
+            a = i - 1
+            f0 = fx[a] + t * (fx[i] - fx[a])
+            f1 = fy[a] + t * (fy[i] - fy[a])
+            f2 = fz[a] + t * (fz[i] - fz[a])
+            tq = mz[a] + t * (mz[i] - mz[a])
+            touching = f0 != 0.0 or f1 != 0.0 or f2 != 0.0
+            sf0 = s00 * f0 + s01 * f1 + s02 * f2
+            sf1 = s10 * f0 + s11 * f1 + s12 * f2
+            sf2 = s20 * f0 + s21 * f1 + s22 * f2
+            full_z = b2 + sf2
+            if not touching or full_z >= bottom:
+                lam = 1.0
+            elif b2 > bottom:
+                lam = (b2 - bottom) / (b2 - full_z)
+            else:
+                lam = 0.0
+            q0 = b0 + lam * sf0
+            q1 = b1 + lam * sf1
+            q2 = b2 + lam * sf2
+            force = (lam * f0 + kx * (p0 - q0), lam * f1 + ky * (p1 - q1), lam * f2)
+            cutting = touching and lam >= 1.0 and q2 > bottom
+            if cutting:
+                bottom = q2
+                if int(q2 / bin_m) > hole.deepest_bin:
+                    hole.record(q2, np.array([q0, q1]))
+            torque = lam * tq
+            stage = stage_of(d, bounds) if touching and lam > 0.0 else 0
+            p0, p1, p2 = q0, q1, q2
+            out.append(((q0, q1, q2), (r0, r1, r2), force, torque, d, stage, cutting))
+        if out:
+            self._j = j
+            self.rigid = [r0, r1, r2]
+            self.tip = [p0, p1, p2]
+            self.force = list(out[-1][2])
+            self.torque = torque
+            self.depth_local = d
+            self.touching = touching
+            self.bottom_z = bottom
+        return out
 
     def _solve(self, variant: tuple) -> tuple[list[float], list[float], float, float, bool, float]:
         m, s, mck, (kx, ky) = variant

@@ -1,0 +1,94 @@
+"""The fast env step against a frozen copy of the original one (tests/reference_step.py), bit for bit.
+
+Two envs with the same seed: one stepped by ``env.step``, its twin by ``reference_step``; every
+observation, reward, flag and info entry, and the recorded channels, must be identical, for zero and
+random actions, the classical controllers (a feed schedule too), other scenarios, a force-limit stop
+and every candidate effect of the diagnosis.
+"""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from reference_step import first_difference, reference_info, reference_observation, reference_step
+
+from drillgym import envs
+from drillgym.controllers import make_controller
+from drillgym.envs.effects.registry import EFFECTS
+
+ENV_ID = envs.ENV_IDS[0]
+
+
+def _mid_values(name: str) -> dict[str, float]:
+    """Every parameter of an effect half-way between its off value and the top of its range."""
+    return {p.name: 0.5 * (p.default + p.high) for p in EFFECTS[name].params}
+
+
+def _run_pair(kwargs: dict, seed: int, policy: str | None, actions_seed: int | None, effects=None) -> int:
+    """Step both envs to the end; assert identical records; return the number of steps."""
+    fast, ref = gym.make(ENV_ID, **kwargs), gym.make(ENV_ID, **kwargs)
+    try:
+        options = {"effects": effects()} if effects else None
+        obs_f, info_f = fast.reset(seed=seed, options=options)
+        options = {"effects": effects()} if effects else None
+        obs_r, _ = ref.reset(seed=seed, options=options)
+        u = ref.unwrapped
+        assert first_difference((obs_f, info_f), (reference_observation(u), reference_info(u))) is None
+        controllers = [make_controller(policy) for _ in range(2)] if policy else None
+        if controllers:
+            for c, e in zip(controllers, (fast, ref), strict=True):
+                c.set_plan(e.unwrapped.plan)
+        rng = np.random.default_rng(actions_seed) if actions_seed is not None else None
+        for k in range(4000):
+            if controllers:
+                start = np.array([k == 0])
+                a_f, _ = controllers[0].predict(obs_f, episode_start=start)
+                a_r, _ = controllers[1].predict(obs_r, episode_start=start)
+            elif rng is not None:
+                a_f = a_r = rng.uniform(-1.0, 1.0, 4).astype(np.float32)
+            else:
+                a_f = a_r = np.zeros(4, np.float32)
+            out_f = fast.step(a_f)
+            out_r = reference_step(u, a_r)
+            diff = first_difference(out_f, out_r)
+            assert diff is None, f"step {k}: {diff}"
+            obs_f, obs_r = out_f[0], out_r[0]
+            if out_f[2] or out_f[3]:
+                break
+        rec_f, rec_r = fast.unwrapped.recorder.__dict__, u.recorder.__dict__
+        assert (
+            first_difference({k: np.asarray(v) for k, v in rec_f.items()}, {k: np.asarray(v) for k, v in rec_r.items()})
+            is None
+        )
+        return k + 1
+    finally:
+        fast.close()
+        ref.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "seed", "policy", "actions_seed"),
+    [
+        ({}, 0, None, None),
+        ({}, 3, None, 5),
+        ({}, 1, "li2023", None),
+        ({}, 2, "zhang2005", None),
+        ({}, 4, "li2023_slow_entry", None),
+        ({"beta_deg": 10.0, "feed_mm_s": 1.2}, 0, "li2023", None),
+        ({"cortical_thickness_mm": 1.5, "tracker": False, "ft_noise_n": 0.0}, 1, None, 9),
+        ({"beta_deg": 0.0, "tracker_noise_mm": 0.0}, 2, "zhang2005", None),
+    ],
+)
+def test_fast_step_is_bit_identical_to_the_original_step(kwargs, seed, policy, actions_seed):
+    assert _run_pair(kwargs, seed, policy, actions_seed) > 100
+
+
+def test_fast_step_stops_at_the_force_limit_like_the_original_step():
+    assert _run_pair({"force_limit_n": 4.0}, 0, None, None) < 200
+
+
+@pytest.mark.parametrize("name", sorted(EFFECTS))
+def test_fast_step_is_bit_identical_to_the_original_step_with_each_effect(name):
+    def effects():
+        return [EFFECTS[name](**_mid_values(name))]
+
+    assert _run_pair({}, 6, "li2023", None, effects) > 200
