@@ -46,23 +46,42 @@ class CommandSlot:
 
 
 class SharedCommandSlot(CommandSlot):
-    """The latest command in shared memory (give it to the other process when starting it)."""
+    """The latest command in shared memory (give it to the other process when starting it).
+
+    Lock-free (a sequence lock, one writer: the agent): the writer makes the sequence number odd, writes, makes
+    it even again; a reader copies between two reads of an even, unchanged number. No reader ever waits for the
+    writer: a lock would let the ordinary-priority agent process, preempted while holding it, stall the
+    real-time servo loop (priority inversion). A reader that keeps meeting a write in progress keeps the
+    command it read before (one cycle late at worst).
+    """
+
+    READ_ATTEMPTS = 100
 
     def __init__(self, context: Any = None) -> None:
         ctx = context or multiprocessing.get_context("spawn")
-        self._array = ctx.Array("d", _SLOT_SIZE, lock=True)
+        self._array = ctx.RawArray("d", 1 + _SLOT_SIZE)
+        self._last = (np.zeros(3), 1.0, 0.0)
 
     def write(self, correction_base_m: np.ndarray, feed_scale: float, t_s: float) -> None:
-        """Store a command (see :meth:`CommandSlot.write`)."""
+        """Store a command (see :meth:`CommandSlot.write`); one writer only."""
         corr = np.asarray(correction_base_m, dtype=float)
-        with self._array.get_lock():
-            self._array[:] = [float(corr[0]), float(corr[1]), float(corr[2]), float(feed_scale), float(t_s)]
+        a = self._array
+        a[0] += 1.0  # odd: writing
+        a[1:] = [float(corr[0]), float(corr[1]), float(corr[2]), float(feed_scale), float(t_s)]
+        a[0] += 1.0  # even: done
 
     def read(self) -> tuple[np.ndarray, float, float]:
         """``(correction_base_m, feed_scale, t_s)`` of the latest command."""
-        with self._array.get_lock():
-            v = list(self._array[:])
-        return np.array(v[:3]), v[3], v[4]
+        a = self._array
+        for _ in range(self.READ_ATTEMPTS):
+            seq = a[0]
+            if seq % 2.0 == 0.0:
+                v = a[1:]
+                if a[0] == seq:
+                    self._last = (np.array(v[:3]), v[3], v[4])
+                    break
+        corr, scale, t = self._last
+        return corr.copy(), scale, t
 
 
 _RECORD_FIELDS = 9
