@@ -124,7 +124,7 @@ class EpisodeStreams:
 
     def _read_robot(self) -> None:
         try:
-            state = self.devices.link.state()
+            state = self.servo.robot_state()
         except LinkError:
             state = self.servo.state
         self.tcp_base = np.asarray(state.tcp_pose[:3], dtype=float)

@@ -134,6 +134,10 @@ class ServoLoop:
     def sync(self) -> None:
         """Bring the agent's view up to date (nothing to do in one process; see the servo process's proxy)."""
 
+    def robot_state(self) -> RobotState:
+        """A fresh read of the robot state (``LinkError`` if it cannot be read)."""
+        return self.link.state()
+
     def snapshot(self, history_from: int = 0) -> dict[str, Any]:
         """What the agent reads of the stream (picklable).
 

@@ -94,6 +94,8 @@ class ServoProcessSpec:
 
 def raise_priority(rt_priority: int) -> tuple[str, bool]:
     """Make this process real-time (``SCHED_FIFO``) if allowed, else as nice as allowed; ``(what, realtime)``."""
+    if os.environ.get("DRILLGYM_SERVO_PRIORITY") == "normal":
+        return f"SCHED_OTHER nice {os.nice(0)} (DRILLGYM_SERVO_PRIORITY=normal)", False
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
         return f"SCHED_FIFO priority {rt_priority}", True
@@ -159,8 +161,13 @@ class _Host:
         self.loop.start()
 
     def servo_snapshot(self, history_from: int) -> dict[str, Any]:
-        assert self.loop is not None
-        return self.loop.snapshot(history_from)
+        assert self.loop is not None and self.link is not None
+        snap = self.loop.snapshot(history_from)
+        try:  # a fresh state in the same round trip: one wake-up of the agent's process per step, not two
+            snap["read_state"] = self.link.state()
+        except LinkError as e:
+            snap["read_state"] = e
+        return snap
 
     def servo_stop(self, timeout_s: float, history_from: int) -> dict[str, Any]:
         assert self.loop is not None
@@ -443,6 +450,7 @@ class RemoteServo:
         self.history_s: list[float] = []
         self.history_phase: list[int] = []
         self._started = self._stopped = False
+        self._read_state: RobotState | LinkError | None = None
         kwargs = {
             "ft_bias": np.asarray(ft_bias, dtype=float),
             "geometry": geometry,
@@ -471,9 +479,20 @@ class RemoteServo:
         return corr, scale
 
     def sync(self) -> None:
-        """Fetch the stream's fault, end, statistics, state and new path history."""
+        """Fetch the stream's fault, end, statistics, state, new path history and a fresh robot state."""
         if self._started and not self._stopped:
-            self._apply(self.process.call("servo", "snapshot", len(self.history_t)))
+            snap = self.process.call("servo", "snapshot", len(self.history_t))
+            self._read_state = snap["read_state"]
+            self._apply(snap)
+
+    def robot_state(self) -> RobotState:
+        """The robot state read at the last :meth:`sync` (``LinkError`` if it could not be read), else a fresh one."""
+        read, self._read_state = self._read_state, None
+        if read is None:
+            return RemoteLink(self.process).state()
+        if isinstance(read, LinkError):
+            raise read
+        return read
 
     def stop(self, timeout_s: float = 5.0) -> None:
         """Stop streaming (``servoStop``) and fetch the final figures."""
