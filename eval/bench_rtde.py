@@ -176,6 +176,7 @@ def bench(host: str, seconds: float, loop: str = "process") -> dict[str, Any]:
         "missed_cycles": int(missed),
         "missed_cycle_rate": missed / (n_cycles + missed),
         "cycle_gap": _percentiles_ms(gaps),
+        "servo_call": _percentiles_ms(sent["call_s"]),
         "late_cycles_at_s": late_at[:20],
         "latency_samples": len(latencies),
         "command_to_state_latency": _percentiles_ms(latencies),
@@ -228,6 +229,10 @@ def run(args: argparse.Namespace) -> int:
         f"  missed cycles        {result['missed_cycles']} ({100 * result['missed_cycle_rate']:.3f} %; target <= 0.1 %)"
     )
     print(f"  cycle gap            median {_ms(gap['median_ms'])}, p99 {_ms(gap['p99_ms'])}, max {_ms(gap['max_ms'])}")
+    call = result["servo_call"]
+    print(
+        f"  servoL call          median {_ms(call['median_ms'])}, p99 {_ms(call['p99_ms'])}, max {_ms(call['max_ms'])}"
+    )
     if result["late_cycles_at_s"]:
         print(f"  late cycles at       {', '.join(f'{t:g}' for t in result['late_cycles_at_s'])} s (first 20)")
     print(

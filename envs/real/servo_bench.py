@@ -25,13 +25,14 @@ def stream_coded_targets(control: Any, pose0: list[float], seconds: float, perio
     """``servoL`` to ``pose0`` (m, rad; base frame) with a coded z for ``seconds``, then ``servoStop``.
 
     ``control``: a ``ur_rtde`` ``RTDEControlInterface``. Returns ``send_t`` (when each command was sent, s),
-    ``send_z`` (its target z, m) and ``cycles``; raises ``RuntimeError`` if the controller refuses a command.
+    ``send_z`` (its target z, m), ``call_s`` (how long each ``servoL`` call took, s) and ``cycles``; raises ``RuntimeError`` if the controller refuses a command.
     """
     import time
 
     n_cycles = max(int(seconds / period_s), 1)
     send_t: list[float] = []
     send_z: list[float] = []
+    call_s: list[float] = []
     try:
         for k in range(n_cycles):
             t_cycle = control.initPeriod()
@@ -39,9 +40,11 @@ def stream_coded_targets(control: Any, pose0: list[float], seconds: float, perio
             pose[2] = coded_z(pose0[2], k)
             send_t.append(time.perf_counter())
             send_z.append(pose[2])
-            if not control.servoL(pose, 0.25, 1.2, period_s, 0.1, 300.0):
+            ok = control.servoL(pose, 0.25, 1.2, period_s, 0.1, 300.0)
+            call_s.append(time.perf_counter() - send_t[-1])
+            if not ok:
                 raise RuntimeError(f"servoL refused at cycle {k}")
             control.waitPeriod(t_cycle)
     finally:
         control.servoStop(10.0)
-    return {"send_t": send_t, "send_z": send_z, "cycles": n_cycles}
+    return {"send_t": send_t, "send_z": send_z, "call_s": call_s, "cycles": n_cycles}
