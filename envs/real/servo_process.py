@@ -130,16 +130,25 @@ class _Host:
         self.ft: NetFTClient | None = None
         self.loop: ServoLoop | None = None
         self.link = RobotLink(spec.robot_host, spec.servo, spec.dry_run, CommandLog(spec.command_log_path))
-        if spec.ft_address is not None:
-            host, port = spec.ft_address
-            self.ft = NetFTClient(host, port, spec.calibration, on_record=ring.append)
-            deadline = time.monotonic() + spec.first_record_timeout_s
-            while self.ft.latest() is None:
-                if time.monotonic() > deadline:
-                    raise LinkError(
-                        f"no record from the Net F/T at {host}:{port} within {spec.first_record_timeout_s} s"
-                    )
-                time.sleep(0.005)
+        try:
+            if spec.ft_address is not None:
+                self.ft = self._open_ft(spec, ring)
+        except BaseException:
+            self.close()
+            raise
+
+    @staticmethod
+    def _open_ft(spec: ServoProcessSpec, ring: SharedFTRing) -> NetFTClient:
+        assert spec.ft_address is not None
+        host, port = spec.ft_address
+        ft = NetFTClient(host, port, spec.calibration, on_record=ring.append)
+        deadline = time.monotonic() + spec.first_record_timeout_s
+        while ft.latest() is None:
+            if time.monotonic() > deadline:
+                ft.close()
+                raise LinkError(f"no record from the Net F/T at {host}:{port} within {spec.first_record_timeout_s} s")
+            time.sleep(0.005)
+        return ft
 
     def dispatch(self, target: str, method: str, args: tuple[Any, ...]) -> Any:
         if target == "link" and method in LINK_METHODS:
