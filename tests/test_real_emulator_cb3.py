@@ -127,11 +127,11 @@ def test_async_movel_moves_reports_speeds_and_stops_on_stopl(start_emulator):  #
         assert speed[2] == pytest.approx(0.02, rel=0.15) and np.linalg.norm(speed[:2]) < 1e-3
         assert np.linalg.norm(r.getActualQd()) > 1e-3
         c.stopL(2.0)  # ur_rtde returns nothing
+        assert _wait(lambda: np.allclose(r.getActualTCPSpeed(), 0.0, atol=1e-6))  # the next states show it stopped
         z_stopped = r.getActualTCPPose()[2]
         time.sleep(0.1)
-        assert r.getActualTCPPose()[2] == pytest.approx(z_stopped, abs=1e-6)  # stopped, short of the target
+        assert r.getActualTCPPose()[2] == pytest.approx(z_stopped, abs=1e-6)  # and it stays, short of the target
         assert z_stopped < target[2] - 0.002
-        assert np.allclose(r.getActualTCPSpeed(), 0.0, atol=1e-6)
         assert c.getAsyncOperationProgress() < 0  # done
     finally:
         c.disconnect()
