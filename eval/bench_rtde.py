@@ -1,14 +1,20 @@
 """``drillgym bench-rtde``: timing of the 125 Hz ``servoL`` stream through the real ``ur_rtde`` client.
 
-Streams ``servoL`` for ``--seconds`` with ``initPeriod`` / ``waitPeriod`` (as the real env does) and reports:
+Streams ``servoL`` for ``--seconds`` with ``initPeriod`` / ``waitPeriod`` where the real env's loop runs
+(``--loop process``, the default: a servo process of its own at real-time priority where allowed,
+:mod:`drillgym.envs.real.servo_process`; ``--loop thread``: a thread of this process, as before) and reports:
 
 * missed cycles (client side): periods in which no command went out (a late cycle counts the periods it
-  skipped; the target is <= 1 %), and the cycle-gap distribution;
-* command-to-state latency: from the ``servoL`` call to the first RTDE state whose ``target_TCP_pose`` shows
-  that command, median and p99. Each command carries its cycle number in the target's z, in 1 nm steps
-  (at most 1 µm away from the start pose); the emulator echoes the servo target exactly. A real controller
-  reports its interpolated target instead, so there the latency is ``n/a``;
+  skipped; the target is <= 0.1 %), and the cycle-gap distribution;
+* command-to-state latency: from the ``servoL`` call to the first RTDE state, read in this process, whose
+  ``target_TCP_pose`` shows that command, median and p99. Each command carries its cycle number in the target's
+  z, in 1 nm steps (at most 1 µm away from the start pose); the emulator echoes the servo target exactly. A real
+  controller reports its interpolated target instead, so there the latency is ``n/a``;
 * with the emulator: controller cycles that saw no new command while servoing (robot side).
+
+``--load-procs N`` starts N busy processes (``python -c "while True: pass"``, ordinary priority) for the run and
+ends them afterwards: the load the acceptance test runs under (two on a 2-core machine). The load average
+before and after the run is reported, since a shared machine has load of its own.
 
 Without ``--robot`` it starts an emulator on a free loopback address and ends it afterwards.
 """
@@ -16,26 +22,41 @@ Without ``--robot`` it starts an emulator on a free loopback address and ends it
 from __future__ import annotations
 
 import argparse
+import bisect
+import contextlib
 import json
 import math
+import os
+import subprocess
+import sys
 import threading
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 
-CODE_STEP_M = 1e-9
-"""Target z step per cycle number (m)."""
-CODE_MODULUS = 1000
-"""Cycle numbers repeat every this many cycles (8 s at 125 Hz)."""
 POLL_S = 0.0002
 """How often the state is polled for the echo (s)."""
+LATENCY_MAX_S = 1.0
+"""An echo later than this is not counted as one (s)."""
+BUSY_LOOP = "while True: pass"
+"""What each ``--load-procs`` process runs."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``bench-rtde``."""
     parser.add_argument("--robot", default=None, help="controller address (default: start an emulator)")
     parser.add_argument("--seconds", type=float, default=60.0, help="streaming time (s)")
+    parser.add_argument(
+        "--loop",
+        choices=("process", "thread"),
+        default="process",
+        help="where the stream runs: a servo process of its own (as the real env), or a thread of this process",
+    )
+    parser.add_argument(
+        "--load-procs", type=int, default=0, help="busy processes to run alongside (load generator; default none)"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--yes", action="store_true", help="confirm streaming to a real robot (--robot)")
 
@@ -48,76 +69,117 @@ def _percentiles_ms(values_s: list[float]) -> dict[str, float | None]:
 
 
 class _EchoWatcher(threading.Thread):
-    """Polls the receive interface and times when each command's code first shows in ``target_TCP_pose``."""
+    """Polls the receive interface and records ``(time, target z)`` at each new RTDE state."""
 
-    def __init__(self, receive: Any, z0: float, sent: dict[int, tuple[float, float]], stop: threading.Event) -> None:
+    def __init__(self, receive: Any, stop: threading.Event) -> None:
         super().__init__(name="echo-watcher", daemon=True)
-        self.receive, self.z0, self.sent, self.stop_event = receive, z0, sent, stop
-        self.latencies_s: list[float] = []
+        self.receive, self.stop_event = receive, stop
+        self.seen: list[tuple[float, float]] = []
         self.state_timestamps: list[float] = []
 
     def run(self) -> None:
-        last_code, last_ts = -1, -1.0
+        last_ts = -1.0
         while not self.stop_event.is_set():
             now = time.perf_counter()
             ts = self.receive.getTimestamp()
             if ts != last_ts:
                 last_ts = ts
                 self.state_timestamps.append(ts)
-                z = self.receive.getTargetTCPPose()[2]
-                code = round((z - self.z0) / CODE_STEP_M)
-                if code != last_code and code in self.sent and self.sent[code][1] == z:  # exactly what was sent
-                    last_code = code
-                    self.latencies_s.append(now - self.sent.pop(code)[0])
+                self.seen.append((now, self.receive.getTargetTCPPose()[2]))
             time.sleep(POLL_S)
 
 
-def bench(host: str, seconds: float) -> dict[str, Any]:
-    """Stream for ``seconds`` against ``host``; returns the timing figures."""
+def echo_latencies_s(send_t: list[float], send_z: list[float], seen: list[tuple[float, float]]) -> list[float]:
+    """Command-to-state latencies (s), one per command whose echo came within :data:`LATENCY_MAX_S`.
+
+    A command sent at ``send_t`` with target z ``send_z`` is echoed by the first state after it that shows
+    exactly that z.
+    """
+    by_z: dict[float, list[float]] = {}
+    for t, z in seen:
+        by_z.setdefault(z, []).append(t)
+    out = []
+    for t, z in zip(send_t, send_z, strict=True):
+        times = by_z.get(z, [])
+        i = bisect.bisect_left(times, t)
+        if i < len(times) and times[i] - t <= LATENCY_MAX_S:
+            out.append(times[i] - t)
+    return out
+
+
+@contextlib.contextmanager
+def busy_processes(n: int) -> Iterator[list[int]]:
+    """``n`` busy Python processes for the duration (ended by their pids afterwards); yields the pids."""
+    procs = [subprocess.Popen([sys.executable, "-c", BUSY_LOOP]) for _ in range(n)]
+    try:
+        yield [p.pid for p in procs]
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait(timeout=5.0)
+
+
+def _stream_in_thread(host: str, pose0: list[float], seconds: float, period: float) -> tuple[dict[str, Any], str]:
     import rtde_control
+
+    from drillgym.envs.real.servo_bench import stream_coded_targets
+
+    control = rtde_control.RTDEControlInterface(host, 125.0)
+    try:
+        return stream_coded_targets(control, pose0, seconds, period), "thread of the benchmark's process"
+    finally:
+        control.stopScript()
+        control.disconnect()
+
+
+def _stream_in_process(host: str, pose0: list[float], seconds: float, period: float) -> tuple[dict[str, Any], str]:
+    from drillgym.envs.real.config import ServoParams
+    from drillgym.envs.real.netft import NetFTCalibration
+    from drillgym.envs.real.servo_process import ServoProcess, ServoProcessSpec
+
+    proc = ServoProcess(ServoProcessSpec(host, ServoParams(), False, None, None, NetFTCalibration()))
+    try:
+        result = proc.call("bench", "stream", pose0, seconds, period, timeout_s=seconds + 30.0)
+        proc.call("link", "stop_script")
+        return result, f"servo process ({proc.scheduling})"
+    finally:
+        proc.close()
+
+
+def bench(host: str, seconds: float, loop: str = "process") -> dict[str, Any]:
+    """Stream for ``seconds`` against ``host`` from ``loop`` (``process`` or ``thread``); the timing figures."""
     import rtde_receive
 
     receive = rtde_receive.RTDEReceiveInterface(host, 125.0, ["timestamp", "actual_TCP_pose", "target_TCP_pose"])
-    control = rtde_control.RTDEControlInterface(host, 125.0)
     period = 1.0 / 125.0
-    n_cycles = max(int(seconds / period), 1)
     pose0 = list(receive.getActualTCPPose())
-    sent: dict[int, tuple[float, float]] = {}
     stop = threading.Event()
-    watcher = _EchoWatcher(receive, pose0[2], sent, stop)
-    gaps, last = [], None
+    watcher = _EchoWatcher(receive, stop)
+    stream = _stream_in_process if loop == "process" else _stream_in_thread
     try:
         watcher.start()
-        for k in range(n_cycles):
-            t_cycle = control.initPeriod()
-            code = k % CODE_MODULUS
-            pose = list(pose0)
-            pose[2] = pose0[2] + code * CODE_STEP_M
-            now = time.perf_counter()
-            if last is not None:
-                gaps.append(now - last)
-            last = now
-            sent[code] = (now, pose[2])
-            if not control.servoL(pose, 0.25, 1.2, period, 0.1, 300.0):
-                raise RuntimeError(f"servoL refused at cycle {k}")
-            control.waitPeriod(t_cycle)
+        sent, where = stream(host, pose0, seconds, period)
     finally:
         stop.set()
         watcher.join(timeout=1.0)
-        control.servoStop(10.0)
-        control.stopScript()
-        control.disconnect()
         receive.disconnect()
+    send_t, n_cycles = sent["send_t"], sent["cycles"]
+    gaps = np.diff(send_t).tolist()
     missed = sum(round(g / period) - 1 for g in gaps if g > 1.5 * period)
+    late_at = [round(send_t[i + 1] - send_t[0], 3) for i, g in enumerate(gaps) if g > 1.5 * period]
+    latencies = echo_latencies_s(send_t, sent["send_z"], watcher.seen)
     ts = np.diff(watcher.state_timestamps)
     return {
         "seconds": seconds,
+        "loop": where,
         "cycles": n_cycles,
         "missed_cycles": int(missed),
         "missed_cycle_rate": missed / (n_cycles + missed),
         "cycle_gap": _percentiles_ms(gaps),
-        "latency_samples": len(watcher.latencies_s),
-        "command_to_state_latency": _percentiles_ms(watcher.latencies_s),
+        "servo_call": _percentiles_ms(sent["call_s"]),
+        "late_cycles_at_s": late_at[:20],
+        "latency_samples": len(latencies),
+        "command_to_state_latency": _percentiles_ms(latencies),
         "state_packages_missed": int(np.sum(np.maximum(np.round(ts / period) - 1, 0))) if ts.size else 0,
     }
 
@@ -131,10 +193,15 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if not args.seconds > 0:
         raise ValueError(f"--seconds={args.seconds:g} must be > 0")
+    if args.load_procs < 0:
+        raise ValueError(f"--load-procs={args.load_procs} must be >= 0")
     emulator = None if args.robot else EmulatorProcess(max_lifetime_s=args.seconds + 120).start()
     host = args.robot or emulator.host  # type: ignore[union-attr]
+    load_before = os.getloadavg()
     try:
-        result = bench(host, args.seconds)
+        with busy_processes(args.load_procs):
+            result = bench(host, args.seconds, args.loop)
+            load_after = os.getloadavg()
         if emulator is not None:
             st = emulator.status()
             result["emulator_servo_updates"] = st["servo_updates"]
@@ -144,15 +211,30 @@ def run(args: argparse.Namespace) -> int:
         if emulator is not None:
             emulator.stop()
     result["target"] = "emulator" if emulator is not None else host
+    result["load_procs"] = args.load_procs
+    result["cpu_count"] = os.cpu_count()
+    result["loadavg_before"] = [round(v, 2) for v in load_before]
+    result["loadavg_after"] = [round(v, 2) for v in load_after]
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
     lat, gap = result["command_to_state_latency"], result["cycle_gap"]
     print(f"bench-rtde against {result['target']}: {result['cycles']} cycles at 125 Hz over {args.seconds:g} s")
+    print(f"  loop                 {result['loop']}")
     print(
-        f"  missed cycles        {result['missed_cycles']} ({100 * result['missed_cycle_rate']:.3f} %; target <= 1 %)"
+        f"  load                 {args.load_procs} busy processes; load average (1 min) "
+        f"{load_before[0]:.2f} before, {load_after[0]:.2f} at the end, {result['cpu_count']} CPUs"
+    )
+    print(
+        f"  missed cycles        {result['missed_cycles']} ({100 * result['missed_cycle_rate']:.3f} %; target <= 0.1 %)"
     )
     print(f"  cycle gap            median {_ms(gap['median_ms'])}, p99 {_ms(gap['p99_ms'])}, max {_ms(gap['max_ms'])}")
+    call = result["servo_call"]
+    print(
+        f"  servoL call          median {_ms(call['median_ms'])}, p99 {_ms(call['p99_ms'])}, max {_ms(call['max_ms'])}"
+    )
+    if result["late_cycles_at_s"]:
+        print(f"  late cycles at       {', '.join(f'{t:g}' for t in result['late_cycles_at_s'])} s (first 20)")
     print(
         f"  command-to-state     median {_ms(lat['median_ms'])}, p99 {_ms(lat['p99_ms'])}, "
         f"max {_ms(lat['max_ms'])} ({result['latency_samples']} samples)"

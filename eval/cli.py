@@ -53,6 +53,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "drillgym.envs.real.emulator.cli",
         "Serve a UR CB3 controller + ATI Net F/T emulator, backed by the simulator, on a loopback address.",
     ),
+    "ft-check": (
+        "drillgym.eval.ft_check",
+        "Check the F/T sensor's force scale with a known mass (calibration read from the sensor); exit 1 if off.",
+    ),
     "bench-rtde": (
         "drillgym.eval.bench_rtde",
         "Timing of the 125 Hz servoL stream through ur_rtde: missed cycles, command-to-state latency.",

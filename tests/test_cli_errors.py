@@ -17,6 +17,7 @@ BAD_INPUT = {
     "run": ["--robot", "127.0.0.1", "--scenario", "beta_deg=99", "--dry-run"],
     "emulate": ["--scenario", "beta_deg=99"],
     "bench-rtde": ["--seconds", "-1"],
+    "ft-check": ["--ft", "127.0.0.1", "--mass-kg", "-0.5"],
     "diagnose": ["--real", "no_such_folder"],
     "make-reality": ["--effects", "no_such_effect"],
     "bench-diagnosis": ["--only", "no_such_case"],

@@ -1,17 +1,26 @@
-"""The real cell's devices, opened together and closed together: robot link, F/T sensor, tracker."""
+"""The real cell's devices, opened together and closed together: robot link, F/T sensor, tracker.
+
+By default the robot link and the F/T stream live in the servo process (:mod:`drillgym.envs.real.servo_process`)
+with the servo loop; the agent's process holds stand-ins with the same interface. ``servo_process=False`` opens
+them in the agent's process and runs the loop as a thread there.
+"""
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from drillgym.envs.real.command_log import CommandLog
-from drillgym.envs.real.config import ServoParams
+from drillgym.envs.real.config import SafetyLimits, ServoParams
 from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration, NetFTClient
 from drillgym.envs.real.robot_link import LinkError, RobotLink
+from drillgym.envs.real.servo import CellGeometry, ServoLoop
+from drillgym.envs.real.servo_process import RemoteFT, RemoteLink, RemoteServo, ServoProcess, ServoProcessSpec
 from drillgym.envs.real.tracker import Tracker, make_tracker
+from drillgym.envs.task import DrillPath
 
 
 def split_host_port(spec: str, default_port: int) -> tuple[str, int]:
@@ -26,9 +35,11 @@ def split_host_port(spec: str, default_port: int) -> tuple[str, int]:
 class CellDevices:
     """Open connections to the robot, the F/T sensor and the tracker."""
 
-    link: RobotLink
-    ft: NetFTClient
+    link: RobotLink | RemoteLink
+    ft: NetFTClient | RemoteFT
     tracker: Tracker
+    process: ServoProcess | None = None
+    """The servo process (None: the loop runs as a thread in this process)."""
 
     @classmethod
     def open(
@@ -39,29 +50,61 @@ class CellDevices:
         calibration: NetFTCalibration,
         servo: ServoParams,
         dry_run: bool,
-        command_log: CommandLog,
+        command_log_path: str | None,
         first_record_timeout_s: float = 2.0,
+        servo_process: bool = True,
     ) -> CellDevices:
-        """Connect everything; on any failure close what was opened and raise with what failed."""
-        link: RobotLink | None = None
-        ft: NetFTClient | None = None
+        """Connect everything; on any failure close what was opened and raise with what failed.
+
+        ``command_log_path``: JSONL of every command (written where the link lives). ``servo_process``: open the
+        link and the F/T stream in a servo process of their own (see the module docstring).
+        """
+        link: RobotLink | RemoteLink | None = None
+        ft: NetFTClient | RemoteFT | None = None
         trk: Tracker | None = None
+        process: ServoProcess | None = None
+        host, port = split_host_port(ft_sensor, RDT_PORT)
         try:
-            link = RobotLink(robot_host, servo, dry_run, command_log)
-            host, port = split_host_port(ft_sensor, RDT_PORT)
-            ft = NetFTClient(host, port, calibration)
-            deadline = time.monotonic() + first_record_timeout_s
-            while ft.latest() is None:
-                if time.monotonic() > deadline:
-                    raise LinkError(f"no record from the Net F/T at {host}:{port} within {first_record_timeout_s} s")
-                time.sleep(0.005)
+            if servo_process:
+                spec = ServoProcessSpec(
+                    robot_host, servo, dry_run, command_log_path, (host, port), calibration,
+                    first_record_timeout_s=first_record_timeout_s,
+                )  # fmt: skip
+                process = ServoProcess(spec)
+                link, ft = RemoteLink(process), RemoteFT(process, calibration)
+            else:
+                link = RobotLink(robot_host, servo, dry_run, CommandLog(command_log_path))
+                ft = NetFTClient(host, port, calibration)
+                deadline = time.monotonic() + first_record_timeout_s
+                while ft.latest() is None:
+                    if time.monotonic() > deadline:
+                        raise LinkError(
+                            f"no record from the Net F/T at {host}:{port} within {first_record_timeout_s} s"
+                        )
+                    time.sleep(0.005)
             trk = make_tracker(tracker)
-            return cls(link, ft, trk)
+            return cls(link, ft, trk, process)
         except BaseException:
             for dev in (trk, ft, link):
                 if dev is not None:
                     dev.close()
             raise
+
+    def make_servo(
+        self,
+        ft_bias: np.ndarray,
+        geometry: CellGeometry,
+        path: DrillPath,
+        limits: SafetyLimits,
+        servo: ServoParams,
+        force_limit_n: float,
+        t0: float,
+    ) -> Any:
+        """One episode's servo loop, where the link lives (:class:`ServoLoop` or :class:`RemoteServo`)."""
+        if self.process is not None:
+            return RemoteServo(self.process, ft_bias, geometry, path, limits, servo, force_limit_n, t0)
+        assert isinstance(self.link, RobotLink) and isinstance(self.ft, NetFTClient)
+        return ServoLoop(self.link, self.ft, ft_bias, geometry, path, limits, servo, force_limit_n, t0)
 
     def tare(self, duration_s: float) -> tuple[np.ndarray, np.ndarray | None]:
         """F/T bias (N, N·m) and tracker marker position (m, base; None without readings): means over ``duration_s``."""

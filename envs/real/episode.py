@@ -23,6 +23,7 @@ from drillgym.envs.real.metrics import contact_flags
 from drillgym.envs.real.robot_link import LinkError
 from drillgym.envs.real.sampling import FTBinner, path_at
 from drillgym.envs.real.servo import CellGeometry, ServoLoop
+from drillgym.envs.real.servo_process import RemoteServo
 from drillgym.envs.task import Phase
 
 ARRIVAL_GRACE_S = 0.002
@@ -50,7 +51,7 @@ class EpisodeStreams:
         self,
         recorder: EpisodeRecorder,
         devices: CellDevices,
-        servo: ServoLoop,
+        servo: ServoLoop | RemoteServo,
         geometry: CellGeometry,
         t0: float,
         ft_bias: np.ndarray,
@@ -80,6 +81,7 @@ class EpisodeStreams:
         window_start, window_end = self.t0 + self.k * dt_s, self.t0 + (self.k + 1) * dt_s
         self.agent_lag_s = max(time.monotonic() - window_start, 0.0)
         servo.ended.wait(timeout=max(window_end + ARRIVAL_GRACE_S - time.monotonic(), 0.0))
+        servo.sync()
         if servo.fault is not None:
             t_close = min(self.t0 + servo.fault.t_s, window_end)
         else:
@@ -122,7 +124,7 @@ class EpisodeStreams:
 
     def _read_robot(self) -> None:
         try:
-            state = self.devices.link.state()
+            state = self.servo.robot_state()
         except LinkError:
             state = self.servo.state
         self.tcp_base = np.asarray(state.tcp_pose[:3], dtype=float)

@@ -19,6 +19,7 @@ import struct
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,6 +99,8 @@ class NetFTClient:
         calibration: counts per force and torque.
         history_s: how much of the stream to keep (s).
         recv_timeout_s: socket timeout of the receive loop (bounds how long ``close`` waits).
+        on_record: called with every record as it arrives (on the receive thread), e.g. to share it with another
+            process (:class:`drillgym.envs.real.servo_shared.SharedFTRing`).
     """
 
     def __init__(
@@ -107,8 +110,10 @@ class NetFTClient:
         calibration: NetFTCalibration | None = None,
         history_s: float = 5.0,
         recv_timeout_s: float = 0.05,
+        on_record: Callable[[FTRecord], None] | None = None,
     ) -> None:
         self.address = (host, int(port))
+        self.on_record = on_record
         self.calibration = calibration or NetFTCalibration()
         self._records: deque[FTRecord] = deque(maxlen=max(int(history_s * 8000), 100))
         self._lock = threading.Lock()
@@ -146,6 +151,8 @@ class NetFTClient:
             with self._lock:
                 self._records.append(rec)
                 self.received += 1
+            if self.on_record is not None:
+                self.on_record(rec)
 
     def latest(self) -> FTRecord | None:
         """The newest record, or None before the first."""

@@ -15,7 +15,6 @@ from drillgym.envs.constants import ACTION_DIM, APPROACH_START_M, CONTROL_DT_S, 
 from drillgym.envs.metrics import EpisodeRecorder, episode_metrics
 from drillgym.envs.observation import observation_space
 from drillgym.envs.plan import DrillPlan
-from drillgym.envs.real.command_log import CommandLog
 from drillgym.envs.real.config import SafetyLimits, ServoParams
 from drillgym.envs.real.devices import CellDevices
 from drillgym.envs.real.episode import EpisodeStreams
@@ -24,6 +23,7 @@ from drillgym.envs.real.poses import rotation_angle_rad, rotvec_to_matrix
 from drillgym.envs.real.robot_link import LinkError
 from drillgym.envs.real.safety import check_safety_bits
 from drillgym.envs.real.servo import BLIND_FAULTS, CellGeometry, ServoLoop
+from drillgym.envs.real.servo_process import RemoteServo
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.task import DrillPath
 
@@ -37,7 +37,7 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     ## Description
 
     Same task, spaces and scaling as ``drillgym/UR5BoneDrill-v1`` (see its docstring): any controller runs
-    unchanged. Motion: ``servoL`` streamed at 125 Hz from a background thread (``initPeriod`` /
+    unchanged. Motion: ``servoL`` streamed at 125 Hz from a servo process of its own (``initPeriod`` /
     ``waitPeriod``); each cycle the nominal path advances by the elapsed time at the commanded feed override
     and the latest commanded correction is added (held between agent steps). ``step`` lasts one control
     period (50 ms of wall-clock time) and returns when it has passed. State from ``RTDEReceiveInterface``,
@@ -83,7 +83,9 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     ``robot_host`` (required), ``ft_sensor`` (``HOST[:PORT]``; default: ``robot_host``), ``tracker``
     (``"none"`` or ``"udp:HOST[:PORT]"``), ``ft_calibration`` (:class:`drillgym.envs.real.netft.NetFTCalibration`),
     ``dry_run`` (no control interface at all: commands are only logged), ``command_log_path`` (JSONL of every
-    command sent or, dry, not sent), ``safety_limits`` (:class:`drillgym.envs.real.config.SafetyLimits`),
+    command sent or, dry, not sent), ``servo_process`` (default True: the servo loop, the ``ur_rtde`` interfaces
+    and the F/T stream run in a process of their own at real-time priority where the OS allows it, see
+    :mod:`drillgym.envs.real.servo_process`; False: a thread in this process), ``safety_limits`` (:class:`drillgym.envs.real.config.SafetyLimits`),
     ``servo_params`` (:class:`drillgym.envs.real.config.ServoParams`), ``cell_params`` (the entry point in the base
     frame, sensor-to-chuck length, as registered on the real cell), the reward weights, and the sim's
     scenario arguments: they define the plan (β, feed, rpm, drill, stick-out, depth, cortical thickness,
@@ -106,6 +108,7 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         ft_calibration: NetFTCalibration | None = None,
         dry_run: bool = False,
         command_log_path: str | None = None,
+        servo_process: bool = True,
         safety_limits: SafetyLimits | None = None,
         servo_params: ServoParams | None = None,
         cell_params: CellParams | None = None,
@@ -132,7 +135,6 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = observation_space()  # type: ignore[assignment]
         self.recorder = EpisodeRecorder()
-        self.command_log = CommandLog(command_log_path)
         self.devices = CellDevices.open(
             robot_host,
             ft_sensor or robot_host,
@@ -140,9 +142,10 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             ft_calibration or NetFTCalibration(),
             self.servo_params,
             self.dry_run,
-            self.command_log,
+            command_log_path,
+            servo_process=servo_process,
         )
-        self.servo: ServoLoop | None = None
+        self.servo: ServoLoop | RemoteServo | None = None
         self.streams: EpisodeStreams | None = None
         state = self.devices.link.state()
         self.rtde_tcp_base = np.asarray(state.tcp_pose[:3])
@@ -198,8 +201,8 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.max_time_s = 3.0 * path.nominal_duration_s()
         t0 = time.monotonic()
         self.recorder.clear()
-        self.servo = ServoLoop(
-            link, self.devices.ft, bias, geo, path, self.limits, self.servo_params, self.scenario.force_limit_n, t0
+        self.servo = self.devices.make_servo(
+            bias, geo, path, self.limits, self.servo_params, self.scenario.force_limit_n, t0
         )
         self.streams = EpisodeStreams(self.recorder, self.devices, self.servo, geo, t0, bias, marker)
         self.prev_action = np.zeros(ACTION_DIM)
@@ -305,5 +308,4 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
                     pass
         finally:
             self.devices.close()
-            self.command_log.close()
             super().close()

@@ -1,6 +1,7 @@
 """The 125 Hz servo stream of the real cell: nominal path + latest correction, checked, then ``servoL``.
 
-A background thread owns the robot while an episode runs. Every cycle (``initPeriod`` / ``waitPeriod``)
+A background thread owns the robot while an episode runs: in the agent's process, or (the real env's default)
+in a servo process of its own (:mod:`drillgym.envs.real.servo_process`), where the agent's compute cannot delay it. Every cycle (``initPeriod`` / ``waitPeriod``)
 it advances the nominal path (:class:`drillgym.envs.task.DrillPath`) by the elapsed time at the commanded feed
 override, adds the latest correction the agent commanded (held between agent steps), rate-limits the
 target, checks every safety condition (:mod:`drillgym.envs.real.safety`) and streams ``servoL``. On any fault it
@@ -13,6 +14,7 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -21,6 +23,7 @@ from drillgym.envs.real.config import SafetyLimits, ServoParams
 from drillgym.envs.real.netft import NetFTClient
 from drillgym.envs.real.poses import matrix_to_rotvec
 from drillgym.envs.real.robot_link import LinkError, RobotLink, RobotState
+from drillgym.envs.real.servo_shared import CommandSlot
 from drillgym.envs.task import DrillPath, Phase
 
 REFUSAL_STATE_WAIT_S = 0.05
@@ -86,21 +89,27 @@ class ServoLoop:
         servo: ServoParams,
         force_limit_n: float,
         t0: float,
+        command_slot: CommandSlot | None = None,
+        ended: Any = None,
     ) -> None:
+        """One episode's stream (nothing is sent before :meth:`start`).
+
+        ``command_slot`` and ``ended`` (an ``Event``): shared with the agent's process when this runs in a servo
+        process (:mod:`drillgym.envs.real.servo_process`); by default made here.
+        """
         self.link, self.ft, self.ft_bias = link, ft, np.asarray(ft_bias, dtype=float)
         self.geo, self.path, self.limits, self.servo = geometry, path, limits, servo
         self.force_limit_n = force_limit_n
         self.t0 = t0
-        self._lock = threading.Lock()
-        self.correction_base_m = np.zeros(3)
-        self.feed_scale = 1.0
-        self.last_step_t = t0
+        self.slot = command_slot or CommandSlot()
+        self.slot.write(np.zeros(3), 1.0, t0)
         self.history_t: list[float] = []
         self.history_s: list[float] = []
         self.history_phase: list[int] = []
         self.fault: safety.Fault | None = None
         self.done_t_s: float | None = None
-        self.ended = threading.Event()
+        self.ended = ended if ended is not None else threading.Event()
+        self.ended.clear()
         self.stats = ServoStats()
         self.state = link.state()
         self.target_base_m = np.asarray(self.state.tcp_pose[:3], dtype=float)
@@ -115,15 +124,39 @@ class ServoLoop:
     def command(self, correction_base_m: np.ndarray, feed_scale: float) -> None:
         """New correction (m, base frame; clipped) and feed override, held until the next call."""
         corr = safety.clip_correction(correction_base_m, self.limits)
-        with self._lock:
-            self.correction_base_m = corr
-            self.feed_scale = float(feed_scale)
-            self.last_step_t = time.monotonic()
+        self.slot.write(corr, float(feed_scale), time.monotonic())
 
     def current_command(self) -> tuple[np.ndarray, float]:
         """The correction and feed override being streamed."""
-        with self._lock:
-            return self.correction_base_m.copy(), self.feed_scale
+        corr, scale, _ = self.slot.read()
+        return corr, scale
+
+    def sync(self) -> None:
+        """Bring the agent's view up to date (nothing to do in one process; see the servo process's proxy)."""
+
+    def robot_state(self) -> RobotState:
+        """A fresh read of the robot state (``LinkError`` if it cannot be read)."""
+        return self.link.state()
+
+    def snapshot(self, history_from: int = 0) -> dict[str, Any]:
+        """What the agent reads of the stream (picklable).
+
+        Fault, end, statistics, state, and the path history from index ``history_from`` on.
+        """
+        st = self.stats
+        n = min(len(self.history_t), len(self.history_s), len(self.history_phase))  # the thread may be appending
+        return {
+            "fault": self.fault,
+            "done_t_s": self.done_t_s,
+            "ended": self.ended.is_set(),
+            "stats": ServoStats(st.cycles, st.missed_cycles, st.max_gap_s, st.servo_call_max_s, st.stop_result),
+            "state": self.state,
+            "history": (
+                self.history_t[history_from:n],
+                self.history_s[history_from:n],
+                self.history_phase[history_from:n],
+            ),
+        }
 
     def stop(self, timeout_s: float = 5.0) -> None:
         """Stop streaming (``servoStop``) and wait for the thread."""
@@ -219,7 +252,7 @@ class ServoLoop:
             self.stats.gaps_s.append(gap_s)
 
     def _next_target(self, dt_s: float) -> np.ndarray:
-        corr, scale = self.current_command()
+        corr, scale, _ = self.slot.read()
         s = self.path.advance(dt_s, scale)
         desired = self.geo.to_base(self.geo.R_base_task.T @ corr + np.array([0.0, 0.0, s]))
         return safety.rate_limit(self.target_base_m, desired, self.limits.max_tcp_speed_m_s * max(dt_s, 1e-4))
@@ -246,8 +279,7 @@ class ServoLoop:
         fault = fault or safety.check_age("ft", None if rec is None else now - rec.t_recv_s, lim.ft_stale_s, t)
         if fault is None and rec is not None:
             fault = safety.check_force(rec.wrench - self.ft_bias, self.force_limit_n, t)
-        with self._lock:
-            idle = now - self.last_step_t
+        idle = now - self.slot.read()[2]
         if fault is None and idle > lim.agent_timeout_s:
             fault = safety.Fault("agent_timeout", f"no step() for {idle:.2f} s", t)
         return fault

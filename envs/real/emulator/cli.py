@@ -16,8 +16,10 @@ from typing import Any
 from drillgym.envs.real.emulator.config import (
     CONTROL_PORT,
     DASHBOARD_PORT,
+    PRIMARY_PORT,
     RTDE_PORT,
     SCRIPT_PORT,
+    SECONDARY_PORT,
     EmulatorConfig,
     ScheduledFault,
 )
@@ -80,6 +82,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         ("rtde", RTDE_PORT),
         ("dashboard", DASHBOARD_PORT),
         ("script", SCRIPT_PORT),
+        ("primary", PRIMARY_PORT),
+        ("secondary", SECONDARY_PORT),
         ("control", CONTROL_PORT),
         ("ft", RDT_PORT),
         ("tracker", TRACKER_PORT),
@@ -96,6 +100,8 @@ def config_from_args(args: argparse.Namespace) -> EmulatorConfig:
         rtde_port=args.rtde_port,
         dashboard_port=args.dashboard_port,
         script_port=args.script_port,
+        primary_port=args.primary_port,
+        secondary_port=args.secondary_port,
         control_port=args.control_port,
         ft_port=args.ft_port,
         ft_cal_port=args.ft_cal_port,

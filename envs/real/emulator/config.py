@@ -12,7 +12,10 @@ from drillgym.envs.scenario import Scenario
 RTDE_PORT = 30004
 DASHBOARD_PORT = 29999
 SCRIPT_PORT = 30003
-"""The secondary interface; ``ur_rtde`` 1.6.5 uploads its control program here (not to 30002)."""
+"""The real-time interface; ``ur_rtde`` 1.6.5 uploads its control program here (not to 30002)."""
+PRIMARY_PORT = 30001
+SECONDARY_PORT = 30002
+"""The primary and secondary client interfaces: they take URScript too (their state stream is not emulated)."""
 CONTROL_PORT = 30100
 """The emulator's own JSON control port (fault injection, status, truth); not a UR port."""
 FAULT_KINDS = ("protective_stop", "drop_link", "delay", "freeze_rtde", "stale_ft", "stale_tracker")
@@ -54,6 +57,8 @@ class EmulatorConfig:
     rtde_port: int = RTDE_PORT
     dashboard_port: int = DASHBOARD_PORT
     script_port: int = SCRIPT_PORT
+    primary_port: int = PRIMARY_PORT
+    secondary_port: int = SECONDARY_PORT
     control_port: int = CONTROL_PORT
     ft_port: int = RDT_PORT
     ft_cal_port: int = CAL_PORT

@@ -3,7 +3,8 @@
 Requests (``{"cmd": ...}``): ``status``; ``fault`` with ``kind`` (``protective_stop``, ``drop_link`` and
 ``freeze_rtde`` [``value``: seconds, 0 = until cleared], ``delay`` [``value``: seconds], ``stale_ft``,
 ``stale_tracker``); ``clear_faults``; ``truth`` (privileged true-tip metrics of the current specimen);
-``events`` (what the control program did); ``contract`` (recipes set up and the uploaded program, for the
+``events`` (what the control program did); ``ft_load`` (a known load on the F/T sensor, sensor frame: ``mass_kg``
+hung from the tool, m·g along -z, or ``force_n`` [fx, fy, fz]; 0 / [0, 0, 0] removes it); ``contract`` (recipes set up and the uploaded program, for the
 ``ur_rtde`` contract test); ``shutdown``. Replies carry ``"ok": true`` or ``"ok": false, "error": ...``.
 """
 
@@ -11,6 +12,10 @@ from __future__ import annotations
 
 import json
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+STANDARD_GRAVITY_M_S2 = 9.80665
 
 if TYPE_CHECKING:
     from drillgym.envs.real.emulator.server import Emulator
@@ -54,6 +59,8 @@ def handle_control(emulator: Emulator, line: str) -> tuple[dict[str, Any], bool]
                 "seed": world.specimen_seed if now else world.next_specimen_seed,
                 "hardness_factor": world.hardness_factor if now else None,
             }, False
+        if cmd == "ft_load":
+            return {"ok": True, "force_n": ft_load(emulator, request)}, False
         if cmd == "events":
             events = [{"t_s": e.t_s, "cmd": e.cmd, "detail": e.detail} for e in emulator.program.events]
             return {"ok": True, "events": events}, False
@@ -70,6 +77,18 @@ def handle_control(emulator: Emulator, line: str) -> tuple[dict[str, Any], bool]
     except (KeyError, ValueError, TypeError) as e:
         return {"ok": False, "error": f"{cmd}: {e}"}, False
     return {"ok": False, "error": f"unknown cmd {cmd!r}"}, False
+
+
+def ft_load(emulator: Emulator, request: dict[str, Any]) -> list[float]:
+    """Hang a known load on the F/T sensor (``mass_kg``: m·g along the sensor's -z; or ``force_n``, N)."""
+    if "force_n" in request:
+        force = np.asarray(request["force_n"], dtype=float).reshape(3)
+    else:
+        force = np.array([0.0, 0.0, -float(request["mass_kg"]) * STANDARD_GRAVITY_M_S2])
+    if not np.all(np.isfinite(force)):
+        raise ValueError(f"load {force.tolist()} is not finite")
+    emulator.world.ft_external = np.concatenate([force, np.zeros(3)])
+    return [float(v) for v in force]
 
 
 def status(emulator: Emulator) -> dict[str, Any]:

@@ -18,12 +18,19 @@ import time
 from pathlib import Path
 from typing import Any
 
-from drillgym.envs.real.emulator.config import CONTROL_PORT, DASHBOARD_PORT, RTDE_PORT, SCRIPT_PORT
+from drillgym.envs.real.emulator.config import (
+    CONTROL_PORT,
+    DASHBOARD_PORT,
+    PRIMARY_PORT,
+    RTDE_PORT,
+    SCRIPT_PORT,
+    SECONDARY_PORT,
+)
 from drillgym.envs.real.netft import RDT_PORT
 from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT
 
-TCP_PORTS = (RTDE_PORT, DASHBOARD_PORT, SCRIPT_PORT, CONTROL_PORT, CAL_PORT)
+TCP_PORTS = (RTDE_PORT, DASHBOARD_PORT, SCRIPT_PORT, PRIMARY_PORT, SECONDARY_PORT, CONTROL_PORT, CAL_PORT)
 UDP_PORTS = (RDT_PORT, TRACKER_PORT)
 
 

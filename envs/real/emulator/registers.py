@@ -22,6 +22,8 @@ class Registers:
     packages: int = 0
     """Input data packages received."""
     last_package_t_s: float = -1.0
+    last_package_names: tuple[str, ...] = ()
+    """The fields of the newest input data package."""
 
     def write(self, name: str, value: object, t_s: float) -> None:
         """Store one input field of a data package."""

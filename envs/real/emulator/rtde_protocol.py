@@ -45,6 +45,7 @@ OUTPUT_TYPES: dict[str, str] = {
     **{n: _V6 for n in ("actual_q", "actual_qd", "actual_current", "joint_control_output")},
     **{n: _V6 for n in ("actual_TCP_pose", "actual_TCP_speed", "actual_TCP_force")},
     **{n: _V6 for n in ("target_TCP_pose", "target_TCP_speed", "joint_temperatures", "actual_joint_voltage")},
+    "tcp_offset": _V6,
     "actual_digital_input_bits": "UINT64",
     "actual_execution_time": "DOUBLE",
     "robot_mode": "INT32",
@@ -88,6 +89,35 @@ OUTPUT_TYPES: dict[str, str] = {
     **{f"input_double_register_{i}": "DOUBLE" for i in range(48)},
 }
 """Outputs a CB3 (PolyScope 3.15) serves. Names only e-Series serve (``ft_raw_wrench``, ...) are NOT_FOUND."""
+
+NOT_EMULATED = (
+    "target_qdd",
+    "target_current",
+    "target_moment",
+    "actual_current",
+    "joint_control_output",
+    "joint_temperatures",
+    "actual_execution_time",
+    "actual_tool_accelerometer",
+    "actual_momentum",
+    "actual_main_voltage",
+    "actual_robot_voltage",
+    "actual_robot_current",
+    "actual_joint_voltage",
+    "elbow_position",
+    "elbow_velocity",
+    "standard_analog_input0",
+    "standard_analog_input1",
+    "standard_analog_output0",
+    "standard_analog_output1",
+    "io_current",
+    "tool_analog_input0",
+    "tool_analog_input1",
+    "tool_output_current",
+    "tool_temperature",
+    "actual_digital_input_bits",
+)
+"""Outputs served with constant values: an RTDE setup that asks for them is logged as such."""
 
 INPUT_TYPES: dict[str, str] = {
     **{f"input_int_register_{i}": "INT32" for i in range(48)},

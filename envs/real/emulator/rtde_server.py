@@ -100,6 +100,9 @@ class RtdeConnection:
             rate = min(max(frequency, 1.0), CB3_RATE_HZ)
             self.divider = max(round(CB3_RATE_HZ / rate), 1)
             recipe_id = 1
+            constant = [n for n in names if n in rp.NOT_EMULATED]
+            if constant:
+                self.log(f"rtde#{self.conn_id}: outputs not emulated (served as constants): {', '.join(constant)}")
         else:
             missing = [n for n, t in zip(names, types, strict=True) if t == rp.NOT_FOUND]
             self.log(f"rtde#{self.conn_id}: output setup with unknown variable(s) {missing}")
@@ -139,6 +142,7 @@ class RtdeConnection:
             self.regs.write(n, v, t_s)
         self.regs.packages += 1
         self.regs.last_package_t_s = t_s
+        self.regs.last_package_names = tuple(names)
         self.on_input(t_s)
 
     # ------------------------------------------------------------------ outbound

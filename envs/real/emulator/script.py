@@ -5,6 +5,13 @@ cycle and answers in ``output_int_register_0``: 1 ready, 2 done. Real-time comma
 processed and answered "ready" every cycle; other commands run once (until done) and wait for the client to
 clear the register (command 0). This class re-implements that behaviour (not the script) for the commands the
 drilling cell uses; any other command is logged as unsupported and answered "done" so a client never hangs.
+
+Any other program sent to a script port (30001, 30002, 30003) replaces the running one, as on a CB3 (URScript
+manual: a program sent to the primary, secondary or real-time interface is executed at once; a ``def``
+program or bare statements replace the running program, a ``sec`` program runs beside it). The emulator does
+not interpret URScript: of such a program it runs only ``set_standard_digital_out(n, b)`` statements, and logs an
+event naming what it did not run; the program then ends (runtime state STOPPED, ``ur_rtde`` sees its control
+script stopped).
 """
 
 from __future__ import annotations
@@ -51,6 +58,10 @@ READY = 1
 DONE = 2
 PROGRAM_HEADER = "def rtde_control():"
 INT_OFFSET_RE = re.compile(r"reg_offset_int = # int register offset\n(\d+)")
+DIGITAL_OUT_RE = re.compile(r"^\s*set_standard_digital_out\(\s*(\d)\s*,\s*(True|False)\s*\)\s*$")
+"""The one URScript statement the emulator runs in a foreign program (standard digital output n := b)."""
+ASYNC_RUNNING_BIT = 1 << 15
+"""``ur_rtde``'s async progress register (output int 2 + offset): bit 15 set while an async move runs."""
 
 
 @dataclass
@@ -86,12 +97,63 @@ class ControlProgram:
         self._last_packages = -1
         self.scripts_loaded = 0
         self.script_text = ""
+        self.foreign_programs = 0
+        self.digital_out_bits = 0
+        """Standard (bits 0-7), configurable (8-15) and tool (16-17) digital outputs, as ``actual_digital_output_bits``."""
+        self.async_move = False
+        self._async_writes = 0
+        self._async_op_id = 0
+        self.robot_mode = "RUNNING"
+        """``POWER_OFF``, ``IDLE`` (powered, brakes engaged) or ``RUNNING`` (dashboard ``power off``, ``power on``,
+        ``brake release``); programs run only when RUNNING."""
 
     # ------------------------------------------------------------------ lifecycle
+    def run_script(self, text: str, t_s: float, port: int) -> None:
+        """A program or statements received on a script port (see the module docstring)."""
+        if text.startswith(PROGRAM_HEADER):
+            self.load(text, t_s)
+            return
+        first = text.strip().splitlines()[0][:60] if text.strip() else ""
+        secondary = text.lstrip().startswith("sec ")
+        if not secondary:
+            self.foreign_programs += 1
+            self.stop(f"replaced by the program {first!r} sent to port {port}", t_s)
+        ran, skipped = self._run_io_statements(text)
+        kind = "secondary program (runs beside the running one)" if secondary else "program (replaced the running one)"
+        self._event(
+            t_s,
+            -1,
+            f"{kind} {first!r} on port {port}: ran {ran} set_standard_digital_out statement(s); "
+            f"{skipped} other line(s) not emulated (URScript is not interpreted); it has ended",
+        )
+
+    def _run_io_statements(self, text: str) -> tuple[int, int]:
+        ran = skipped = 0
+        for line in text.splitlines():
+            body = line.strip()
+            if not body or body.startswith("#") or body == "end" or body.startswith(("def ", "sec ")):
+                continue
+            m = DIGITAL_OUT_RE.match(body)
+            if m is None:
+                skipped += 1
+                continue
+            bit = 1 << int(m.group(1))
+            self.digital_out_bits = (
+                (self.digital_out_bits | bit) if m.group(2) == "True" else (self.digital_out_bits & ~bit)
+            )
+            ran += 1
+        return ran, skipped
+
+    def set_digital_outputs(self, mask: int, values: int, shift: int) -> None:
+        """RTDE ``*_digital_output_mask`` / ``*_digital_output`` inputs (8 bits at ``shift``)."""
+        m, v = (mask & 0xFF) << shift, (values & 0xFF) << shift
+        self.digital_out_bits = (self.digital_out_bits & ~m) | (v & m)
+
     def load(self, text: str, t_s: float) -> bool:
-        """Start an uploaded program; only ``def rtde_control():`` is understood (returns False otherwise)."""
-        if not text.startswith(PROGRAM_HEADER):
-            self._event(t_s, -1, f"unsupported program {text.splitlines()[0][:60]!r}")
+        """Start an uploaded ``def rtde_control():`` program (False, and an event, if the arm is powered off)."""
+        if self.robot_mode != "RUNNING":
+            self.stop_reason = f"program not started: robot mode {self.robot_mode} (dashboard power on, brake release)"
+            self._event(t_s, -1, self.stop_reason)
             return False
         m = INT_OFFSET_RE.search(text)
         self.offset = int(m.group(1)) if m else 0
@@ -115,6 +177,7 @@ class ControlProgram:
         self.stop_reason = reason
         self.servo_active = False
         self.world.stop_motion()
+        self._async_finished()
 
     def pause(self, reason: str, t_s: float) -> None:
         """Protective stop: the program pauses."""
@@ -141,6 +204,8 @@ class ControlProgram:
         if not self.running:
             return
         regs, off = self.regs, self.offset
+        if self.async_move and self.world.move_done():
+            self._async_finished()
         if self.watchdog_hz > 0 and t_s - regs.input_write_t_s[off] > 1.0 / self.watchdog_hz:
             self.stop(f"RTDE watchdog: no input for {t_s - regs.input_write_t_s[off]:.3f} s", t_s)
             return
@@ -166,7 +231,13 @@ class ControlProgram:
             regs.output_int[off] = DONE
 
     def on_input(self, t_s: float) -> None:
-        """Called for every input data package: counts real-time commands as they arrive."""
+        """Called for every input data package: digital outputs it sets; real-time commands as they arrive."""
+        names = self.regs.last_package_names
+        for i, kind in enumerate(("standard", "configurable", "tool")):
+            if f"{kind}_digital_output_mask" in names:
+                other = self.regs.other_inputs
+                mask, values = other[f"{kind}_digital_output_mask"], other.get(f"{kind}_digital_output", 0)
+                self.set_digital_outputs(int(mask), int(values), 8 * i)  # type: ignore[call-overload]
         if not self.running:
             return
         cmd = self.regs.input_int[self.offset]
@@ -198,14 +269,17 @@ class ControlProgram:
         self.counts[cmd] += 1
         self.pending = cmd
         if cmd == Command.MOVEL:
-            if self.regs.input_int[self.offset + 1] == 1:
-                self.unsupported[cmd] += 1
-                self._event(t_s, cmd, "asynchronous moveL is not emulated; ignored")
-                return
-            self.world.move_linear(np.array(d[:6]), d[6], t_s)
-            self._event(t_s, cmd, f"moveL to {np.round(d[:3], 6).tolist()} at {d[6]:.4f} m/s")
+            speed = d[6] * self.speed_fraction
+            self.world.move_linear(np.array(d[:6]), speed, t_s)
+            if self.regs.input_int[self.offset + 1] == 1:  # async: done at once, the arm keeps moving
+                self._async_started()
+                self.pending = None
+                self.regs.output_int[self.offset] = DONE
+            kind = "asynchronous moveL" if self.async_move else "moveL"
+            self._event(t_s, cmd, f"{kind} to {np.round(d[:3], 6).tolist()} at {speed:.4f} m/s")
         elif cmd in (Command.SERVO_STOP, Command.STOPL, Command.SPEED_STOP):
             self.world.stop_motion()
+            self._async_finished()
             self._event(t_s, cmd, f"stop (deceleration {d[0]:.2f} m/s²)")
         elif cmd == Command.SET_TCP:
             self.world.set_tcp(np.array(d[:6]))
@@ -219,6 +293,30 @@ class ControlProgram:
         else:
             self.unsupported[cmd] += 1
             self._event(t_s, cmd, "unsupported command; answered done without acting")
+
+    @property
+    def speed_fraction(self) -> float:
+        """The speed slider (RTDE ``speed_slider_fraction`` under ``speed_slider_mask``), 0..1."""
+        if not int(self.regs.other_inputs.get("speed_slider_mask", 0) or 0):  # type: ignore[call-overload]
+            return 1.0
+        value = float(self.regs.other_inputs.get("speed_slider_fraction", 1.0))  # type: ignore[arg-type]
+        return min(max(value, 0.0), 1.0)
+
+    def _write_async(self, running: bool) -> None:
+        """ur_rtde's async progress register: change count in bits 16-22, operation id in 24-30, bit 15 running."""
+        self._async_writes = (self._async_writes + 1) % 128
+        value = (self._async_writes << 16) + (self._async_op_id << 24) + (ASYNC_RUNNING_BIT if running else 0)
+        self.regs.output_int[self.offset + 2] = value
+
+    def _async_started(self) -> None:
+        self._async_op_id = (self._async_op_id + 1) % 128
+        self.async_move = True
+        self._write_async(True)
+
+    def _async_finished(self) -> None:
+        if self.async_move:
+            self.async_move = False
+            self._write_async(False)
 
     def _finished(self, cmd: int) -> bool:
         if cmd == Command.MOVEL:

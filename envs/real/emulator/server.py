@@ -1,6 +1,7 @@
 """The UR controller emulator's event loop: one thread, one ``selectors`` loop, fixed-rate ticks.
 
-Serves RTDE (30004), the dashboard (29999), the script port (30003), the ATI Net F/T RDT stream (UDP
+Serves RTDE (30004), the dashboard (29999), the script ports (30003, and 30001 / 30002, which take URScript
+too; their client state stream is not emulated), the ATI Net F/T RDT stream (UDP
 49152), a marker stream (UDP 49153) and a JSON control port (30100, fault injection and truth) on one
 loopback address. Ticks: physics 100 Hz (the simulator's F/T rate), controller 125 Hz (program cycle and
 RTDE output, as a CB3), F/T records at ``ft_rate_hz``, marker records at ``tracker_rate_hz``.
@@ -30,7 +31,8 @@ from drillgym.envs.real.emulator.world import EmulatedCell
 from drillgym.envs.real.netft_calibration import CAL_REQUEST, CMD_READCALINFO, pack_calinfo
 
 CONTROLLER_DT_S = 1.0 / CB3_RATE_HZ
-ROBOT_PORTS = ("rtde", "dashboard", "script")
+ROBOT_PORTS = ("rtde", "dashboard", "script", "primary", "secondary")
+SCRIPT_KINDS = ("script", "primary", "secondary")
 UNLOCK_WAIT_S = 5.0
 """A protective stop cannot be unlocked sooner than this after it occurred (UR Dashboard Server manual)."""
 """Listeners that a dropped link takes down (the control port stays up)."""
@@ -93,7 +95,8 @@ class Emulator:
     def open_robot_ports(self) -> None:
         """(Re)open the RTDE, dashboard and script listeners."""
         cfg = self.config
-        for name, port in zip(ROBOT_PORTS, (cfg.rtde_port, cfg.dashboard_port, cfg.script_port), strict=True):
+        robot_ports = (cfg.rtde_port, cfg.dashboard_port, cfg.script_port, cfg.primary_port, cfg.secondary_port)
+        for name, port in zip(ROBOT_PORTS, robot_ports, strict=True):
             if name not in self.listeners:
                 self._listen(name, port)
 
@@ -140,6 +143,8 @@ class Emulator:
         self.sel.register(sock, selectors.EVENT_READ, self._read_stream)
         if name == "dashboard":
             self._send_all(sock, WELCOME.encode())
+        elif name in ("primary", "secondary"):
+            self.log(f"{name} interface: client connected; it takes URScript, its robot state stream is not emulated")
 
     def _read_rtde(self, conn: RtdeConnection) -> None:
         try:
@@ -183,17 +188,17 @@ class Emulator:
         if kind == "ft_cal":
             self._answer_ft_tcp(sock, buf)
             return
-        if kind == "script":
-            if buf.startswith(b"def ") and buf.endswith(b"\nend\n"):
-                self.program.load(buf.decode(errors="replace"), self.now())
-                self.log(f"script port: program of {len(buf)} bytes received")
-                buf.clear()
+        if kind in SCRIPT_KINDS:
+            self._read_script(kind, buf)
             return
         while b"\n" in buf:
             line, _, rest = bytes(buf).partition(b"\n")
             buf[:] = rest
             if kind == "dashboard":
                 reply, close = self.dashboard.reply(line.decode(errors="replace"), self.now())
+                for note in self.dashboard.notes:
+                    self.log(f"dashboard: {note}")
+                self.dashboard.notes.clear()
                 self._send_all(sock, (reply + "\n").encode())
             else:
                 reply_obj, close = handle_control(self, line.decode(errors="replace"))
@@ -201,6 +206,22 @@ class Emulator:
             if close:
                 self._close_stream(sock)
                 return
+
+    def _read_script(self, kind: str, buf: bytearray) -> None:
+        """A ``def``/``sec`` program once its ``end`` line arrived; bare statements line by line."""
+        port = {"script": self.config.script_port, "primary": self.config.primary_port}.get(
+            kind, self.config.secondary_port
+        )
+        text = bytes(buf).lstrip()
+        if text.startswith((b"def ", b"sec ")):
+            if not text.rstrip(b" \t").endswith(b"\nend\n"):
+                return
+        elif not text.endswith(b"\n"):
+            return
+        buf.clear()
+        if text:
+            self.program.run_script(text.decode(errors="replace"), self.now(), port)
+            self.log(f"{kind} port {port}: program of {len(text)} bytes received")
 
     def _answer_ft_tcp(self, sock: socket.socket, buf: bytearray) -> None:
         """The Net F/T's TCP interface: ``READCALINFO`` answered with the configured calibration, nothing else."""
@@ -253,6 +274,8 @@ class Emulator:
             "rtde": cfg.rtde_port,
             "dashboard": cfg.dashboard_port,
             "script": cfg.script_port,
+            "primary": cfg.primary_port,
+            "secondary": cfg.secondary_port,
             "control": cfg.control_port,
             "ft": cfg.ft_port,
             "ft_cal": cfg.ft_cal_port,

@@ -1,18 +1,29 @@
 """The controller state an RTDE output package reports, from the emulated cell and program.
 
 Registers are read live by the connection; everything else is here. Modes and bits follow UR's RTDE guide:
-``robot_mode`` 7 RUNNING; ``safety_mode`` 1 NORMAL, 3 PROTECTIVE_STOP; ``robot_status_bits`` bit 0 power on,
-bit 1 program running; ``safety_status_bits`` bit 0 normal mode, bit 2 protective stopped.
+``robot_mode`` 3 POWER_OFF, 5 IDLE, 7 RUNNING; ``safety_mode`` 1 NORMAL, 3 PROTECTIVE_STOP; ``robot_status_bits``
+bit 0 power on, bit 1 program running; ``safety_status_bits`` bit 0 normal mode, bit 2 protective stopped.
+
+Motion: ``actual_qd`` / ``target_qd`` and ``actual_TCP_speed`` / ``target_TCP_speed`` are the joint and TCP
+velocities over the last 10 ms physics step (rad/s; m/s, the angular part 0: the orientation is held);
+``speed_scaling`` and ``target_speed_fraction`` the speed slider; ``actual_digital_output_bits`` the outputs set
+over RTDE or by a script; ``tcp_offset`` the configured TCP. Not emulated (constant, listed in
+:data:`drillgym.envs.real.emulator.rtde_protocol.NOT_EMULATED`): currents, torques, temperatures, voltages, accelerations, analog I/O, tool I/O.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import numpy as np
+
+from drillgym.envs.real.poses import matrix_to_pose
+
 if TYPE_CHECKING:
     from drillgym.envs.real.emulator.server import Emulator
 
 ROBOT_MODE_RUNNING = 7
+ROBOT_MODES = {"POWER_OFF": 3, "IDLE": 5, "RUNNING": 7}
 JOINT_MODE_RUNNING = 253
 SAFETY_MODE_NORMAL = 1
 SAFETY_MODE_PROTECTIVE_STOP = 3
@@ -24,9 +35,8 @@ STATUS_BIT_PROGRAM_RUNNING = 1 << 1
 _ZERO6 = (0.0,) * 6
 _STATIC: dict[str, object] = {
     **dict.fromkeys(
-        ("target_qd", "target_qdd", "target_current", "target_moment", "actual_qd", "actual_current"), _ZERO6
+        ("target_qdd", "target_current", "target_moment", "actual_current", "joint_control_output"), _ZERO6
     ),
-    **dict.fromkeys(("joint_control_output", "actual_TCP_speed", "target_TCP_speed"), _ZERO6),
     "actual_digital_input_bits": 0,
     "actual_digital_output_bits": 0,
     "joint_temperatures": (30.0,) * 6,
@@ -63,9 +73,12 @@ _STATIC: dict[str, object] = {
 def controller_state(emulator: Emulator, t_s: float) -> dict[str, object]:
     """Values of every non-register output at emulator time ``t_s``."""
     world, program = emulator.world, emulator.program
-    q = tuple(world.cell.q_motor_rad.tolist())
-    tcp = tuple(world.tcp_pose().tolist())
+    q = tuple(np.asarray(world.cell.q_motor_rad, dtype=float).tolist())
+    tcp = tuple(np.asarray(world.tcp_pose(), dtype=float).tolist())
+    qd = tuple(world.qd_rad_s.tolist())
+    tcp_speed = (*world.tcp_velocity_base_m_s.tolist(), 0.0, 0.0, 0.0)
     halted = world.halted
+    mode = ROBOT_MODES[program.robot_mode]
     state = dict(_STATIC)
     state.update(
         timestamp=t_s,
@@ -77,6 +90,16 @@ def controller_state(emulator: Emulator, t_s: float) -> dict[str, object]:
         safety_mode=SAFETY_MODE_PROTECTIVE_STOP if halted else SAFETY_MODE_NORMAL,
         safety_status_bits=SAFETY_BIT_PROTECTIVE_STOP if halted else SAFETY_BIT_NORMAL,
         runtime_state=int(program.runtime_state),
-        robot_status_bits=STATUS_BIT_POWER_ON | (STATUS_BIT_PROGRAM_RUNNING if program.running else 0),
+        robot_mode=mode,
+        robot_status_bits=(STATUS_BIT_POWER_ON if mode != ROBOT_MODES["POWER_OFF"] else 0)
+        | (STATUS_BIT_PROGRAM_RUNNING if program.running else 0),
+        actual_qd=qd,
+        target_qd=qd,
+        actual_TCP_speed=tcp_speed,
+        target_TCP_speed=tcp_speed,
+        speed_scaling=program.speed_fraction,
+        target_speed_fraction=program.speed_fraction,
+        actual_digital_output_bits=program.digital_out_bits,
+        tcp_offset=tuple(matrix_to_pose(world.T_tcp_cfg).tolist()),
     )
     return state

@@ -70,6 +70,12 @@ class EmulatedCell:
         self.seed = int(seed)
         self.specimen = -1
         self.ft_offset = np.asarray(ft_offset, dtype=float)
+        self.ft_external = np.zeros(6)
+        self.qd_rad_s = np.zeros(6)
+        """Joint velocities behind the TCP velocity (rad/s; J⁻¹ of the TCP twist, J refreshed every agent step)."""
+        self.tcp_velocity_base_m_s = np.zeros(3)
+        """TCP (rigid tip) velocity over the last physics step (m/s, base frame; the orientation is held)."""
+        """A load hung from the tool (control command ``ft_load``): N and N·m, sensor frame."""
         self.ft_bias = np.zeros(6)
         oversample = math.sqrt(max(ft_rate_hz, 100.0) / 100.0)
         noise = scenario.ft_noise_n * oversample
@@ -198,7 +204,11 @@ class EmulatedCell:
             v = self._axial_speed_m_s(t_s)
             sc = self.scenario
             cell.begin_step(sc.geometry.chip_thickness_m(max(v, 0.0), sc.spindle_rpm), max(v, 0.0) * PHYSICS_DT_S)
+        tip_before = np.array(cell.rigid_tip, dtype=float)
         smp = cell.update(tuple(self.target_task.tolist()), self.servo_gain)
+        self.tcp_velocity_base_m_s = self.R @ (np.array(cell.rigid_tip, dtype=float) - tip_before) / PHYSICS_DT_S
+        twist = np.concatenate([self.tcp_velocity_base_m_s, np.zeros(3)])
+        self.qd_rad_s = np.linalg.solve(cell.J_tcp, twist)  # the joint rates behind that TCP velocity
         self.tick += 1
         if self.tick % SUBSTEPS_PER_STEP == 0:
             cell.end_step()
@@ -217,11 +227,12 @@ class EmulatedCell:
     def ft_reading(self) -> np.ndarray:
         """One F/T reading: true wrench + noise + offset − bias (N, N·m, sensor frame)."""
         w = np.asarray(self.cell.sensor_wrench(self.cell.sample), dtype=float)
-        return w + self.ft_noise_std * self.rng.standard_normal(6) + self.ft_offset - self.ft_bias
+        return w + self.ft_noise_std * self.rng.standard_normal(6) + self.ft_offset + self.ft_external - self.ft_bias
 
     def bias_ft(self) -> None:
         """RDT software bias: zero the current (filtered, noise-free) reading."""
-        self.ft_bias = np.asarray(self.cell.sensor_wrench(self.cell.sample), dtype=float) + self.ft_offset
+        w = np.asarray(self.cell.sensor_wrench(self.cell.sample), dtype=float)
+        self.ft_bias = w + self.ft_offset + self.ft_external
 
     def marker_reading(self) -> np.ndarray:
         """Tracker marker position (m, base frame) of the deflected arm, with the scenario's noise."""

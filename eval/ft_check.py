@@ -1,0 +1,125 @@
+"""``drillgym ft-check``: check the F/T sensor's force scale with a known mass before drilling.
+
+Reads the sensor's calibration from the sensor itself (Net F/T TCP 49151, ``READCALINFO``; refused when it is not
+in N and N·m, or disagrees with ``--counts-per-force``), averages the force unloaded, asks for the known mass to be
+hung from the tool (or waits ``--wait-s`` without asking), averages again, and compares the magnitude of the force
+change with m·g (g = 9.80665 m/s², standard gravity; local g differs by less than 0.3 %). Exit status 0 when the
+relative error is within ``--tolerance-pct``, 1 when not (the force scale is wrong: do not drill), 2 on bad
+input or a sensor that cannot be read.
+
+The emulator takes a known load on its control port (``{"cmd": "ft_load", "mass_kg": M}``), so the check can
+be tried without a sensor.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from typing import Any
+
+import numpy as np
+
+STANDARD_GRAVITY_M_S2 = 9.80665
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``ft-check``."""
+    parser.add_argument("--ft", required=True, help="Net F/T HOST[:PORT] (RDT port; the calibration is read on 49151)")
+    parser.add_argument("--mass-kg", type=float, required=True, help="the known mass to hang from the tool (kg)")
+    parser.add_argument(
+        "--tolerance-pct", type=float, default=5.0, help="largest relative error of the force change vs m·g (%%)"
+    )
+    parser.add_argument("--average-s", type=float, default=1.0, help="averaging time of each reading (s)")
+    parser.add_argument(
+        "--wait-s",
+        type=float,
+        default=None,
+        help="do not ask: wait this long after the unloaded reading, then read the loaded one (s)",
+    )
+    parser.add_argument(
+        "--counts-per-force", type=float, default=None, help="expected counts per N (checked against the sensor's)"
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def _mean_force_n(ft: Any, duration_s: float) -> tuple[np.ndarray, float, int]:
+    """Mean force (N, sensor frame) over ``duration_s``, its per-axis standard deviation's norm, the count."""
+    t0 = time.monotonic()
+    time.sleep(duration_s)
+    records = ft.since(t0)
+    if len(records) < 10:
+        raise OSError(f"only {len(records)} F/T records in {duration_s:g} s: is the sensor streaming?")
+    forces = np.array([r.wrench[:3] for r in records])
+    return forces.mean(axis=0), float(np.linalg.norm(forces.std(axis=0))), len(records)
+
+
+def check(ft: Any, mass_kg: float, tolerance_pct: float, average_s: float, wait: Any) -> dict[str, Any]:
+    """Unloaded and loaded force means around ``wait()`` (which returns once the mass hangs); the verdict."""
+    unloaded, noise0, n0 = _mean_force_n(ft, average_s)
+    wait()
+    loaded, noise1, n1 = _mean_force_n(ft, average_s)
+    delta = loaded - unloaded
+    expected = mass_kg * STANDARD_GRAVITY_M_S2
+    measured = float(np.linalg.norm(delta))
+    error_pct = 100.0 * (measured - expected) / expected
+    return {
+        "mass_kg": mass_kg,
+        "expected_force_n": expected,
+        "measured_force_change_n": measured,
+        "force_change_sensor_n": delta.tolist(),
+        "error_pct": error_pct,
+        "tolerance_pct": tolerance_pct,
+        "noise_n": max(noise0, noise1),
+        "records": [n0, n1],
+        "passed": abs(error_pct) <= tolerance_pct,
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read the calibration, take the two readings, report; 1 if the force scale is off."""
+    from drillgym.envs.real.devices import split_host_port
+    from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration, NetFTClient
+    from drillgym.envs.real.netft_calibration import check_calibration, read_calibration
+
+    if not (math.isfinite(args.mass_kg) and args.mass_kg > 0):
+        raise ValueError(f"--mass-kg={args.mass_kg:g} must be > 0")
+    if not args.tolerance_pct > 0 or not args.average_s > 0 or (args.wait_s is not None and args.wait_s < 0):
+        raise ValueError("--tolerance-pct and --average-s must be > 0, --wait-s >= 0")
+    host, port = split_host_port(args.ft, RDT_PORT)
+    given = None if args.counts_per_force is None else NetFTCalibration(args.counts_per_force)
+    device = read_calibration(host)
+    calibration = check_calibration(
+        None if given is None else NetFTCalibration(given.counts_per_force, device.calibration.counts_per_torque),
+        device,
+    )
+    if args.wait_s is None and not sys.stdin.isatty():
+        raise ValueError("stdin is not a terminal: cannot ask when the mass hangs; pass --wait-s")
+
+    def wait() -> None:
+        if args.wait_s is not None:
+            time.sleep(args.wait_s)
+            return
+        input(f"Hang the {args.mass_kg:g} kg mass from the tool, let it settle, then press Enter: ")
+
+    ft = NetFTClient(host, port, calibration)
+    try:
+        if args.wait_s is None:
+            print(f"Unloaded reading ({args.average_s:g} s): keep the tool still, nothing attached.")
+        result = check(ft, args.mass_kg, args.tolerance_pct, args.average_s, wait)
+    finally:
+        ft.close()
+    result["calibration"] = {"counts_per_force": calibration.counts_per_force, "source": "sensor (READCALINFO)"}
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        verdict = "PASS" if result["passed"] else "FAIL: the force scale is off; do not drill"
+        print(
+            f"ft-check {host}:{port}: {calibration.counts_per_force:g} counts/N (from the sensor); "
+            f"{args.mass_kg:g} kg -> expected {result['expected_force_n']:.3f} N, measured "
+            f"{result['measured_force_change_n']:.3f} N ({result['error_pct']:+.2f} %, tolerance "
+            f"±{args.tolerance_pct:g} %, noise {result['noise_n']:.3f} N): {verdict}"
+        )
+    return 0 if result["passed"] else 1
