@@ -1,8 +1,8 @@
 """``drillgym bench-rtde``: timing of the 125 Hz ``servoL`` stream through the real ``ur_rtde`` client.
 
 Streams ``servoL`` for ``--seconds`` with ``initPeriod`` / ``waitPeriod`` where the real env's loop runs
-(``--loop process``, the default: a servo process of its own at real-time priority where allowed,
-:mod:`drillgym.envs.real.servo_process`; ``--loop thread``: a thread of this process, as before) and reports:
+(``--loop thread``, the default: a thread of this process, as the real env runs it by default; ``--loop
+process``: a servo process of its own at real-time priority where allowed, :mod:`drillgym.envs.real.servo_process`) and reports:
 
 * missed cycles (client side): periods in which no command went out (a late cycle counts the periods it
   skipped; the target is <= 0.1 %), and the cycle-gap distribution;
@@ -51,8 +51,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--loop",
         choices=("process", "thread"),
-        default="process",
-        help="where the stream runs: a servo process of its own (as the real env), or a thread of this process",
+        default="thread",
+        help="where the stream runs: a thread of this process (as the real env by default), or a servo process "
+        "of its own (as drillgym run --servo-process)",
     )
     parser.add_argument(
         "--load-procs", type=int, default=0, help="busy processes to run alongside (load generator; default none)"
@@ -146,7 +147,7 @@ def _stream_in_process(host: str, pose0: list[float], seconds: float, period: fl
         proc.close()
 
 
-def bench(host: str, seconds: float, loop: str = "process") -> dict[str, Any]:
+def bench(host: str, seconds: float, loop: str = "thread") -> dict[str, Any]:
     """Stream for ``seconds`` against ``host`` from ``loop`` (``process`` or ``thread``); the timing figures."""
     import rtde_receive
 

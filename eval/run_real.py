@@ -71,6 +71,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--dry-run", action="store_true", help="connect and stream nothing: log what would be sent")
     parser.add_argument("--yes", action="store_true", help="do not ask before moving the robot")
+    parser.add_argument(
+        "--servo-process",
+        action="store_true",
+        help="run the 125 Hz servo loop in a process of its own at real-time priority where allowed (default: a "
+        "thread of this process; docs/deployment.md)",
+    )
     parser.add_argument("--out", type=Path, required=True, help="output folder (logs, metrics.json, commands.jsonl)")
 
 
@@ -187,6 +193,7 @@ def run(args: argparse.Namespace) -> int:
             dry_run=args.dry_run,
             command_log_path=str(args.out / "commands.jsonl"),
             safety_limits=limits,
+            servo_process=args.servo_process,
             **scenario,
         )
     except (RuntimeError, OSError, ValueError) as e:

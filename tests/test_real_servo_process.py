@@ -54,7 +54,7 @@ def test_echo_latency_is_matched_to_the_first_state_showing_the_command():
 @pytest.mark.realtime
 def test_the_episode_runs_in_a_real_time_servo_process(start_emulator):  # noqa: F811
     emu = start_emulator()
-    env = make_real_env(emu, safety_limits=CI_LIMITS)
+    env = make_real_env(emu, safety_limits=CI_LIMITS, servo_process=True)
     try:
         process = env.unwrapped.devices.process
         assert process is not None and process.proc.is_alive()
@@ -69,7 +69,7 @@ def test_the_episode_runs_in_a_real_time_servo_process(start_emulator):  # noqa:
 @pytest.mark.realtime
 def test_the_servo_process_stops_the_robot_when_the_agents_process_goes_away(start_emulator):  # noqa: F811
     emu = start_emulator()
-    env = make_real_env(emu, safety_limits=CI_LIMITS)
+    env = make_real_env(emu, safety_limits=CI_LIMITS, servo_process=True)
     try:
         run_steps(env, make_controller("none"), max_steps=10)
         process = env.unwrapped.devices.process
@@ -85,9 +85,9 @@ def test_the_servo_process_stops_the_robot_when_the_agents_process_goes_away(sta
 
 
 @pytest.mark.realtime
-def test_the_loop_can_still_run_as_a_thread(start_emulator):  # noqa: F811
+def test_the_loop_runs_as_a_thread_by_default(start_emulator):  # noqa: F811
     emu = start_emulator()
-    env = make_real_env(emu, safety_limits=CI_LIMITS, servo_process=False)
+    env = make_real_env(emu, safety_limits=CI_LIMITS)
     try:
         assert env.unwrapped.devices.process is None
         t0 = time.monotonic()

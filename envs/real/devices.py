@@ -1,8 +1,9 @@
 """The real cell's devices, opened together and closed together: robot link, F/T sensor, tracker.
 
-By default the robot link and the F/T stream live in the servo process (:mod:`drillgym.envs.real.servo_process`)
-with the servo loop; the agent's process holds stand-ins with the same interface. ``servo_process=False`` opens
-them in the agent's process and runs the loop as a thread there.
+By default they are opened in the agent's process and the servo loop runs as a thread there. With
+``servo_process=True`` the robot link and the F/T stream live in the servo process
+(:mod:`drillgym.envs.real.servo_process`) with the servo loop, and the agent's process holds stand-ins with the
+same interface.
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ class CellDevices:
         dry_run: bool,
         command_log_path: str | None,
         first_record_timeout_s: float = 2.0,
-        servo_process: bool = True,
+        servo_process: bool = False,
     ) -> CellDevices:
         """Connect everything; on any failure close what was opened and raise with what failed.
 
