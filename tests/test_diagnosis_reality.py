@@ -9,6 +9,7 @@ import pytest
 from test_diagnosis_effects import QUIET, scripted_channels
 
 from drillgym.envs.effects import CHANNEL_GROUPS, EFFECTS
+from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
 from drillgym.eval.diagnosis.reality.bone import ForceScaleReset
 from drillgym.eval.diagnosis.reality.generate import build_reality, make_reality
 from drillgym.eval.diagnosis.reality.library import REALITY_EFFECTS
@@ -54,7 +55,8 @@ def test_reality_effects_are_separate_classes_mapped_to_candidates():
         assert cls not in EFFECTS.values() and name not in EFFECTS
         assert cls.explains is None or cls.explains in EFFECTS
         assert (cls.explains is None) == (cls.location is not None)
-    assert {c.explains for c in REALITY_EFFECTS.values()} - {None} == set(EFFECTS)  # each candidate has a truth
+    # each default candidate of the diagnosis has a truth among the reality effects
+    assert {c.explains for c in REALITY_EFFECTS.values()} - {None} == set(DIAGNOSIS_CANDIDATES)
     assert any(c.explains is None for c in REALITY_EFFECTS.values())  # and one effect is outside the library
 
 
