@@ -23,7 +23,7 @@ from drillgym.envs.real.config import SafetyLimits, ServoParams
 from drillgym.envs.real.netft import NetFTClient
 from drillgym.envs.real.poses import matrix_to_rotvec
 from drillgym.envs.real.robot_link import LinkError, RobotLink, RobotState
-from drillgym.envs.real.servo_shared import CommandSlot
+from drillgym.envs.real.servo_shared import CommandSlot, HeldCommand
 from drillgym.envs.task import DrillPath, Phase
 
 REFUSAL_STATE_WAIT_S = 0.05
@@ -75,7 +75,7 @@ class CellGeometry:
         return self.entry_base_m + self.R_base_task @ np.asarray(p_task_m, dtype=float)
 
 
-class ServoLoop:
+class ServoLoop(HeldCommand):
     """Streams one episode's path; one instance per episode (``start`` once, ``stop`` when done)."""
 
     def __init__(
@@ -120,16 +120,6 @@ class ServoLoop:
     def start(self) -> None:
         """Start streaming."""
         self._thread.start()
-
-    def command(self, correction_base_m: np.ndarray, feed_scale: float) -> None:
-        """New correction (m, base frame; clipped) and feed override, held until the next call."""
-        corr = safety.clip_correction(correction_base_m, self.limits)
-        self.slot.write(corr, float(feed_scale), time.monotonic())
-
-    def current_command(self) -> tuple[np.ndarray, float]:
-        """The correction and feed override being streamed."""
-        corr, scale, _ = self.slot.read()
-        return corr, scale
 
     def sync(self) -> None:
         """Bring the agent's view up to date (nothing to do in one process; see the servo process's proxy)."""

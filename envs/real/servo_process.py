@@ -47,7 +47,7 @@ from drillgym.envs.real.config import SafetyLimits, ServoParams
 from drillgym.envs.real.netft import FTRecord, NetFTCalibration, NetFTClient
 from drillgym.envs.real.robot_link import BLOCKING_TIMEOUT_S, LinkError, RobotLink, RobotState
 from drillgym.envs.real.servo import CellGeometry, ServoLoop, ServoStats
-from drillgym.envs.real.servo_shared import SharedCommandSlot, SharedFTRing
+from drillgym.envs.real.servo_shared import HeldCommand, SharedCommandSlot, SharedFTRing
 from drillgym.envs.task import DrillPath
 
 LOG = logging.getLogger(__name__)
@@ -439,7 +439,7 @@ class RemoteFT:
         """Nothing to do: the servo process owns the stream."""
 
 
-class RemoteServo:
+class RemoteServo(HeldCommand):
     """:class:`ServoLoop`'s agent side, for a loop running in the servo process.
 
     ``command`` writes the shared slot (no call); ``sync`` (once per agent step) fetches the fault, the end,
@@ -483,16 +483,6 @@ class RemoteServo:
         """Start streaming."""
         self.process.call("servo", "start")
         self._started = True
-
-    def command(self, correction_base_m: np.ndarray, feed_scale: float) -> None:
-        """New correction (m, base frame; clipped) and feed override, held until the next call."""
-        corr = safety.clip_correction(correction_base_m, self.limits)
-        self.slot.write(corr, float(feed_scale), time.monotonic())
-
-    def current_command(self) -> tuple[np.ndarray, float]:
-        """The correction and feed override being streamed."""
-        corr, scale, _ = self.slot.read()
-        return corr, scale
 
     def sync(self) -> None:
         """Fetch the stream's fault, end, statistics, state, new path history and a fresh robot state."""

@@ -14,10 +14,13 @@ from __future__ import annotations
 
 import multiprocessing
 import threading
+import time
 from typing import Any
 
 import numpy as np
 
+from drillgym.envs.real import safety
+from drillgym.envs.real.config import SafetyLimits
 from drillgym.envs.real.netft import FTRecord
 
 _SLOT_SIZE = 5
@@ -161,3 +164,24 @@ class SharedFTRing:
 
 def _record(row: np.ndarray) -> FTRecord:
     return FTRecord(float(row[0]), int(row[1]), int(row[2]), np.array(row[3:9]))
+
+
+class HeldCommand:
+    """The agent's side of the command slot, for the servo loop and its stand-in in the agent's process.
+
+    ``command`` clips and writes the correction (m, base frame) and feed override, held until the next call;
+    ``current_command`` reads what is being streamed. Needs ``slot`` and ``limits``.
+    """
+
+    slot: CommandSlot
+    limits: SafetyLimits
+
+    def command(self, correction_base_m: np.ndarray, feed_scale: float) -> None:
+        """New correction (m, base frame; clipped) and feed override, held until the next call."""
+        corr = safety.clip_correction(correction_base_m, self.limits)
+        self.slot.write(corr, float(feed_scale), time.monotonic())
+
+    def current_command(self) -> tuple[np.ndarray, float]:
+        """The correction and feed override being streamed."""
+        corr, scale, _ = self.slot.read()
+        return corr, scale
