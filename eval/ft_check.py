@@ -34,6 +34,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--average-s", type=float, default=1.0, help="averaging time of each reading (s)")
     parser.add_argument(
+        "--settle-s",
+        type=float,
+        default=0.5,
+        help="records ignored after the mass is hung, while it stops swinging and the reading settles (s)",
+    )
+    parser.add_argument(
         "--wait-s",
         type=float,
         default=None,
@@ -56,10 +62,17 @@ def _mean_force_n(ft: Any, duration_s: float) -> tuple[np.ndarray, float, int]:
     return forces.mean(axis=0), float(np.linalg.norm(forces.std(axis=0))), len(records)
 
 
-def check(ft: Any, mass_kg: float, tolerance_pct: float, average_s: float, wait: Any) -> dict[str, Any]:
-    """Unloaded and loaded force means around ``wait()`` (which returns once the mass hangs); the verdict."""
+def check(
+    ft: Any, mass_kg: float, tolerance_pct: float, average_s: float, wait: Any, settle_s: float = 0.5
+) -> dict[str, Any]:
+    """Unloaded and loaded force means around ``wait()`` (which returns once the mass hangs); the verdict.
+
+    The loaded mean starts ``settle_s`` after ``wait()`` returns: a hung mass swings, and the records in flight
+    when it was hung still hold the unloaded force.
+    """
     unloaded, noise0, n0 = _mean_force_n(ft, average_s)
     wait()
+    time.sleep(settle_s)
     loaded, noise1, n1 = _mean_force_n(ft, average_s)
     delta = loaded - unloaded
     expected = mass_kg * STANDARD_GRAVITY_M_S2
@@ -88,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--mass-kg={args.mass_kg:g} must be > 0")
     if not args.tolerance_pct > 0 or not args.average_s > 0 or (args.wait_s is not None and args.wait_s < 0):
         raise ValueError("--tolerance-pct and --average-s must be > 0, --wait-s >= 0")
+    if not args.settle_s >= 0:
+        raise ValueError(f"--settle-s={args.settle_s} must be >= 0")
     host, port = split_host_port(args.ft, RDT_PORT)
     given = None if args.counts_per_force is None else NetFTCalibration(args.counts_per_force)
     device = read_calibration(host)
@@ -108,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         if args.wait_s is None:
             print(f"Unloaded reading ({args.average_s:g} s): keep the tool still, nothing attached.")
-        result = check(ft, args.mass_kg, args.tolerance_pct, args.average_s, wait)
+        result = check(ft, args.mass_kg, args.tolerance_pct, args.average_s, wait, args.settle_s)
     finally:
         ft.close()
     result["calibration"] = {"counts_per_force": calibration.counts_per_force, "source": "sensor (READCALINFO)"}
