@@ -17,6 +17,7 @@ from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
+from drillgym.envs.effects.cells import cell_effects_spec
 from drillgym.eval.suites import SUITES
 
 
@@ -108,7 +109,6 @@ def clear_previous_run(out: Path) -> None:
 def check_arguments(args: argparse.Namespace) -> list[str]:
     """Controller specs after validating every argument (raises ``ValueError`` with a clear message)."""
     from drillgym.controllers import make_controller
-    from drillgym.envs.effects.cells import cell_effects_spec
 
     if args.suite not in SUITES:
         raise ValueError(f"unknown suite {args.suite!r}; choose from {', '.join(SUITES)}")
@@ -152,8 +152,6 @@ def run(args: argparse.Namespace) -> int:
     from drillgym.eval.suites import suite_scenarios
 
     out: Path = args.out
-    from drillgym.envs.effects.cells import cell_effects_spec
-
     scenarios = suite_scenarios(args.suite)
     effects = cell_effects_spec(getattr(args, "cell", "ideal"))
     jobs = []

@@ -67,10 +67,14 @@ def explain(names: list[str], settings: dict[str, int], workers: int) -> dict[st
 
     fit_seeds = list(range(settings["fit_seeds"]))
     predict_seeds = list(range(settings["predict_seeds"]))
+    if len(fit_seeds) > len(predict_seeds):
+        raise ValueError("the fit cannot use more seeds than the prediction")
     targets = calibration_targets()
     nominal_pred = simulate(None, 0.0, RUNS, predict_seeds)
     seed_sd = seed_scatter(nominal_pred)
-    nominal_fit = nominal_outcome(targets, seed_sd, means(simulate(None, 0.0, CALIBRATION_RUNS, fit_seeds)))
+    # the fit's seeds are the first of the prediction's, so the nominal cell's calibration runs are already done
+    fitted = {run: {k: v[: len(fit_seeds)] for k, v in nominal_pred[run].items()} for run in CALIBRATION_RUNS}
+    nominal_fit = nominal_outcome(targets, seed_sd, means(fitted))
     close()
     jobs = [
         (n, targets, seed_sd, fit_seeds, predict_seeds, settings["grid_points"], settings["refine_evals"])
