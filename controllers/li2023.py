@@ -70,6 +70,9 @@ class Li2023Config:
     axes: str = "xy"
     """Task axes compensated: ``"xy"`` (both across the drill) or ``"x"`` (Li's main deviation direction only;
     here the spindle's tangential force also pushes the tip along y, ~0.4 of x)."""
+    y_gain: float = 1.0
+    """Multiplier on the total correction (offline + online) along task y, across the plane of inclination,
+    where the spindle's tangential cutting force pushes the tip (Li has one gain for both axes: 1)."""
 
     def __post_init__(self) -> None:
         if self.filter_samples < 1 or self.filter_samples % SUBSTEPS_PER_STEP:
@@ -84,6 +87,8 @@ class Li2023Config:
             raise ValueError(f"prediction_points={self.prediction_points} must be >= 1")
         if not all(math.isfinite(v) for v in (self.kp, self.ki, self.kd)):
             raise ValueError("kp, ki and kd must be finite")
+        if not (math.isfinite(self.y_gain) and 0.0 <= self.y_gain <= 3.0):
+            raise ValueError(f"y_gain={self.y_gain} must lie in [0, 3]")
 
 
 class Li2023Controller(Controller):
@@ -153,7 +158,11 @@ class Li2023Controller(Controller):
         online = self._online_at(t + CONTROL_DT_S) if cfg.online else np.zeros(3)
         offline = self.offline_correction_base_m(float(obs["path_depth_m"][0])) if cfg.offline else np.zeros(3)
         self.step += 1
-        total = np.clip(offline + online, -cfg.max_correction_m, cfg.max_correction_m)
+        total = offline + online
+        if cfg.y_gain != 1.0:
+            y_base = self.R[:, 1]
+            total = total + (cfg.y_gain - 1.0) * float(y_base @ total) * y_base
+        total = np.clip(total, -cfg.max_correction_m, cfg.max_correction_m)
         return unscale_action(total, 1.0)
 
     def _compensation_point(self, obs: dict[str, np.ndarray], t: float) -> None:

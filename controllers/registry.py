@@ -30,9 +30,15 @@ CONTROLLERS: dict[str, tuple[Callable[[Any], Controller], type]] = {
 
 PRESETS: dict[str, str] = {
     "li2023_slow_entry": "li2023:kp=3,entry_feed_scale=0.4,entry_depth_mm=1",
+    "li2023_tuned": "li2023:kp=3,y_gain=1.3,entry_feed_scale=0.45,entry_depth_mm=1.25",
 }
-"""Named specs. ``li2023_slow_entry`` is the strongest classical baseline: li2023 with a slow entry and its
-proportional gain tuned together on the paper and sweep suites (``docs/controllers.md``, ``drillgym tune-entry``)."""
+"""Named specs, each tuned on the paper and sweep suites only (``docs/controllers.md``, ``drillgym tune-entry``).
+``li2023_slow_entry``: li2023 with a slow entry and its proportional gain tuned together (round 2).
+``li2023_tuned``, the strongest classical baseline: the same with a stronger correction across the plane of
+inclination (``y_gain``) tuned with the schedule (round 3)."""
+
+BEST_CLASSICAL = "li2023_tuned"
+"""The strongest classical baseline: the default a learnt policy is judged against."""
 
 
 LOADER_GROUP = "drillgym.controllers"

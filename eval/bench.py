@@ -17,6 +17,7 @@ from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
+from drillgym.controllers.registry import BEST_CLASSICAL
 from drillgym.envs.effects.cells import cell_effects_spec
 from drillgym.eval.suites import SUITES
 
@@ -26,10 +27,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--suite", default="paper", help=f"scenario suite: {', '.join(SUITES)} (default paper)")
     parser.add_argument(
         "--controllers",
-        default="none,li2023,li2023_slow_entry",
+        default=f"none,li2023,{BEST_CLASSICAL}",
         help="comma-separated controller specs, the first is the baseline, e.g. none,li2023,li2023:kp=1.0,ki=0.5 "
-        "(a field=value item continues the spec before it; li2023_slow_entry is the strongest classical baseline; "
-        "default none,li2023,li2023_slow_entry)",
+        f"(a field=value item continues the spec before it; {BEST_CLASSICAL} is the strongest classical baseline; "
+        f"default none,li2023,{BEST_CLASSICAL})",
     )
     parser.add_argument(
         "--cell",

@@ -59,7 +59,7 @@ def write_report(
         "(Student t). Scenario: β 30°, 0.5 mm/s, 20,000 rpm, 1.5 mm two-lip drill, buffalo cortical bone "
         "(Li Table 2). Kind: **calibration** = fitted to this paper number; **prediction** = not fitted; "
         "**check** = physics or identification test; **baseline** = a classical controller beyond the paper "
-        "(`li2023_slow_entry`, the strongest hand-made baseline, `docs/controllers.md`); **learned** = the shipped "
+        "(`li2023_tuned`, the strongest hand-made baseline, `docs/controllers.md`); **learned** = the shipped "
         "residual policy (not in the paper). Regenerate with `drillgym reproduce`.",
         "",
         md_table(["quantity", "unit", "paper", "sim [95% CI]", "rel. err", "kind", "note"], [_cells(r) for r in rows]),

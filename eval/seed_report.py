@@ -4,7 +4,7 @@ Agarwal et al. 2021, "Deep RL at the edge of the statistical precipice": a polic
 summarised by the interquartile mean (IQM) of its per-run, per-task scores with a stratified-bootstrap confidence
 interval, and by the probability of improvement over each baseline. Here a *run* is one training seed of the
 policy (``"seed0"`` ...) and a *task* is one scenario of a suite; a run's score on a task is the mean of the metric
-over the episode seeds. The baselines (``li2023``, ``li2023_slow_entry``, ...) are deterministic, not trained:
+over the episode seeds. The baselines (``li2023``, ``li2023_tuned``, ...) are deterministic, not trained:
 they have one run, labelled ``""``.
 
 Lower is better for every metric used here (``deviation_mean_mm`` in mm, ``lateral_force_max_n`` in N,
@@ -424,7 +424,7 @@ def seed_checks(episodes: pd.DataFrame, best_baseline: str, reference: str = "li
 
     Args:
         episodes: one row per episode; the policy's rows have ``controller == "policy"`` and their run in ``run``.
-        best_baseline: the strongest baseline's label, e.g. ``"li2023_slow_entry"``.
+        best_baseline: the strongest baseline's label, e.g. ``"li2023_tuned"``.
         reference: the paper's compensator's label, ``"li2023"``.
 
     Returns:

@@ -20,6 +20,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from drillgym.controllers.registry import BEST_CLASSICAL
 from drillgym.training import train
 from drillgym.training.config import load_config, resolve_config
 
@@ -45,11 +46,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--retrain", action="store_true", help="train seeds that already have a policy again")
     group.add_argument(
         "--baselines",
-        default="li2023,li2023_slow_entry",
-        help="baseline controller specs to judge the policies against (default li2023,li2023_slow_entry)",
+        default=f"li2023,{BEST_CLASSICAL}",
+        help=f"baseline controller specs to judge the policies against (default li2023,{BEST_CLASSICAL})",
     )
     group.add_argument(
-        "--best-baseline", default="li2023_slow_entry", help="the strongest baseline (default li2023_slow_entry)"
+        "--best-baseline", default=BEST_CLASSICAL, help=f"the strongest baseline (default {BEST_CLASSICAL})"
     )
     group.add_argument("--reference", default="li2023", help="the paper's compensator (default li2023)")
     group.add_argument("--eval-suites", default="paper,heldout", help="suites to judge on (default paper,heldout)")

@@ -52,6 +52,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="also tune the base's proportional gain kp over these values (default: keep the base's)",
     )
+    parser.add_argument(
+        "--y-gains",
+        type=comma_floats,
+        default=None,
+        help="also tune li2023's y_gain (its correction across the plane of inclination) over these values "
+        "(default: keep the base's)",
+    )
     parser.add_argument("--suites", default=",".join(TUNING_SUITES), help="tuning suites (default paper,sweep)")
     parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 per scenario (default 5)")
     parser.add_argument(
@@ -61,15 +68,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("results/tune_entry"), help="output folder")
 
 
+def gain_settings(kps: list[float] | None = None, y_gains: list[float] | None = None) -> list[str]:
+    """The base's gain settings tried, as spec fields ending in a comma (kp-major order; ``[""]`` for none)."""
+    kp_items = [f"kp={k:g}," for k in kps] if kps else [""]
+    y_items = [f"y_gain={y:g}," for y in y_gains] if y_gains else [""]
+    return [k + y for k in kp_items for y in y_items]
+
+
 def candidate_specs(
-    base: str, scales: list[float], depths_mm: list[float], kps: list[float] | None = None
+    base: str,
+    scales: list[float],
+    depths_mm: list[float],
+    kps: list[float] | None = None,
+    y_gains: list[float] | None = None,
 ) -> list[str]:
     """The base alone, then the base with each (multiplier, depth) schedule, as controller specs.
 
-    With ``kps`` every schedule is tried at each of these gains (kp-major order).
+    With ``kps`` and/or ``y_gains`` every schedule is tried at each of these gain settings (kp-major order).
     """
     sep = "," if ":" in base else ":"
-    gains = [f"kp={k:g}," for k in kps] if kps else [""]
+    gains = gain_settings(kps, y_gains)
     return [base] + [
         f"{base}{sep}{g}entry_feed_scale={s:g},entry_depth_mm={d:g}" for g in gains for s in scales for d in depths_mm
     ]
@@ -121,7 +139,9 @@ def check_arguments(args: argparse.Namespace) -> tuple[list[str], list[str]]:
         raise ValueError("--seeds and --workers must be >= 1")
     if args.kps and "kp=" in args.base:
         raise ValueError("--kps tunes the base's kp: leave kp out of --base")
-    specs = candidate_specs(args.base, args.scales, args.depths_mm, args.kps)
+    if args.y_gains and "y_gain=" in args.base:
+        raise ValueError("--y-gains tunes the base's y_gain: leave y_gain out of --base")
+    specs = candidate_specs(args.base, args.scales, args.depths_mm, args.kps, args.y_gains)
     for spec in specs:
         make_controller(spec)
     return suites, specs
@@ -161,6 +181,7 @@ def _write_markdown(out: Path, grid: pd.DataFrame, best: str, args: argparse.Nam
         "",
         f"Suites {args.suites}, seeds 0..{args.seeds - 1}, the same episodes for every candidate"
         + (f", gains kp {args.kps}" if args.kps else "")
+        + (f", y gains {args.y_gains}" if args.y_gains else "")
         + ". Objective: "
         "mean deviation averaged over the suites; feasible: peak lateral force not above the base's on any "
         f"suite and paper drill time at most +{args.max_time_increase:.0%}.",
@@ -183,14 +204,18 @@ def _plot(path: Path, grid: pd.DataFrame, args: argparse.Namespace, best: str) -
     import matplotlib.pyplot as plt
     import numpy as np
 
-    gains = [f"kp={k:g}" for k in args.kps] if args.kps else [""]
+    gains = [g.rstrip(",").replace(",", ", ") for g in gain_settings(args.kps, args.y_gains)]
     shape = (len(gains), len(args.scales), len(args.depths_mm))
     values = grid["objective_mm"].to_numpy()[1:].reshape(shape)
     feasible = grid["feasible"].to_numpy()[1:].reshape(shape)
     specs = grid["controller"].to_numpy()[1:].reshape(shape)
-    fig, axes = plt.subplots(1, len(gains), figsize=(6 * len(gains), 4), squeeze=False)
+    ncols = min(len(gains), 4)
+    nrows = -(-len(gains) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(6 * ncols, 4 * nrows), squeeze=False)
+    for ax in axes.flat[len(gains) :]:
+        ax.set_visible(False)
     lo, hi = float(np.nanmin(values)), float(np.nanmax(values))
-    for g, ax in enumerate(axes[0]):
+    for g, ax in enumerate(axes.flat[: len(gains)]):
         im = ax.imshow(values[g], cmap="viridis_r", aspect="auto", vmin=lo, vmax=hi)
         for i in range(shape[1]):
             for j in range(shape[2]):

@@ -84,6 +84,16 @@ def test_the_slow_entry_preset_is_li2023_with_a_schedule_and_takes_overrides():
     assert desc["name"] == "li2023" and desc["config"]["entry_depth_mm"] == float(expected["entry_depth_mm"])
 
 
+def test_the_tuned_preset_is_the_best_classical_baseline_with_its_y_gain():
+    from drillgym.controllers.registry import BEST_CLASSICAL
+
+    assert BEST_CLASSICAL in PRESETS
+    c = make_controller(BEST_CLASSICAL)
+    fields = dict(item.split("=") for item in PRESETS[BEST_CLASSICAL].partition(":")[2].split(","))
+    assert isinstance(c, SlowEntry) and c.config.y_gain == float(fields["y_gain"]) != 1.0
+    assert c.config.kp == float(fields["kp"]) and c.schedule.entry_depth_mm == float(fields["entry_depth_mm"])
+
+
 def test_li2023_cmrr_takes_li2023s_correction_and_zhangs_feed():
     combo = make_controller("li2023_cmrr")
     li, zhang = make_controller("li2023"), make_controller("zhang2005:deformation=false")

@@ -100,6 +100,21 @@ def test_li2023_correction_is_clipped_to_the_action_range():
     assert np.max(np.abs(_correction_base_m(action))) <= MAX_CORRECTION_M + 1e-12
 
 
+def test_li2023_y_gain_scales_only_the_correction_across_the_plane_of_inclination():
+    force_task = (-0.4, -0.3, -5.0)  # downhill and across: both lateral axes get a correction
+    runs = {}
+    for y_gain in (1.0, 1.5):
+        c = Li2023Controller(Li2023Config(y_gain=y_gain))
+        c.set_plan(_plan())
+        runs[y_gain] = np.array([_correction_base_m(c.predict(_obs(force_task))[0]) for _ in range(60)]) @ R_BASE_TASK
+    assert np.abs(runs[1.0][:, 1]).max() > 1e-5  # y is corrected at all
+    assert np.allclose(runs[1.5][:, 0], runs[1.0][:, 0], atol=1e-9)  # x unchanged (actions are float32)
+    assert np.allclose(runs[1.5][:, 1], 1.5 * runs[1.0][:, 1], rtol=1e-5, atol=1e-9)  # y times the gain
+    assert np.allclose(runs[1.5][:, 2], 0.0, atol=1e-9)  # never along the drill
+    with pytest.raises(ValueError, match="y_gain"):
+        Li2023Config(y_gain=float("nan"))
+
+
 def test_li2023_rejects_a_filter_that_is_not_whole_agent_steps():
     with pytest.raises(ValueError, match="filter_samples"):
         Li2023Config(filter_samples=7)

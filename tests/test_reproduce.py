@@ -23,7 +23,7 @@ def test_reproduce_quick_writes_report_rows_and_figures(tmp_path, capsys):
     assert (
         {"calibration", "prediction", "check"} <= kinds <= {"calibration", "prediction", "check", "baseline", "learned"}
     )
-    assert "mean tip deviation, li2023_slow_entry (best classical baseline)" in names
+    assert "mean tip deviation, li2023_tuned (best classical baseline)" in names
     report = (tmp_path / "report.md").read_text()
     assert "## Calibration" in report and "prediction" in report
     for png in (
@@ -41,7 +41,7 @@ def test_terminal_table_keeps_every_name_and_unit_whole(capsys):
     from drillgym.eval.reproduce import Row
     from drillgym.eval.reproduce_report import headline
 
-    long_name = "mean tip deviation, li2023_slow_entry (best classical baseline)"
+    long_name = "mean tip deviation, li2023_tuned (best classical baseline)"
     rows = [
         Row(long_name, "mm", None, 0.05, "baseline", None),
         Row("identified K_theta1", "kN m/rad", 25.3, 25.0, "check"),

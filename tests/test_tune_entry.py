@@ -30,6 +30,15 @@ def test_with_gains_every_schedule_is_tried_at_every_gain_after_the_base_alone()
     ]
 
 
+def test_y_gains_multiply_the_gain_settings_kp_first():
+    specs = candidate_specs("li2023", [0.5], [1.0], kps=[3.0], y_gains=[1.0, 1.4])
+    assert specs == [
+        "li2023",
+        "li2023:kp=3,y_gain=1,entry_feed_scale=0.5,entry_depth_mm=1",
+        "li2023:kp=3,y_gain=1.4,entry_feed_scale=0.5,entry_depth_mm=1",
+    ]
+
+
 def _episodes(rows):
     cols = ["controller", "suite", "deviation_mean_mm", "lateral_force_max_n", "drill_time_s"]
     return pd.DataFrame(rows, columns=cols)
