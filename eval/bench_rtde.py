@@ -10,7 +10,11 @@ process``: a servo process of its own at real-time priority where allowed, :mod:
   ``target_TCP_pose`` shows that command, median and p99. Each command carries its cycle number in the target's
   z, in 1 nm steps (at most 1 µm away from the start pose); the emulator echoes the servo target exactly. A real
   controller reports its interpolated target instead, so there the latency is ``n/a``;
-* with the emulator: controller cycles that saw no new command while servoing (robot side).
+* with the emulator: controller cycles that saw no new command while servoing (robot side);
+* the platform floor (unless ``--no-floor``): a bare sleep loop at the same rate, in the same place and at the
+  same priority, timed right after the stream for as long under the same load. Its missed periods are what the
+  machine itself loses (a 2-vCPU virtual machine loses wake-ups even for a ``SCHED_FIFO`` loop when its other
+  vCPU is busy), so the stream's own share is the difference.
 
 ``--load-procs N`` starts N busy processes (``python -c "while True: pass"``, ordinary priority) for the run and
 ends them afterwards: the load the acceptance test runs under (two on a 2-core machine). The load average
@@ -36,6 +40,8 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs.real.servo_bench import missed_periods
+
 POLL_S = 0.0002
 """How often the state is polled for the echo (s)."""
 LATENCY_MAX_S = 1.0
@@ -57,6 +63,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--load-procs", type=int, default=0, help="busy processes to run alongside (load generator; default none)"
+    )
+    parser.add_argument(
+        "--no-floor",
+        action="store_true",
+        help="skip the platform floor (a bare sleep loop at the same rate and priority, timed after the stream for "
+        "as long; it doubles the run time)",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--yes", action="store_true", help="confirm streaming to a real robot (--robot)")
@@ -120,20 +132,37 @@ def busy_processes(n: int) -> Iterator[list[int]]:
             p.wait(timeout=5.0)
 
 
-def _stream_in_thread(host: str, pose0: list[float], seconds: float, period: float) -> tuple[dict[str, Any], str]:
+def _stream_in_thread(
+    host: str, pose0: list[float], seconds: float, period: float, floor: bool = False
+) -> tuple[dict[str, Any], str]:
     import rtde_control
 
     from drillgym.envs.real.servo_bench import stream_coded_targets
 
     control = rtde_control.RTDEControlInterface(host, 125.0)
     try:
-        return stream_coded_targets(control, pose0, seconds, period), "thread of the benchmark's process"
+        result = stream_coded_targets(control, pose0, seconds, period)
     finally:
         control.stopScript()
         control.disconnect()
+    if floor:
+        result["floor"] = _floor_in_thread(seconds, period)
+    return result, "thread of the benchmark's process"
 
 
-def _stream_in_process(host: str, pose0: list[float], seconds: float, period: float) -> tuple[dict[str, Any], str]:
+def _floor_in_thread(seconds: float, period: float) -> dict[str, Any]:
+    from drillgym.envs.real.servo_bench import sleep_floor
+
+    out: dict[str, Any] = {}
+    thread = threading.Thread(target=lambda: out.update(sleep_floor(seconds, period)), name="floor")
+    thread.start()
+    thread.join()
+    return out
+
+
+def _stream_in_process(
+    host: str, pose0: list[float], seconds: float, period: float, floor: bool = False
+) -> tuple[dict[str, Any], str]:
     from drillgym.envs.real.config import ServoParams
     from drillgym.envs.real.netft import NetFTCalibration
     from drillgym.envs.real.servo_process import ServoProcess, ServoProcessSpec
@@ -142,13 +171,19 @@ def _stream_in_process(host: str, pose0: list[float], seconds: float, period: fl
     try:
         result = proc.call("bench", "stream", pose0, seconds, period, timeout_s=seconds + 30.0)
         proc.call("link", "stop_script")
+        if floor:
+            result["floor"] = proc.call("bench", "floor", seconds, period, timeout_s=seconds + 30.0)
         return result, f"servo process ({proc.scheduling})"
     finally:
         proc.close()
 
 
-def bench(host: str, seconds: float, loop: str = "thread") -> dict[str, Any]:
-    """Stream for ``seconds`` against ``host`` from ``loop`` (``process`` or ``thread``); the timing figures."""
+def bench(host: str, seconds: float, loop: str = "thread", floor: bool = False) -> dict[str, Any]:
+    """Stream for ``seconds`` against ``host`` from ``loop`` (``process`` or ``thread``); the timing figures.
+
+    ``floor``: then, in the same place and under the same load, time a bare sleep loop at the same rate for as
+    long (:func:`drillgym.envs.real.servo_bench.sleep_floor`): what the machine itself loses.
+    """
     import rtde_receive
 
     receive = rtde_receive.RTDEReceiveInterface(host, 125.0, ["timestamp", "actual_TCP_pose", "target_TCP_pose"])
@@ -159,18 +194,18 @@ def bench(host: str, seconds: float, loop: str = "thread") -> dict[str, Any]:
     stream = _stream_in_process if loop == "process" else _stream_in_thread
     try:
         watcher.start()
-        sent, where = stream(host, pose0, seconds, period)
+        sent, where = stream(host, pose0, seconds, period, floor)
     finally:
         stop.set()
         watcher.join(timeout=1.0)
         receive.disconnect()
     send_t, n_cycles = sent["send_t"], sent["cycles"]
     gaps = np.diff(send_t).tolist()
-    missed = sum(round(g / period) - 1 for g in gaps if g > 1.5 * period)
+    missed = missed_periods(send_t, period)
     late_at = [round(send_t[i + 1] - send_t[0], 3) for i, g in enumerate(gaps) if g > 1.5 * period]
     latencies = echo_latencies_s(send_t, sent["send_z"], watcher.seen)
     ts = np.diff(watcher.state_timestamps)
-    return {
+    result: dict[str, Any] = {
         "seconds": seconds,
         "loop": where,
         "cycles": n_cycles,
@@ -183,6 +218,13 @@ def bench(host: str, seconds: float, loop: str = "thread") -> dict[str, Any]:
         "command_to_state_latency": _percentiles_ms(latencies),
         "state_packages_missed": int(np.sum(np.maximum(np.round(ts / period) - 1, 0))) if ts.size else 0,
     }
+    if "floor" in sent:
+        wake = sent["floor"]["send_t"]
+        floor_missed = missed_periods(wake, period)
+        result["floor_missed_cycles"] = floor_missed
+        result["floor_missed_cycle_rate"] = floor_missed / (sent["floor"]["cycles"] + floor_missed)
+        result["floor_cycle_gap"] = _percentiles_ms(np.diff(wake).tolist())
+    return result
 
 
 def run(args: argparse.Namespace) -> int:
@@ -201,7 +243,7 @@ def run(args: argparse.Namespace) -> int:
     load_before = os.getloadavg()
     try:
         with busy_processes(args.load_procs):
-            result = bench(host, args.seconds, args.loop)
+            result = bench(host, args.seconds, args.loop, floor=not args.no_floor)
             load_after = os.getloadavg()
         if emulator is not None:
             st = emulator.status()
@@ -240,6 +282,13 @@ def run(args: argparse.Namespace) -> int:
         f"  command-to-state     median {_ms(lat['median_ms'])}, p99 {_ms(lat['p99_ms'])}, "
         f"max {_ms(lat['max_ms'])} ({result['latency_samples']} samples)"
     )
+    if "floor_missed_cycles" in result:
+        fgap = result["floor_cycle_gap"]
+        print(
+            f"  platform floor       {result['floor_missed_cycles']} missed "
+            f"({100 * result['floor_missed_cycle_rate']:.3f} %) by a bare sleep loop at the same rate and priority, "
+            f"right after, under the same load; its gap p99 {_ms(fgap['p99_ms'])}, max {_ms(fgap['max_ms'])}"
+        )
     if "emulator_servo_updates" in result:
         print(
             f"  controller side      {result['emulator_servo_updates']} servo updates, "

@@ -181,3 +181,23 @@ def test_tcp_offset_is_served_and_follows_set_tcp(start_emulator):  # noqa: F811
             np.testing.assert_allclose(values[2:], [0.0, 0.0, 0.123, 0.0, 0.0, 0.0], atol=1e-12)
     finally:
         c.disconnect()
+
+
+@pytest.mark.parametrize(("frequency_hz", "divider"), [(25.0, 5), (40.0, 3)])
+def test_a_lower_rtde_frequency_sends_every_nth_controller_cycle(start_emulator, frequency_hz, divider):  # noqa: F811
+    """CB3: outputs at most 125 Hz (UR's client library, ``CB3_MAX_FREQUENCY``); a lower frequency is served on
+    the 125 Hz controller clock, every ``divider`` cycles; a frequency that 125 Hz does not divide is logged."""
+    emu = start_emulator()
+    r = rtde_receive.RTDEReceiveInterface(emu.host, frequency_hz, ["timestamp"])
+    try:
+        stamps = set()
+        deadline = time.monotonic() + 0.6
+        while time.monotonic() < deadline:
+            stamps.add(round(r.getTimestamp() / 0.008))  # controller cycles since start
+            time.sleep(0.002)
+    finally:
+        r.disconnect()
+    cycles = np.diff(sorted(stamps))
+    assert len(cycles) >= 3 and np.all(cycles % divider == 0), cycles
+    said = "served every 3 controller cycle(s)" in emu.log_tail(20000)
+    assert said == (125.0 % frequency_hz != 0)

@@ -9,6 +9,7 @@ from real_cell import CI_LIMITS, make_real_env, run_steps, start_emulator  # noq
 
 from drillgym.controllers import make_controller
 from drillgym.envs.real.netft import FTRecord
+from drillgym.envs.real.servo_bench import missed_periods, sleep_floor
 from drillgym.envs.real.servo_shared import SharedCommandSlot, SharedFTRing
 from drillgym.eval.bench_rtde import echo_latencies_s
 
@@ -49,6 +50,19 @@ def test_echo_latency_is_matched_to_the_first_state_showing_the_command():
     send_t, send_z = [0.0, 0.008, 0.016], [1.0, 2.0, 1.0]  # the third command repeats the first's code
     seen = [(0.004, 1.0), (0.013, 2.0), (0.030, 1.0)]
     assert echo_latencies_s(send_t, send_z, seen) == pytest.approx([0.004, 0.005, 0.014])
+
+
+def test_a_late_cycle_counts_the_periods_it_skipped():
+    period = 0.008
+    send_t = [0.0, 0.008, 0.016, 0.040, 0.048, 0.0595]  # 24 ms: 2 skipped; 11.5 ms: under 1.5 periods, none
+    assert missed_periods(send_t, period) == 2
+    assert missed_periods([0.0], period) == 0
+
+
+def test_the_floor_loop_wakes_once_per_period_for_the_time_asked():
+    out = sleep_floor(0.2, 0.008)
+    assert out["cycles"] == 25 and len(out["send_t"]) == 25
+    assert np.all(np.diff(out["send_t"]) > 0.004)  # it sleeps: never two wake-ups in one period
 
 
 @pytest.mark.realtime

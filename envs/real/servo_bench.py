@@ -8,6 +8,7 @@ the caller can match them to the states that echo them.
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 CODE_STEP_M = 1e-9
@@ -19,6 +20,32 @@ CODE_MODULUS = 1000
 def coded_z(z0_m: float, cycle: int) -> float:
     """The target z of ``cycle`` (m): ``z0_m`` plus the cycle number modulo 1000, in 1 nm steps."""
     return z0_m + (cycle % CODE_MODULUS) * CODE_STEP_M
+
+
+def missed_periods(send_t: list[float], period_s: float) -> int:
+    """Periods in which nothing went out: each gap longer than 1.5 periods counts the periods it skipped."""
+    return sum(round((b - a) / period_s) - 1 for a, b in itertools.pairwise(send_t) if b - a > 1.5 * period_s)
+
+
+def sleep_floor(seconds: float, period_s: float) -> dict[str, Any]:
+    """The platform's floor for a periodic loop: wake every ``period_s`` for ``seconds`` with nothing else to do.
+
+    Run where the servo loop runs (same process, same priority), right after it and under the same load, its
+    missed periods are what the machine itself loses (scheduler, hypervisor), however light the loop. Returns
+    ``send_t`` (each wake-up, s) and ``cycles``.
+    """
+    import time
+
+    n_cycles = max(int(seconds / period_s), 1)
+    wake_t: list[float] = []
+    t_next = time.perf_counter()
+    for _ in range(n_cycles):
+        wake_t.append(time.perf_counter())
+        t_next = max(t_next + period_s, wake_t[-1])  # a late wake-up does not bunch the next ones
+        rest = t_next - time.perf_counter()
+        if rest > 0:
+            time.sleep(rest)
+    return {"send_t": wake_t, "cycles": n_cycles}
 
 
 def stream_coded_targets(control: Any, pose0: list[float], seconds: float, period_s: float) -> dict[str, Any]:

@@ -161,6 +161,10 @@ class _Host:
 
             assert self.link is not None
             return stream_coded_targets(self.link.control, *args)
+        if target == "bench" and method == "floor":
+            from drillgym.envs.real.servo_bench import sleep_floor
+
+            return sleep_floor(*args)
         raise LookupError(f"the servo process has no {target}.{method}")
 
     def servo_create(self, kwargs: dict[str, Any]) -> dict[str, Any]:

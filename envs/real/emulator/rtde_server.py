@@ -23,6 +23,16 @@ MAX_BACKLOG_BYTES = 1 << 20
 """A client that lets this much output pile up is disconnected (a real controller drops slow readers)."""
 
 
+def output_divider(frequency_hz: float) -> int:
+    """Controller cycles between output packages for a requested frequency (Hz).
+
+    The frequency is clipped to the CB3's 1-125 Hz (UR's client library refuses more than 125 Hz on a CB3 before
+    asking) and served at 125 Hz divided by the nearest whole number.
+    """
+    rate = min(max(frequency_hz, 1.0), CB3_RATE_HZ)
+    return max(round(CB3_RATE_HZ / rate), 1)
+
+
 class RtdeConnection:
     """Protocol state of one RTDE client.
 
@@ -97,8 +107,14 @@ class RtdeConnection:
         if rp.NOT_FOUND not in types and names:
             self.output_names, self.output_types = names, types
             self.output_struct = rp.recipe_struct(types)
-            rate = min(max(frequency, 1.0), CB3_RATE_HZ)
-            self.divider = max(round(CB3_RATE_HZ / rate), 1)
+            self.divider = output_divider(frequency)
+            served_hz = CB3_RATE_HZ / self.divider
+            if abs(served_hz - frequency) > 1e-9:
+                self.log(
+                    f"rtde#{self.conn_id}: {frequency:g} Hz requested, served every {self.divider} controller cycle(s) "
+                    f"({served_hz:.4g} Hz; a CB3's answer to this frequency is not documented, this rounding is the "
+                    "emulator's)"
+                )
             recipe_id = 1
             constant = [n for n in names if n in rp.NOT_EMULATED]
             if constant:
