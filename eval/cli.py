@@ -20,13 +20,13 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "drillgym.envs.robot.stiffness_cli",
         "Identify the UR5 joint stiffnesses from simulated load tests (Li 2023 eq. 8, Table 1).",
     ),
-    "bench-speed": ("drillgym.eval.bench_speed", "Real-time factor and peak memory of the simulated cell."),
+    "bench-speed": ("drillgym.eval.perf.speed", "Real-time factor and peak memory of the simulated cell."),
     "reproduce": (
-        "drillgym.eval.reproduce",
+        "drillgym.eval.reproduce.cli",
         "Reproduce Li 2023 (and Zhang 2005's claims): report.md, reproduction.json, figures.",
     ),
     "calibrate": (
-        "drillgym.eval.calibration_cli",
+        "drillgym.eval.calibration.cli",
         "Calibrate the entry mechanics on the uncompensated paper run and predict li2023 on each candidate.",
     ),
     "explain-paper": (
@@ -34,19 +34,19 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "Which unmodelled effect explains Li's compensated runs: fit on the uncompensated and KP 1 runs, predict KP 4.",
     ),
     "tune-entry": (
-        "drillgym.eval.tune_entry",
+        "drillgym.eval.bench.tune_entry",
         "Tune a slow entry (feed schedule) on top of a controller on the paper and sweep suites; pick the best.",
     ),
     "train": (
-        "drillgym.eval.train_seeds",
+        "drillgym.eval.learning.cli",
         "Train a residual policy (SB3) on top of a compensator; resumable; --seeds: several seeds and their report.",
     ),
     "bench": (
-        "drillgym.eval.bench",
+        "drillgym.eval.bench.cli",
         "Benchmark controllers on a scenario suite over seeds: metrics with confidence intervals, paired differences, plots, logs.",
     ),
     "run": (
-        "drillgym.eval.run_real",
+        "drillgym.eval.real.run",
         "Drill with a controller on the real UR5 cell (or the emulator); same episode logs as the sim.",
     ),
     "emulate": (
@@ -54,11 +54,11 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "Serve a UR CB3 controller + ATI Net F/T emulator, backed by the simulator, on a loopback address.",
     ),
     "ft-check": (
-        "drillgym.eval.ft_check",
+        "drillgym.eval.real.ft_check",
         "Check the F/T sensor's force scale with a known mass (calibration read from the sensor); exit 1 if off.",
     ),
     "bench-rtde": (
-        "drillgym.eval.bench_rtde",
+        "drillgym.eval.perf.rtde",
         "Timing of the 125 Hz servoL stream through ur_rtde: missed cycles, command-to-state latency.",
     ),
     "diagnose": (

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from drillgym import envs  # noqa: F401  (registers the ids)
-from drillgym.eval.rollout import EpisodeResult, run_episode
+from drillgym.eval.bench.rollout import EpisodeResult, run_episode
 
 ENV_ID = "drillgym/UR5BoneDrill-v1"
 

@@ -10,12 +10,12 @@ from drillgym import envs  # noqa: F401
 from drillgym.controllers.none import NoCompensation, NoCompensationConfig
 from drillgym.controllers.registry import CONTROLLERS
 from drillgym.envs.metrics import METRIC_NAMES
-from drillgym.eval import bench_episode
-from drillgym.eval.bench import controller_label, split_controller_specs
-from drillgym.eval.bench_episode import EpisodeJob, run_job
+from drillgym.eval.bench import episode as bench_episode
+from drillgym.eval.bench.cli import controller_label, split_controller_specs
+from drillgym.eval.bench.episode import EpisodeJob, run_job
+from drillgym.eval.bench.summary import SUMMARY_COLUMNS
 from drillgym.eval.cli import main
 from drillgym.eval.logs import read_episode_log
-from drillgym.eval.summary import SUMMARY_COLUMNS
 
 
 def test_paper_suite_writes_every_output_with_the_exact_summary_header(tmp_path, capsys):

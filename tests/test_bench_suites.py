@@ -1,7 +1,7 @@
 import pytest
 
 from drillgym.envs.scenario import Scenario
-from drillgym.eval.suites import SUITES, TRAINING_BONES, TRAINING_RANGES, outside_training, suite_scenarios
+from drillgym.eval.bench.suites import SUITES, TRAINING_BONES, TRAINING_RANGES, outside_training, suite_scenarios
 
 
 def test_every_heldout_scenario_lies_outside_the_training_ranges_in_at_least_one_parameter():

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from drillgym.eval.summary import format_ci, mean_ci, paired_differences, summarize
+from drillgym.eval.bench.summary import format_ci, mean_ci, paired_differences, summarize
 
 
 def test_ci_of_the_mean_uses_student_t_with_n_minus_1_dof():
@@ -55,7 +55,7 @@ def test_summary_is_long_form_in_group_order():
 
 
 def test_markdown_cells_are_escaped_so_a_bar_never_splits_a_row():
-    from drillgym.eval.summary import md_table
+    from drillgym.eval.bench.summary import md_table
 
     table = md_table(["a", "b"], [["x | y", "two\nlines"]])
     header, _rule, row = table.splitlines()
@@ -64,6 +64,6 @@ def test_markdown_cells_are_escaped_so_a_bar_never_splits_a_row():
 
 
 def test_rounding_noise_prints_as_zero_in_the_reproduction_report():
-    from drillgym.eval.reproduce_report import _fmt
+    from drillgym.eval.reproduce.report import _fmt
 
     assert _fmt(3.36e-16) == "0" and _fmt(-2e-14) == "0" and _fmt(0.0123) == "0.0123" and _fmt(None) == "-"

@@ -7,14 +7,14 @@ import pytest
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.drilling.bone import BUFFALO_CORTICAL
 from drillgym.envs.scenario import Scenario
-from drillgym.eval.calibration import (
+from drillgym.eval.calibration.calibrate import (
     EntryStructure,
     bone_with_lateral_scale,
     calibrate_entry,
     passes_li2023_checks,
 )
 from drillgym.eval.cli import main
-from drillgym.eval.paper import LI2023_UNCOMPENSATED
+from drillgym.eval.reproduce.paper import LI2023_UNCOMPENSATED
 
 
 def test_calibrating_the_shipped_structure_recovers_the_shipped_scales():

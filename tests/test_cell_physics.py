@@ -12,7 +12,7 @@ from drillgym.envs.pybullet_world import PyBulletWorld
 from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
 from drillgym.envs.robot.ur5 import FLANGE_FRAME
 from drillgym.envs.scenario import Scenario
-from drillgym.eval.paper import CALIBRATION_TOLERANCE, LI2023_UNCOMPENSATED
+from drillgym.eval.reproduce.paper import CALIBRATION_TOLERANCE, LI2023_UNCOMPENSATED
 
 POSES_BASE_M = [
     (-0.45, -0.11, 0.10),

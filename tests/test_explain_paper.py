@@ -7,12 +7,12 @@ import pytest
 
 import drillgym.eval.explain.predict as predict_mod
 import drillgym.eval.explain.simulate as simulate_mod
-from drillgym.eval import paper
 from drillgym.eval.cli import main
 from drillgym.eval.explain import cli as explain_cli
 from drillgym.eval.explain.candidates import CANDIDATES, candidate
 from drillgym.eval.explain.fit import fit_candidate, profile_interval
 from drillgym.eval.explain.observations import METRICS, calibration_targets, held_out_targets, sigma
+from drillgym.eval.reproduce import paper
 
 
 def fake_simulate(cand, value, runs, seeds):

@@ -8,7 +8,7 @@ import pytest
 from real_cell import start_emulator  # noqa: F401  (fixture)
 
 from drillgym.eval.cli import main
-from drillgym.eval.ft_check import STANDARD_GRAVITY_M_S2
+from drillgym.eval.real.ft_check import STANDARD_GRAVITY_M_S2
 
 MASS_KG = 0.5
 

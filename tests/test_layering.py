@@ -103,5 +103,5 @@ def test_no_package_imports_a_later_layer():
 
 def test_the_check_sees_an_upward_import_inside_a_function(tmp_path):
     module = tmp_path / "m.py"
-    module.write_text("def f():\n    from drillgym.eval.suites import SUITES\n    return SUITES\n")
-    assert imports_of(module) == [(2, "drillgym.eval.suites")]
+    module.write_text("def f():\n    from drillgym.eval.bench.suites import SUITES\n    return SUITES\n")
+    assert imports_of(module) == [(2, "drillgym.eval.bench.suites")]

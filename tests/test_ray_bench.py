@@ -6,7 +6,7 @@ import signal
 import pandas as pd
 import pytest
 
-from drillgym.eval.bench_episode import EpisodeJob, run_job
+from drillgym.eval.bench.episode import EpisodeJob, run_job
 from drillgym.eval.cli import main
 from drillgym.eval.logs import read_episode_log
 from drillgym.eval.scale.sink import StreamingSink
@@ -53,7 +53,7 @@ def test_a_worker_killed_mid_episode_is_retried_and_nothing_is_lost(tmp_path, ra
     def kill_once(job):
         """Kill this worker process 150 steps into the victim's first attempt (after several log flushes)."""
         if (job.controller, job.seed) == victim and not marker.exists():
-            from drillgym.eval import bench_episode
+            from drillgym.eval.bench import episode as bench_episode
 
             marker.write_text(str(os.getpid()))
             real = bench_episode.run_controller_episode

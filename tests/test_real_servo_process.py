@@ -11,7 +11,7 @@ from drillgym.controllers import make_controller
 from drillgym.envs.real.netft import FTRecord
 from drillgym.envs.real.servo_bench import missed_periods, sleep_floor
 from drillgym.envs.real.servo_shared import SharedCommandSlot, SharedFTRing
-from drillgym.eval.bench_rtde import echo_latencies_s
+from drillgym.eval.perf.rtde import echo_latencies_s
 
 
 def _record(t):

@@ -1,4 +1,4 @@
-"""Across-seed statistics and report (:mod:`drillgym.eval.seed_report`) on small synthetic episode tables."""
+"""Across-seed statistics and report (:mod:`drillgym.eval.learning.seed_report`) on small synthetic episode tables."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from drillgym.eval.seed_report import (
+from drillgym.eval.learning.seed_report import (
     iqm,
     paired_diff,
     probability_of_improvement,

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from drillgym.eval.cli import main
-from drillgym.eval.train_seeds import _seeds, add_arguments, seed_command
+from drillgym.eval.learning.cli import _seeds, add_arguments, seed_command
 
 SMOKE = Path(__file__).resolve().parents[1] / "training" / "configs" / "smoke.yaml"
 

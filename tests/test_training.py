@@ -183,7 +183,7 @@ def test_missing_policy_file_is_a_clear_error():
 
 @pytest.mark.skipif(not SHIPPED.exists(), reason="no shipped policy")
 def test_shipped_policy_completes_an_episode_from_real_cell_signals_only():
-    from drillgym.eval.rollout import run_episode
+    from drillgym.eval.bench.rollout import run_episode
 
     controller = make_controller(f"residual:{SHIPPED}")
     env = gym.make(ENV_ID)
@@ -238,7 +238,7 @@ def test_saved_policy_acts_through_the_controller_exactly_as_in_its_training_wra
 
 
 def test_validation_scenarios_are_held_in_and_visited_once_per_evaluation():
-    from drillgym.eval.suites import outside_training
+    from drillgym.eval.bench.suites import outside_training
     from drillgym.training.domain_randomization import ScenarioCycle, validation_scenarios
 
     scenarios = validation_scenarios(6)

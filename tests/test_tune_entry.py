@@ -5,8 +5,8 @@ import json
 import pandas as pd
 import pytest
 
+from drillgym.eval.bench.tune_entry import best_candidate, candidate_specs, grid_table
 from drillgym.eval.cli import main
-from drillgym.eval.tune_entry import best_candidate, candidate_specs, grid_table
 
 
 def test_candidates_are_the_base_then_every_schedule_of_the_grid():

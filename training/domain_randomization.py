@@ -1,7 +1,7 @@
 """Domain randomisation: a new scenario for every episode, drawn inside the training ranges.
 
 Ranges (user units) live in :data:`DR_RANGES`; they are disjoint from the ``heldout`` suite's
-conditions (:mod:`drillgym.eval.suites` checks it), which is what makes that suite a test of generalisation.
+conditions (:mod:`drillgym.eval.bench.suites` checks it), which is what makes that suite a test of generalisation.
 """
 
 from __future__ import annotations

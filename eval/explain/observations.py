@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-from drillgym.eval.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
+from drillgym.eval.reproduce.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
 
 RUNS = ("none", "kp1", "kp4")
 """Li's three runs: uncompensated, li2023 KP 1, li2023 KP 4."""
@@ -42,7 +42,7 @@ level), a hole centre measured on a section (0.05 mm)."""
 
 
 def li_values() -> dict[str, dict[str, float]]:
-    """Every number Li reports, by run and metric (read from :mod:`drillgym.eval.paper` at call time)."""
+    """Every number Li reports, by run and metric (read from :mod:`drillgym.eval.reproduce.paper` at call time)."""
     kp4 = {k: float(LI2023_COMPENSATED[k]) for k in METRICS}
     return {
         "none": {k: float(LI2023_UNCOMPENSATED[k]) for k in METRICS},

@@ -11,11 +11,11 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.eval.bench.summary import mean_ci
 from drillgym.eval.explain.candidates import Candidate, candidate
 from drillgym.eval.explain.fit import fit_candidate
 from drillgym.eval.explain.observations import CALIBRATION_RUNS, HELD_OUT_RUN, METRICS
 from drillgym.eval.explain.simulate import means, simulate
-from drillgym.eval.summary import mean_ci
 
 
 def predict_run(cand: Candidate | None, values: list[float], seeds: list[int]) -> dict[str, dict[str, Any]]:

@@ -127,7 +127,7 @@ def _pct(x: float) -> str:
 
 def markdown(doc: dict[str, Any]) -> str:
     """Human summary of an explanation document."""
-    from drillgym.eval.summary import md_table
+    from drillgym.eval.bench.summary import md_table
 
     li = doc["li"][HELD_OUT_RUN]["values"]
     rows = []
@@ -211,7 +211,7 @@ def reproduction_section(doc: dict[str, Any] | None, source: str = "") -> list[s
                 ok,
             ]
         )
-    from drillgym.eval.summary import md_table
+    from drillgym.eval.bench.summary import md_table
 
     lines.append(md_table(["KP 4 (held out)", "Li", "predicted [interval]", "rel. err", "nominal cell", ""], rows))
     missed = [r[0] for r in rows if r[5].startswith("misses")]

@@ -1,6 +1,6 @@
 """``drillgym bench --ray``: the episode grid as Ray tasks, streamed into the usual outputs.
 
-One Ray task per episode (1 CPU each) runs :func:`drillgym.eval.bench_episode.run_job` in a Ray worker, which
+One Ray task per episode (1 CPU each) runs :func:`drillgym.eval.bench.episode.run_job` in a Ray worker, which
 keeps its envs and controllers cached between tasks like a pool worker does. A worker on the driver's
 node writes the episode's log straight into the output folder, as a pool worker does; a worker on
 another node writes it into node-local scratch space and returns the row together with the log's
@@ -23,7 +23,7 @@ from typing import Any
 
 import ray
 
-from drillgym.eval.bench_episode import EpisodeJob, run_job
+from drillgym.eval.bench.episode import EpisodeJob, run_job
 from drillgym.eval.scale.cluster import RaySession, ray_session
 from drillgym.eval.scale.sink import StreamingSink
 
@@ -96,7 +96,7 @@ def chunk_size_for(n_jobs: int, cpus: int, chunks_per_cpu: int = 4, max_size: in
 
 def _import_worker() -> int:
     """Warm-up task: import the episode code (PyBullet, Pinocchio, controllers) in a worker."""
-    import drillgym.eval.bench_episode  # noqa: F401
+    import drillgym.eval.bench.episode  # noqa: F401
 
     return 0
 

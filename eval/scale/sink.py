@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from drillgym.envs.metrics import METRIC_NAMES
-from drillgym.eval.bench_report import episodes_frame
-from drillgym.eval.summary import summarize
+from drillgym.eval.bench.report import episodes_frame
+from drillgym.eval.bench.summary import summarize
 
 
 class StreamingSink:

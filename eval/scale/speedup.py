@@ -17,9 +17,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from drillgym.eval.bench import controller_label, run_jobs, split_controller_specs
-from drillgym.eval.bench_episode import EpisodeJob
-from drillgym.eval.suites import suite_scenarios
+from drillgym.eval.bench.cli import controller_label, run_jobs, split_controller_specs
+from drillgym.eval.bench.episode import EpisodeJob
+from drillgym.eval.bench.suites import suite_scenarios
 
 
 def _jobs(suite: str, specs: list[str], seeds: int, out: Path) -> list[EpisodeJob]:

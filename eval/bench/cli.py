@@ -4,7 +4,7 @@ Every controller runs the same seeds 0..N-1 on every scenario of the suite (a pa
 first controller is the baseline). Episodes run in ``--workers`` processes ("spawn": PyBullet and fork
 do not mix), or as Ray tasks with ``--ray`` / ``--address`` (:mod:`drillgym.eval.scale.bench_ray`,
 ``docs/scale-out.md``); the results do not depend on either. Outputs in ``--out``: see
-:mod:`drillgym.eval.bench_report`; one episode log per episode in ``logs/`` (``docs/log_schema.md``).
+:mod:`drillgym.eval.bench.report`; one episode log per episode in ``logs/`` (``docs/log_schema.md``).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import Any
 
 from drillgym.controllers.registry import BEST_CLASSICAL
 from drillgym.envs.effects.cells import cell_effects_spec
-from drillgym.eval.suites import SUITES
+from drillgym.eval.bench.suites import SUITES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -148,9 +148,9 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym bench`` (bad arguments raise ``ValueError`` for the CLI's one-line error)."""
     specs = check_arguments(args)
-    from drillgym.eval.bench_episode import EpisodeJob
-    from drillgym.eval.bench_report import write_report
-    from drillgym.eval.suites import suite_scenarios
+    from drillgym.eval.bench.episode import EpisodeJob
+    from drillgym.eval.bench.report import write_report
+    from drillgym.eval.bench.suites import suite_scenarios
 
     out: Path = args.out
     scenarios = suite_scenarios(args.suite)
@@ -197,7 +197,7 @@ def run_jobs(jobs: list[Any], workers: int, desc: str = "bench") -> list[dict[st
     """Run every job (in-process for ``workers == 1``, else in spawned processes); rows in any order."""
     from tqdm import tqdm
 
-    from drillgym.eval.bench_episode import close_cached, run_job
+    from drillgym.eval.bench.episode import close_cached, run_job
 
     with tqdm(total=len(jobs), desc=desc, unit="ep", disable=None) as bar:  # no bar when not a terminal
         if workers == 1:

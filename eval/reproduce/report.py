@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from drillgym.controllers.models import LI2023_MODEL_PEAK_N
-from drillgym.eval.summary import md_table, mean_ci
+from drillgym.eval.bench.summary import md_table, mean_ci
 
 ZERO = 1e-9
 """Magnitudes below this print as 0: the quantities are mm, N and s, and 1e-16 is rounding, not a result."""

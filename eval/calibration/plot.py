@@ -11,7 +11,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from drillgym.eval.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
+from drillgym.eval.reproduce.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
 
 LI2023_KP_GAP_MM = LI2023_COMPENSATED["deviation_mean_mm_kp1"] - LI2023_COMPENSATED["deviation_mean_mm"]
 """Li's deviation at KP 1 minus KP 4 (mm)."""

@@ -18,8 +18,8 @@ from typing import Any
 from tqdm import tqdm
 
 from drillgym.controllers.registry import BEST_CLASSICAL
-from drillgym.eval.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
-from drillgym.eval.reproduce_experiments import (
+from drillgym.eval.bench.summary import mean_ci
+from drillgym.eval.reproduce.experiments import (
     KP_SWEEP,
     Condition,
     force_model_trends,
@@ -27,7 +27,7 @@ from drillgym.eval.reproduce_experiments import (
     sim_trends,
     stiffness_identification,
 )
-from drillgym.eval.summary import mean_ci
+from drillgym.eval.reproduce.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
 
 SHIPPED_POLICY = Path(__file__).resolve().parents[1] / "training" / "policies" / "residual_li2023_sac.zip"
 """The residual policy shipped with the project (shown beside the paper's controllers when present)."""
@@ -101,8 +101,8 @@ def _paired(a: list, b: list, name: str) -> tuple[float, float, float]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the experiments, write the report, print the headline table."""
-    from drillgym.eval.reproduce_figures import write_figures
-    from drillgym.eval.reproduce_report import headline, write_report
+    from drillgym.eval.reproduce.figures import write_figures
+    from drillgym.eval.reproduce.report import headline, write_report
 
     if args.seeds < 2:
         raise ValueError(f"--seeds={args.seeds} must be >= 2 (confidence intervals need two)")

@@ -55,7 +55,7 @@ class EpisodeJob:
 
 def grid_jobs(suites: list[str], specs: list[str], seeds: int) -> list[EpisodeJob]:
     """Every (suite scenario, controller spec, seed 0..seeds-1) episode, without logs."""
-    from drillgym.eval.suites import suite_scenarios
+    from drillgym.eval.bench.suites import suite_scenarios
 
     return [
         EpisodeJob(suite, sc.name, sc.kwargs, spec, seed)

@@ -12,8 +12,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from drillgym.envs.metrics import FORCE_FILTER_SAMPLES, moving_average
+from drillgym.eval.bench.summary import mean_ci
 from drillgym.eval.plots import STAGE_COLOURS, label_span, shade_stages
-from drillgym.eval.summary import mean_ci
 
 
 def _lateral(trace: dict[str, np.ndarray]) -> np.ndarray:

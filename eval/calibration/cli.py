@@ -1,9 +1,9 @@
 """``drillgym calibrate``: calibrate the entry mechanics on the uncompensated run and predict li2023.
 
-Each combination of the listed structural constants is calibrated (:func:`drillgym.eval.calibration.calibrate_entry`)
-and its li2023 predictions are run (:func:`drillgym.eval.calibration.predict_li2023`). Writes
+Each combination of the listed structural constants is calibrated (:func:`drillgym.eval.calibration.calibrate.calibrate_entry`)
+and its li2023 predictions are run (:func:`drillgym.eval.calibration.calibrate.predict_li2023`). Writes
 ``DIR/calibration.csv`` (one row per combination, written as each finishes), ``DIR/calibration.md`` and
-``DIR/calibration.png`` (:func:`drillgym.eval.calibration_plot.plot_screen`).
+``DIR/calibration.png`` (:func:`drillgym.eval.calibration.plot.plot_screen`).
 With the defaults it reproduces the shipped calibration.
 """
 
@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from drillgym.envs.cell_params import CellParams
-from drillgym.eval.calibration import (
+from drillgym.eval.calibration.calibrate import (
     LI2023_CHECKS,
     METRICS,
     EntryStructure,
@@ -27,7 +27,7 @@ from drillgym.eval.calibration import (
     passes_li2023_checks,
     predict_li2023,
 )
-from drillgym.eval.paper import LI2023_UNCOMPENSATED
+from drillgym.eval.reproduce.paper import LI2023_UNCOMPENSATED
 
 
 def comma_floats(text: str) -> list[float]:
@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
             fh.flush()
             rows[i] = row  # the table keeps the grid's order
             bar.update(1)
-    from drillgym.eval.calibration_plot import plot_screen
+    from drillgym.eval.calibration.plot import plot_screen
 
     plot_screen(rows, args.out / "calibration.png")
     md = _markdown(rows) + "\n![li2023 predictions of every structure](calibration.png)\n"

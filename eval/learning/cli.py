@@ -3,7 +3,7 @@
 Without ``--seeds`` this is :mod:`drillgym.training.train` unchanged. With it, every seed trains in its own process
 (``--jobs`` at a time; each run is the single-seed command with ``--seed N --out OUT/seedN``, so any seed's
 policy is reproduced by that command alone), then every policy and every baseline are benchmarked on the
-same episodes (``--eval-suites``, ``--eval-seeds`` seeds per scenario) and :mod:`drillgym.eval.seed_report` writes the
+same episodes (``--eval-suites``, ``--eval-seeds`` seeds per scenario) and :mod:`drillgym.eval.learning.seed_report` writes the
 across-seed report: per-seed checks, interquartile means with stratified-bootstrap CIs and the
 probability of improvement over each baseline (``seed_report.md``, ``.json``, ``.png``).
 
@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _check(args: argparse.Namespace) -> list[str]:
     from drillgym.controllers import make_controller
-    from drillgym.eval.bench import split_controller_specs
+    from drillgym.eval.bench.cli import split_controller_specs
 
     if args.resume or args.export or args.sweep is not None:
         raise ValueError("--seeds cannot be combined with --resume, --export or --sweep")
@@ -142,10 +142,10 @@ def judge(args: argparse.Namespace, out: Path, baselines: list[str]) -> int:
     """Benchmark every seed's policy and the baselines on the same episodes; write the seed report."""
     import pandas as pd
 
-    from drillgym.eval.bench import run_jobs
-    from drillgym.eval.bench_episode import grid_jobs
-    from drillgym.eval.bench_report import episodes_frame
-    from drillgym.eval.seed_report import write_seed_report
+    from drillgym.eval.bench.cli import run_jobs
+    from drillgym.eval.bench.episode import grid_jobs
+    from drillgym.eval.bench.report import episodes_frame
+    from drillgym.eval.learning.seed_report import write_seed_report
 
     suites = [s.strip() for s in args.eval_suites.split(",") if s.strip()]
     policies = {f"seed{s}": f"residual:{out / f'seed{s}' / 'policy.zip'}" for s in args.seeds}

@@ -11,8 +11,8 @@ import pandas as pd
 
 from drillgym.envs.metrics import METRIC_NAMES
 from drillgym.envs.scenario import Scenario
-from drillgym.eval.bench_plots import plot_bars, plot_sweep
-from drillgym.eval.summary import markdown_table, paired_differences, summarize
+from drillgym.eval.bench.plots import plot_bars, plot_sweep
+from drillgym.eval.bench.summary import markdown_table, paired_differences, summarize
 
 SCENARIO_COLUMNS = tuple(f.name for f in fields(Scenario))
 EPISODE_COLUMNS = (

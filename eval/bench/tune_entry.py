@@ -25,8 +25,8 @@ from typing import Any
 
 import pandas as pd
 
-from drillgym.eval.calibration_cli import comma_floats
-from drillgym.eval.suites import SUITES
+from drillgym.eval.bench.suites import SUITES
+from drillgym.eval.calibration.cli import comma_floats
 
 TUNING_SUITES = ("paper", "sweep")
 
@@ -149,9 +149,9 @@ def check_arguments(args: argparse.Namespace) -> tuple[list[str], list[str]]:
 
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym tune-entry``."""
-    from drillgym.eval.bench import run_jobs
-    from drillgym.eval.bench_episode import grid_jobs
-    from drillgym.eval.bench_report import episodes_frame
+    from drillgym.eval.bench.cli import run_jobs
+    from drillgym.eval.bench.episode import grid_jobs
+    from drillgym.eval.bench.report import episodes_frame
 
     suites, specs = check_arguments(args)
     rows = run_jobs(grid_jobs(suites, specs, args.seeds), args.workers, desc="tune-entry")

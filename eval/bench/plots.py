@@ -1,4 +1,4 @@
-"""Benchmark figures (matplotlib, headless) from the long-form summary (:mod:`drillgym.eval.summary`)."""
+"""Benchmark figures (matplotlib, headless) from the long-form summary (:mod:`drillgym.eval.bench.summary`)."""
 
 from __future__ import annotations
 

@@ -26,8 +26,8 @@ from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.drilling.bone import BUFFALO_CORTICAL, CANCELLOUS_RATIO, BonePreset
 from drillgym.envs.scenario import Scenario
-from drillgym.eval.paper import LI2023_UNCOMPENSATED
-from drillgym.eval.summary import mean_ci
+from drillgym.eval.bench.summary import mean_ci
+from drillgym.eval.reproduce.paper import LI2023_UNCOMPENSATED
 
 CALIBRATED_METRICS = ("deviation_mean_mm", "lateral_force_max_n")
 """Fitted by the two scale unknowns."""
@@ -116,8 +116,8 @@ def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float
 
 
 def _uncompensated(env: Any, seed: int) -> Any:
-    """One uncompensated episode: an :class:`drillgym.eval.rollout.EpisodeResult` with the F/T trace."""
-    from drillgym.eval.rollout import run_episode
+    """One uncompensated episode: an :class:`drillgym.eval.bench.rollout.EpisodeResult` with the F/T trace."""
+    from drillgym.eval.bench.rollout import run_episode
 
     return run_episode(env, None, seed=seed)
 
@@ -190,7 +190,7 @@ def predict_li2023(cal: EntryCalibration, seeds: range | list[int], effects: str
     li2023's model is fitted to the uncompensated run of the first seed.
     """
     from drillgym.controllers.registry import make_controller
-    from drillgym.eval.bench_episode import run_controller_episode
+    from drillgym.eval.bench.episode import run_controller_episode
 
     env = make_env(cal.structure, cal.lateral_scale, cal.stickout_mm, effects)
     try:
