@@ -1,22 +1,18 @@
-"""Shared fixtures and helpers for the drillgym test suite."""
+"""Fixtures shared by the whole suite. The tests sit in folders that mirror the subsystems (``envs/``,
+``controllers/``, ``training/``, ``eval/``, ``diagnosis/``, ``real/``, ``scale/``); a folder's own fixtures are in
+its ``conftest.py``, its helpers in modules imported by name (``physics_helpers``, ``real_cell``, ...)."""
 
 from __future__ import annotations
 
-import logging
 import os
 
 # One thread per BLAS / torch pool in each test process: pytest-xdist already runs one process per core, and
 # a second thread would steal the core that a real-time test (the emulated UR pipeline) runs on.
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import gymnasium as gym
-import numpy as np
 import pytest
 
 from drillgym import envs  # noqa: F401  (registers the ids)
-from drillgym.eval.bench.rollout import EpisodeResult, run_episode
-
-ENV_ID = "drillgym/UR5BoneDrill-v1"
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -30,28 +26,3 @@ def sb3_logdir(tmp_path_factory):
         os.environ.pop("SB3_LOGDIR", None)
     else:
         os.environ["SB3_LOGDIR"] = previous
-
-
-@pytest.fixture(scope="module")
-def ray_local():
-    """One local Ray instance with 2 CPUs per test module (starting Ray takes seconds); skips without Ray."""
-    ray = pytest.importorskip("ray")
-    ray.init(address="local", num_cpus=2, include_dashboard=False, logging_level=logging.WARNING)
-    yield ray
-    ray.shutdown()
-
-
-def run_zero_action(seed: int = 0, **scenario) -> EpisodeResult:
-    """One uncompensated episode of a scenario; the env is closed afterwards."""
-    env = gym.make(ENV_ID, **scenario)
-    try:
-        return run_episode(env, None, seed)
-    finally:
-        env.close()
-
-
-def r_squared(x: np.ndarray, y: np.ndarray) -> float:
-    """Coefficient of determination of a least-squares straight line through (x, y)."""
-    coef = np.polyfit(x, y, 1)
-    resid = y - np.polyval(coef, x)
-    return 1.0 - float(resid @ resid) / float(((y - y.mean()) ** 2).sum())

@@ -197,7 +197,7 @@ class TipContactSolver:
 
         One pass with the state in local variables (the per-sample path of an agent step); the
         arithmetic is :meth:`update`'s, operation for operation, so the results are bit-identical
-        (``tests/test_contact_fused.py``). Rows are ``(tip, rigid, force, torque_axis, depth_local,
+        (``tests/envs/test_contact_fused.py``). Rows are ``(tip, rigid, force, torque_axis, depth_local,
         stage, cutting)``, the fields of :class:`ContactSample`.
         """
         out: list[SampleRow] = []

@@ -4,7 +4,7 @@ The emulator re-implements the behaviour of ``ur_rtde``'s uploaded control progr
 the client's input recipes by position. A new ``ur_rtde`` release that renumbers recipes, changes a recipe's
 fields, the register protocol or the handling of a command the emulator implements would make the emulator
 silently wrong; :func:`check_contract` compares what a real client set up and uploaded with what is recorded
-here (run by ``tests/test_real_contract.py``). The program text is compared by SHA-256 digests of the parts the
+here (run by ``tests/real/test_real_contract.py``). The program text is compared by SHA-256 digests of the parts the
 emulator mirrors, never stored.
 """
 

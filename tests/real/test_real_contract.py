@@ -9,7 +9,6 @@ from importlib import metadata
 
 import rtde_control
 import rtde_receive
-from real_cell import start_emulator  # noqa: F401  (fixture)
 
 from drillgym.envs.real.emulator import contract
 
@@ -18,7 +17,7 @@ def test_the_pinned_ur_rtde_is_installed():
     assert metadata.version("ur_rtde") == contract.UR_RTDE_VERSION, "ur_rtde changed: re-check the emulator contract"
 
 
-def test_recipes_and_uploaded_program_match_what_the_emulator_assumes(start_emulator):  # noqa: F811
+def test_recipes_and_uploaded_program_match_what_the_emulator_assumes(start_emulator):
     emu = start_emulator()
     r = rtde_receive.RTDEReceiveInterface(emu.host)
     c = rtde_control.RTDEControlInterface(emu.host)

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from real_cell import CI_LIMITS, make_real_env, run_steps, start_emulator  # noqa: F401  (fixture)
+from real_cell import CI_LIMITS, make_real_env, run_steps
 
 from drillgym.controllers import make_controller
 from drillgym.envs.real.config import SafetyLimits
@@ -45,7 +45,7 @@ def _run_with_fault(emu, tmp_path, kind, value=0.0, at_step=DRILLING_STEP, **env
     return run
 
 
-def test_link_dropped_mid_episode_ends_with_a_clear_error_and_a_complete_log(start_emulator, tmp_path):  # noqa: F811
+def test_link_dropped_mid_episode_ends_with_a_clear_error_and_a_complete_log(start_emulator, tmp_path):
     emu = start_emulator()
     run = _run_with_fault(emu, tmp_path, "drop_link")
     assert run.ended and run.steps <= DRILLING_STEP + 2
@@ -59,7 +59,7 @@ def test_link_dropped_mid_episode_ends_with_a_clear_error_and_a_complete_log(sta
     assert st["runtime_state"] == "STOPPED" and "RTDE watchdog" in st["stop_reason"]
 
 
-def test_protective_stop_terminates_with_that_reason(start_emulator, tmp_path):  # noqa: F811
+def test_protective_stop_terminates_with_that_reason(start_emulator, tmp_path):
     emu = start_emulator()
     run = _run_with_fault(emu, tmp_path, "protective_stop")
     assert run.ended and run.steps <= DRILLING_STEP + 2
@@ -68,7 +68,7 @@ def test_protective_stop_terminates_with_that_reason(start_emulator, tmp_path): 
     assert len(read_episode_log(run.log)[1]) == run.n_rows
 
 
-def test_force_limit_commands_servo_stop(start_emulator, tmp_path):  # noqa: F811
+def test_force_limit_commands_servo_stop(start_emulator, tmp_path):
     emu = start_emulator()
     run = _run_with_fault(emu, tmp_path, None, force_limit_n=3.0)
     assert run.ended and run.info["failure"] == "force_limit" and "exceeds the limit 3.00 N" in run.info["error"]
@@ -81,7 +81,7 @@ def test_force_limit_commands_servo_stop(start_emulator, tmp_path):  # noqa: F81
     assert st["rigid_tip_task_m"][2] == pytest.approx(df.depth_cmd_m.iloc[-1], abs=1e-4)
 
 
-def test_nan_action_is_rejected_before_anything_is_sent(start_emulator, tmp_path):  # noqa: F811
+def test_nan_action_is_rejected_before_anything_is_sent(start_emulator, tmp_path):
     emu = start_emulator()
     env = make_real_env(emu, command_log_path=str(tmp_path / "commands.jsonl"), safety_limits=CI_LIMITS)
     try:
@@ -103,7 +103,7 @@ def test_nan_action_is_rejected_before_anything_is_sent(start_emulator, tmp_path
     assert "NaN" not in lines and "Infinity" not in lines
 
 
-def test_stale_ft_stream_commands_servo_stop(start_emulator, tmp_path):  # noqa: F811
+def test_stale_ft_stream_commands_servo_stop(start_emulator, tmp_path):
     emu = start_emulator()
     limits = dataclasses.replace(CI_LIMITS, ft_stale_s=SafetyLimits().ft_stale_s)
     run = _run_with_fault(emu, tmp_path, "stale_ft", safety_limits=limits)
@@ -112,7 +112,7 @@ def test_stale_ft_stream_commands_servo_stop(start_emulator, tmp_path):  # noqa:
     assert run.info["stop_result"] == "servoStop True" and emu.status()["command_counts"].get("16") == 1
 
 
-def test_stale_robot_state_stops_streaming_and_the_robot_stops_itself(start_emulator, tmp_path):  # noqa: F811
+def test_stale_robot_state_stops_streaming_and_the_robot_stops_itself(start_emulator, tmp_path):
     emu = start_emulator()
     limits = dataclasses.replace(CI_LIMITS, rtde_stale_s=SafetyLimits().rtde_stale_s)
     run = _run_with_fault(emu, tmp_path, "freeze_rtde", 1.0, safety_limits=limits)
@@ -123,7 +123,7 @@ def test_stale_robot_state_stops_streaming_and_the_robot_stops_itself(start_emul
     assert st["runtime_state"] == "STOPPED" and "RTDE watchdog" in st["stop_reason"]
 
 
-def test_delayed_packets_below_the_limits_do_not_stop_the_episode(start_emulator, tmp_path):  # noqa: F811
+def test_delayed_packets_below_the_limits_do_not_stop_the_episode(start_emulator, tmp_path):
     emu = start_emulator()
     run = _run_with_fault(emu, tmp_path, "delay", 0.02, at_step=10)
     assert not run.ended and run.info["failure"] is None and run.steps == 50

@@ -27,7 +27,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from real_cell import CI_LIMITS, make_real_env, run_steps, start_emulator  # noqa: F401  (fixture)
+from real_cell import CI_LIMITS, make_real_env, run_steps
 
 from drillgym import envs  # noqa: F401
 from drillgym.controllers import make_controller
@@ -39,7 +39,7 @@ from drillgym.eval.logs.writer import schema_for
 
 pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefile)
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LI2023_TOL = {  # metric: (relative, absolute); a metric agrees when within either
     "lateral_force_max_n": (0.15, 0.0),
     "lateral_force_stable_n": (0.08, 0.0),
@@ -78,7 +78,7 @@ def _sim_run(spec, seed):
         env.close()
 
 
-def _real_vs_sim(start_emulator, tmp_path, spec, tolerances, seed=0):  # noqa: F811
+def _real_vs_sim(start_emulator, tmp_path, spec, tolerances, seed=0):
     emu = start_emulator(seed=seed)
     env = make_real_env(emu, safety_limits=CI_LIMITS)
     controller = make_controller(spec)
@@ -107,20 +107,20 @@ def _real_vs_sim(start_emulator, tmp_path, spec, tolerances, seed=0):  # noqa: F
     assert np.all(np.diff(df.t_s) > 0) and df.phase.iloc[-1] == 3 and df.tracker_valid.all()
 
 
-def test_li2023_drills_through_the_real_backend_like_in_sim(start_emulator, tmp_path):  # noqa: F811
+def test_li2023_drills_through_the_real_backend_like_in_sim(start_emulator, tmp_path):
     _real_vs_sim(start_emulator, tmp_path, "li2023", LI2023_TOL)
 
 
 @pytest.mark.parametrize(
     "policy", POLICIES or [str(ROOT / "training/policies/residual_li2023_sac.zip")], ids=lambda p: Path(p).name
 )
-def test_residual_policy_drills_through_the_real_backend_like_in_sim(start_emulator, tmp_path, policy):  # noqa: F811
+def test_residual_policy_drills_through_the_real_backend_like_in_sim(start_emulator, tmp_path, policy):
     if not Path(policy).is_file():
         pytest.skip(f"no trained residual policy yet ({policy})")
     _real_vs_sim(start_emulator, tmp_path, f"residual:{policy}", RESIDUAL_TOL)
 
 
-def test_dry_run_streams_nothing_and_logs_what_it_would_send(start_emulator, tmp_path):  # noqa: F811
+def test_dry_run_streams_nothing_and_logs_what_it_would_send(start_emulator, tmp_path):
     emu = start_emulator()
     commands = tmp_path / "commands.jsonl"
     env = make_real_env(emu, dry_run=True, command_log_path=str(commands))
@@ -137,7 +137,7 @@ def test_dry_run_streams_nothing_and_logs_what_it_would_send(start_emulator, tmp
     assert any('"moveL"' in line for line in lines) and any('"setTcp"' in line for line in lines)
 
 
-def test_reset_refuses_to_move_from_too_far_away(start_emulator):  # noqa: F811
+def test_reset_refuses_to_move_from_too_far_away(start_emulator):
     from drillgym.envs.real.config import SafetyLimits
 
     emu = start_emulator()

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 import rtde_control
 import rtde_receive
-from real_cell import start_emulator  # noqa: F401  (fixture)
 
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.real.emulator.config import DASHBOARD_PORT
@@ -17,7 +16,7 @@ from drillgym.envs.scenario import Scenario
 pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefile)
 
 
-def test_receive_interface_streams_the_full_default_recipe(start_emulator):  # noqa: F811
+def test_receive_interface_streams_the_full_default_recipe(start_emulator):
     emu = start_emulator()
     r = rtde_receive.RTDEReceiveInterface(emu.host)
     try:
@@ -33,7 +32,7 @@ def test_receive_interface_streams_the_full_default_recipe(start_emulator):  # n
     assert [len(o) for o in emu.control({"cmd": "contract"})["output_recipes"]] == [57]
 
 
-def test_unknown_variable_is_refused_like_a_controller_does(start_emulator):  # noqa: F811
+def test_unknown_variable_is_refused_like_a_controller_does(start_emulator):
     emu = start_emulator()
     with pytest.raises(RuntimeError, match="bogus_var"):
         rtde_receive.RTDEReceiveInterface(emu.host, 125.0, ["timestamp", "bogus_var"])
@@ -48,7 +47,7 @@ def _settled_tcp(r, expected, timeout_s=0.5):
     return r.getActualTCPPose()[:3]
 
 
-def test_control_interface_uploads_its_program_and_commands_move(start_emulator):  # noqa: F811
+def test_control_interface_uploads_its_program_and_commands_move(start_emulator):
     emu = start_emulator()
     r = rtde_receive.RTDEReceiveInterface(emu.host, 125.0, ["timestamp", "actual_TCP_pose", "runtime_state"])
     c = rtde_control.RTDEControlInterface(emu.host)
@@ -79,7 +78,7 @@ def test_control_interface_uploads_its_program_and_commands_move(start_emulator)
     assert st["scripts_loaded"] == 1 and st["runtime_state"] == "STOPPED"
 
 
-def test_protective_stop_refuses_motion_and_the_dashboard_reports_it(start_emulator):  # noqa: F811
+def test_protective_stop_refuses_motion_and_the_dashboard_reports_it(start_emulator):
     emu = start_emulator()
     r = rtde_receive.RTDEReceiveInterface(emu.host)
     c = rtde_control.RTDEControlInterface(emu.host)
@@ -117,7 +116,7 @@ def test_protective_stop_refuses_motion_and_the_dashboard_reports_it(start_emula
         del c, r
 
 
-def test_rtde_watchdog_stops_the_program_when_commands_stop(start_emulator):  # noqa: F811
+def test_rtde_watchdog_stops_the_program_when_commands_stop(start_emulator):
     emu = start_emulator()
     c = rtde_control.RTDEControlInterface(emu.host)
     try:
@@ -129,7 +128,7 @@ def test_rtde_watchdog_stops_the_program_when_commands_stop(start_emulator):  # 
         del c
 
 
-def test_netft_stream_counts_calibration_and_bias(start_emulator):  # noqa: F811
+def test_netft_stream_counts_calibration_and_bias(start_emulator):
     emu = start_emulator(extra_args=["--ft-rate-hz", "1000"])
     client = NetFTClient(emu.host, calibration=NetFTCalibration())
     try:
@@ -147,7 +146,7 @@ def test_netft_stream_counts_calibration_and_bias(start_emulator):  # noqa: F811
         client.close()
 
 
-def test_wrong_calibration_is_visible_in_the_readings(start_emulator):  # noqa: F811
+def test_wrong_calibration_is_visible_in_the_readings(start_emulator):
     emu = start_emulator()
     client = NetFTClient(emu.host, calibration=NetFTCalibration(counts_per_force=2e6))
     try:

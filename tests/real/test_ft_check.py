@@ -5,7 +5,6 @@ import math
 import re
 
 import pytest
-from real_cell import start_emulator  # noqa: F401  (fixture)
 
 from drillgym.eval.cli import main
 from drillgym.eval.real.ft_check import STANDARD_GRAVITY_M_S2
@@ -21,7 +20,7 @@ def _check(monkeypatch, capsys, emu, load, *extra):
     return code, capsys.readouterr()
 
 
-def test_a_known_mass_passes_within_the_tolerance(start_emulator, monkeypatch, capsys):  # noqa: F811
+def test_a_known_mass_passes_within_the_tolerance(start_emulator, monkeypatch, capsys):
     emu = start_emulator(extra_args=["--counts-per-force", "2000000"])  # read from the sensor, not assumed
     code, out = _check(monkeypatch, capsys, emu, {"mass_kg": MASS_KG}, "--json")
     result = json.loads(out.out[out.out.index("{") :])
@@ -32,7 +31,7 @@ def test_a_known_mass_passes_within_the_tolerance(start_emulator, monkeypatch, c
     assert result["force_change_sensor_n"][2] < 0 and math.hypot(*result["force_change_sensor_n"][:2]) < 0.05
 
 
-def test_a_sensor_reading_ten_percent_high_fails_with_exit_1(start_emulator, monkeypatch, capsys):  # noqa: F811
+def test_a_sensor_reading_ten_percent_high_fails_with_exit_1(start_emulator, monkeypatch, capsys):
     emu = start_emulator()
     high = {"force_n": [0.0, 0.0, -1.1 * MASS_KG * STANDARD_GRAVITY_M_S2]}
     code, out = _check(monkeypatch, capsys, emu, high)
@@ -41,7 +40,7 @@ def test_a_sensor_reading_ten_percent_high_fails_with_exit_1(start_emulator, mon
     assert error_pct == pytest.approx(10.0, abs=0.5)  # the 10 % it was given, within the 0.5 s means' noise
 
 
-def test_a_counts_per_force_that_disagrees_with_the_sensor_is_refused(start_emulator, monkeypatch, capsys):  # noqa: F811
+def test_a_counts_per_force_that_disagrees_with_the_sensor_is_refused(start_emulator, monkeypatch, capsys):
     emu = start_emulator()
     code, out = _check(monkeypatch, capsys, emu, {"mass_kg": MASS_KG}, "--counts-per-force", "2000000")
     assert code == 2 and "ft-check: error:" in out.err and "1e+06 counts/N" in out.err

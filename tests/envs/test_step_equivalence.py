@@ -1,4 +1,4 @@
-"""The fast env step against a frozen copy of the original one (tests/reference_step.py), bit for bit.
+"""The fast env step against a frozen copy of the original one (tests/envs/reference_step.py), bit for bit.
 
 Two envs with the same seed: one stepped by ``env.step``, its twin by ``reference_step``; every
 observation, reward, flag and info entry, and the recorded channels, must be identical, for zero and

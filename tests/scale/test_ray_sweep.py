@@ -13,7 +13,7 @@ from drillgym.controllers import make_controller
 from drillgym.eval.cli import main
 from drillgym.training.sweep import load_sweep
 
-SWEEPS = Path(__file__).resolve().parents[1] / "training" / "sweeps"
+SWEEPS = Path(__file__).resolve().parents[2] / "training" / "sweeps"
 
 
 @pytest.mark.parametrize("name", ["small", "residual_sac"])

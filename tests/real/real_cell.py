@@ -1,43 +1,21 @@
-"""Fixtures for the real-cell tests: emulator processes on loopback, and a real-env episode runner.
-
-Each emulator runs in its own process on a random 127.x.y.z address (so tests run in parallel) and is ended
-by its own pid; teardown checks that it exited and that its ports can be bound again.
-"""
+"""Helpers of the real-cell tests: the real env on an emulator, and an episode runner (the emulator fixture is in
+this folder's ``conftest.py``)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import pytest
 
 from drillgym import envs  # noqa: F401
 from drillgym.envs.real.config import SafetyLimits
-from drillgym.envs.real.emulator.process import EmulatorProcess, ports_free
+from drillgym.envs.real.emulator.process import EmulatorProcess
 
 REAL_ENV_ID = "drillgym/UR5BoneDrillReal-v1"
 CI_LIMITS = SafetyLimits(max_cycle_gap_s=0.5, rtde_stale_s=0.5, ft_stale_s=0.5)
 """Timing limits for long episodes on a shared CI machine (the defaults are exercised by the fault tests)."""
-
-
-@pytest.fixture
-def start_emulator() -> Iterator[Callable[..., EmulatorProcess]]:
-    """Factory: ``start_emulator(seed=0, scenario={...}, extra_args=[...])`` -> a running emulator."""
-    started: list[EmulatorProcess] = []
-
-    def _start(**kwargs: Any) -> EmulatorProcess:
-        emu = EmulatorProcess(max_lifetime_s=300.0, **kwargs)
-        started.append(emu)
-        return emu.start()
-
-    yield _start
-    for emu in started:
-        code = emu.stop()
-        assert emu.proc is not None and emu.proc.poll() is not None, f"emulator {emu.host} still running"
-        assert code == 0, f"emulator {emu.host} exited with {code}: {emu.log_tail()}"
-        assert ports_free(emu.host), f"an emulator port is still bound on {emu.host}"
 
 
 def make_real_env(emu: EmulatorProcess, **kwargs: Any) -> gym.Env:

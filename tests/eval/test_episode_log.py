@@ -21,7 +21,7 @@ from drillgym.eval.logs import (
 from drillgym.eval.logs.writer import schema_for
 
 ENV_ID = "drillgym/UR5BoneDrill-v1"
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

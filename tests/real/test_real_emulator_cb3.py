@@ -19,7 +19,6 @@ import pytest
 import rtde_control
 import rtde_io
 import rtde_receive
-from real_cell import start_emulator  # noqa: F401  (fixture)
 
 from drillgym.envs.real.emulator import rtde_protocol as rp
 from drillgym.envs.real.emulator.config import DASHBOARD_PORT, PRIMARY_PORT, SCRIPT_PORT, SECONDARY_PORT
@@ -41,7 +40,7 @@ def _wait(predicate, timeout_s=1.0):
 
 
 @pytest.mark.parametrize("port", [SCRIPT_PORT, PRIMARY_PORT, SECONDARY_PORT])
-def test_a_program_sent_to_a_script_port_replaces_the_control_script(start_emulator, port):  # noqa: F811
+def test_a_program_sent_to_a_script_port_replaces_the_control_script(start_emulator, port):
     emu = start_emulator()
     c = rtde_control.RTDEControlInterface(emu.host)
     r = rtde_receive.RTDEReceiveInterface(emu.host, 125.0, ["timestamp", "actual_digital_output_bits", "runtime_state"])
@@ -60,7 +59,7 @@ def test_a_program_sent_to_a_script_port_replaces_the_control_script(start_emula
         r.disconnect()
 
 
-def test_bare_statements_replace_the_program_and_a_secondary_program_does_not(start_emulator):  # noqa: F811
+def test_bare_statements_replace_the_program_and_a_secondary_program_does_not(start_emulator):
     emu = start_emulator()
     c = rtde_control.RTDEControlInterface(emu.host)
     r = rtde_receive.RTDEReceiveInterface(emu.host, 125.0, ["timestamp", "actual_digital_output_bits"])
@@ -86,7 +85,7 @@ def _dashboard(host, *commands):
         return replies
 
 
-def test_dashboard_power_brakes_load_and_model_answer_with_urs_texts(start_emulator):  # noqa: F811
+def test_dashboard_power_brakes_load_and_model_answer_with_urs_texts(start_emulator):
     emu = start_emulator()
     r = rtde_receive.RTDEReceiveInterface(emu.host, 125.0, ["timestamp", "robot_mode"])
     try:
@@ -108,7 +107,7 @@ def test_dashboard_power_brakes_load_and_model_answer_with_urs_texts(start_emula
     assert "no program files" in emu.log_tail()
 
 
-def test_async_movel_moves_reports_speeds_and_stops_on_stopl(start_emulator):  # noqa: F811
+def test_async_movel_moves_reports_speeds_and_stops_on_stopl(start_emulator):
     emu = start_emulator()
     fields = ["timestamp", "actual_TCP_pose", "actual_TCP_speed", "actual_qd", "target_qd"]
     r = rtde_receive.RTDEReceiveInterface(emu.host, 125.0, fields)
@@ -138,7 +137,7 @@ def test_async_movel_moves_reports_speeds_and_stops_on_stopl(start_emulator):  #
         r.disconnect()
 
 
-def test_speed_slider_and_digital_outputs_set_over_rtde_are_reflected(start_emulator):  # noqa: F811
+def test_speed_slider_and_digital_outputs_set_over_rtde_are_reflected(start_emulator):
     emu = start_emulator()
     r = rtde_receive.RTDEReceiveInterface(
         emu.host, 125.0, ["timestamp", "speed_scaling", "target_speed_fraction", "actual_digital_output_bits"]
@@ -156,7 +155,7 @@ def test_speed_slider_and_digital_outputs_set_over_rtde_are_reflected(start_emul
         r.disconnect()
 
 
-def test_tcp_offset_is_served_and_follows_set_tcp(start_emulator):  # noqa: F811
+def test_tcp_offset_is_served_and_follows_set_tcp(start_emulator):
     emu = start_emulator()
     c = rtde_control.RTDEControlInterface(emu.host)
     try:
@@ -184,7 +183,7 @@ def test_tcp_offset_is_served_and_follows_set_tcp(start_emulator):  # noqa: F811
 
 
 @pytest.mark.parametrize(("frequency_hz", "divider"), [(25.0, 5), (40.0, 3)])
-def test_a_lower_rtde_frequency_sends_every_nth_controller_cycle(start_emulator, frequency_hz, divider):  # noqa: F811
+def test_a_lower_rtde_frequency_sends_every_nth_controller_cycle(start_emulator, frequency_hz, divider):
     """CB3: outputs at most 125 Hz (UR's client library, ``CB3_MAX_FREQUENCY``); a lower frequency is served on
     the 125 Hz controller clock, every ``divider`` cycles; a frequency that 125 Hz does not divide is logged."""
     emu = start_emulator()

@@ -57,7 +57,7 @@ def test_a_run_exports_the_selected_model_and_select_only_repeats_the_choice(tmp
 
     from drillgym.eval.cli import main
 
-    smoke = (Path(__file__).resolve().parents[1] / "training" / "configs" / "smoke.yaml").read_text()
+    smoke = (Path(__file__).resolve().parents[2] / "training" / "configs" / "smoke.yaml").read_text()
     cfg = tmp_path / "c.yaml"
     cfg.write_text(smoke + "eval_episodes: 2\neval_scenarios: validation\nmodel_selection: deviation\n")
     out = tmp_path / "run"

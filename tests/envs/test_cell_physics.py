@@ -3,7 +3,7 @@
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import ENV_ID, r_squared, run_zero_action
+from physics_helpers import ENV_ID, r_squared, run_zero_action
 
 from drillgym.envs.cell import SimCell
 from drillgym.envs.cell_params import CellParams

@@ -16,7 +16,7 @@ from drillgym.training.model import build_model
 from drillgym.training.residual_wrapper import ResidualWrapper
 
 ENV_ID = "drillgym/UR5BoneDrill-v1"
-SHIPPED = Path(__file__).resolve().parents[1] / "training" / "policies" / "residual_li2023_sac.zip"
+SHIPPED = Path(__file__).resolve().parents[2] / "training" / "policies" / "residual_li2023_sac.zip"
 
 
 def test_combine_adds_the_scaled_residual_and_clips():
@@ -156,7 +156,7 @@ def test_config_yaml_overrides_and_rejects_typos(tmp_path):
 def test_smoke_training_run_saves_a_policy_that_loads_and_resumes(tmp_path):
     from drillgym.eval.cli import main
 
-    cfg = Path(__file__).resolve().parents[1] / "training" / "configs" / "smoke.yaml"
+    cfg = Path(__file__).resolve().parents[2] / "training" / "configs" / "smoke.yaml"
     out = tmp_path / "run"
     assert main(["train", "--config", str(cfg), "--out", str(out)]) == 0
     for name in ("policy.zip", "policy.json", "policy.vecnormalize.pkl", "training_curves.png", "summary.json"):

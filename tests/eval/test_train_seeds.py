@@ -10,7 +10,7 @@ import pytest
 from drillgym.eval.cli import main
 from drillgym.eval.learning.cli import _seeds, add_arguments, seed_command
 
-SMOKE = Path(__file__).resolve().parents[1] / "training" / "configs" / "smoke.yaml"
+SMOKE = Path(__file__).resolve().parents[2] / "training" / "configs" / "smoke.yaml"
 
 
 def test_seed_lists_must_be_distinct_non_negative_integers():

@@ -4,8 +4,6 @@ import json
 import subprocess
 import sys
 
-from real_cell import start_emulator  # noqa: F401  (fixture)
-
 from drillgym.envs.real.emulator.process import free_loopback_host, ports_free
 from drillgym.eval.cli import main
 from drillgym.eval.logs import read_episode_log
@@ -14,7 +12,7 @@ SHORT_PLAN = "feed_mm_s=3,depth_mm=3"
 """A 3 s hole (approach 1.4 s, feed 1.1 s, retract 0.6 s)."""
 
 
-def test_run_drills_logs_and_prints_the_measurable_metrics(start_emulator, tmp_path, capsys):  # noqa: F811
+def test_run_drills_logs_and_prints_the_measurable_metrics(start_emulator, tmp_path, capsys):
     emu = start_emulator(scenario={"feed_mm_s": 3.0, "depth_mm": 3.0})
     argv = ["run", "--robot", emu.host, "--tracker", f"udp:{emu.host}", "--scenario", SHORT_PLAN, "--yes"]
     argv += ["--max-gap-ms", "500"]  # a shared CI machine can stall the emulator for >100 ms
@@ -30,7 +28,7 @@ def test_run_drills_logs_and_prints_the_measurable_metrics(start_emulator, tmp_p
     assert (tmp_path / "commands.jsonl").stat().st_size > 0
 
 
-def test_run_seeds_each_emulated_specimen_as_the_sim_does(start_emulator, tmp_path, capsys):  # noqa: F811
+def test_run_seeds_each_emulated_specimen_as_the_sim_does(start_emulator, tmp_path, capsys):
     import gymnasium as gym
 
     from drillgym.envs import SIM_ENV_ID
@@ -50,7 +48,7 @@ def test_run_seeds_each_emulated_specimen_as_the_sim_does(start_emulator, tmp_pa
     sim.close()
 
 
-def test_run_asks_before_moving(start_emulator, tmp_path):  # noqa: F811
+def test_run_asks_before_moving(start_emulator, tmp_path):
     emu = start_emulator()
     cmd = [sys.executable, "-m", "drillgym.eval.cli", "run", "--robot", emu.host, "--out", str(tmp_path)]
     proc = subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)

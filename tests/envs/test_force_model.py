@@ -2,7 +2,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import r_squared
+from physics_helpers import r_squared
 
 from drillgym.envs.drilling import DrillGeometry, EngagementTable, get_bone_preset, stage_from_depth
 

@@ -5,7 +5,7 @@ import time
 
 import numpy as np
 import pytest
-from real_cell import CI_LIMITS, make_real_env, run_steps, start_emulator  # noqa: F401  (fixture)
+from real_cell import CI_LIMITS, make_real_env, run_steps
 
 from drillgym.controllers import make_controller
 from drillgym.envs.real.netft import FTRecord
@@ -66,7 +66,7 @@ def test_the_floor_loop_wakes_once_per_period_for_the_time_asked():
 
 
 @pytest.mark.realtime
-def test_the_episode_runs_in_a_real_time_servo_process(start_emulator):  # noqa: F811
+def test_the_episode_runs_in_a_real_time_servo_process(start_emulator):
     emu = start_emulator()
     env = make_real_env(emu, safety_limits=CI_LIMITS, servo_process=True)
     try:
@@ -81,7 +81,7 @@ def test_the_episode_runs_in_a_real_time_servo_process(start_emulator):  # noqa:
 
 
 @pytest.mark.realtime
-def test_the_servo_process_stops_the_robot_when_the_agents_process_goes_away(start_emulator):  # noqa: F811
+def test_the_servo_process_stops_the_robot_when_the_agents_process_goes_away(start_emulator):
     emu = start_emulator()
     env = make_real_env(emu, safety_limits=CI_LIMITS, servo_process=True)
     try:
@@ -99,7 +99,7 @@ def test_the_servo_process_stops_the_robot_when_the_agents_process_goes_away(sta
 
 
 @pytest.mark.realtime
-def test_the_loop_runs_as_a_thread_by_default(start_emulator):  # noqa: F811
+def test_the_loop_runs_as_a_thread_by_default(start_emulator):
     emu = start_emulator()
     env = make_real_env(emu, safety_limits=CI_LIMITS)
     try:
