@@ -19,6 +19,7 @@ from drillgym.controllers.li2023 import Li2023Config, Li2023Controller
 from drillgym.controllers.li2023_cmrr import Li2023CmrrConfig, Li2023CmrrController
 from drillgym.controllers.none import NoCompensation, NoCompensationConfig
 from drillgym.controllers.zhang2005 import Zhang2005Config, Zhang2005Controller
+from drillgym.envs.key_values import convert, split_items, split_named
 
 CONTROLLERS: dict[str, tuple[Callable[[Any], Controller], type]] = {
     "none": (NoCompensation, NoCompensationConfig),
@@ -60,30 +61,10 @@ def parse_spec(spec: str) -> tuple[str, dict[str, str]]:
 
     The text after a loader's name (``residual:PATH``) is its own and is not split.
     """
-    name, _, rest = spec.strip().partition(":")
-    overrides: dict[str, str] = {}
-    if rest and name not in loaders():
-        for item in rest.split(","):
-            key, eq, value = item.partition("=")
-            if not eq or not key.strip():
-                raise ValueError(f"controller spec {spec!r}: expected field=value, got {item!r}")
-            overrides[key.strip()] = value.strip()
-    return name, overrides
-
-
-def _convert(field: dataclasses.Field, raw: str) -> Any:
-    kind = field.type if isinstance(field.type, type) else str(field.type)
-    if kind in (bool, "bool"):
-        if raw.lower() in ("1", "true", "yes", "on"):
-            return True
-        if raw.lower() in ("0", "false", "no", "off"):
-            return False
-        raise ValueError(f"{field.name}={raw!r} is not a boolean")
-    if kind in (int, "int"):
-        return int(raw)
-    if kind in (float, "float"):
-        return float(raw)
-    return raw
+    name, rest = split_named(spec)
+    if name in loaders():
+        return name, {}
+    return name, split_items(rest, f"controller spec {spec!r}")
 
 
 def make_controller(spec: str) -> Controller:
@@ -118,9 +99,9 @@ def _build(name: str, cfg_cls: type, overrides: dict[str, str]) -> Any:
         if key not in fields:
             raise ValueError(f"{name} has no parameter {key!r}; parameters: {sorted([*fields, *SCHEDULE_FIELDS])}")
         try:
-            kwargs[key] = _convert(fields[key], raw)
+            kwargs[key] = convert(key, raw, fields[key].type)
         except ValueError as e:
-            raise ValueError(f"{name}: {key}={raw!r}: {e}") from e
+            raise ValueError(f"{name}: {e}") from e
     try:
         return cfg_cls(**kwargs)
     except ValueError as e:

@@ -9,6 +9,7 @@ from drillgym.envs.effects.sensor import FTDrift, ToolRunout
 from drillgym.envs.effects.servo import ServoDeadband
 from drillgym.envs.effects.timing import Latency
 from drillgym.envs.effects.tool import ToolLength
+from drillgym.envs.key_values import convert, split_items, split_named
 
 EFFECTS: dict[str, type[Effect]] = {
     cls.name: cls
@@ -41,19 +42,16 @@ def parse_effect_spec(spec: str) -> list[tuple[str, dict[str, float]]]:
     """
     out: list[tuple[str, dict[str, float]]] = []
     for part in spec.split("+"):
-        name, _, rest = part.strip().partition(":")
+        name, rest = split_named(part)
         if not name:
             raise ValueError(f"effect spec {spec!r}: empty effect name")
+        what = f"effect spec {spec!r}"
         values: dict[str, float] = {}
-        if rest.strip():
-            for item in rest.split(","):
-                key, eq, raw = item.partition("=")
-                if not eq or not key.strip():
-                    raise ValueError(f"effect spec {spec!r}: expected PARAM=VALUE, got {item!r}")
-                try:
-                    values[key.strip()] = float(raw)
-                except ValueError as e:
-                    raise ValueError(f"effect spec {spec!r}: {key.strip()}={raw!r} is not a number") from e
+        for key, raw in split_items(rest, what).items():
+            try:
+                values[key] = convert(key, raw, float)
+            except ValueError as e:
+                raise ValueError(f"{what}: {e}") from e
         out.append((name, values))
     return out
 

@@ -13,6 +13,7 @@ import json
 import signal
 from typing import Any
 
+from drillgym.envs.key_values import convert, split_items
 from drillgym.envs.real.emulator.config import (
     CONTROL_PORT,
     DASHBOARD_PORT,
@@ -36,19 +37,12 @@ def parse_scenario(text: str | None) -> Scenario:
     if text.lstrip().startswith("{"):
         return Scenario.from_kwargs(**json.loads(text))
     types = {f.name: f.type for f in dataclasses.fields(Scenario)}
-    kwargs: dict[str, Any] = {}
-    for item in text.split(","):
-        key, eq, raw = item.partition("=")
-        key = key.strip()
-        if not eq or key not in types:
-            raise ValueError(f"--scenario item {item!r}: expected key=value with key in {sorted(types)}")
-        kind = str(types[key])
-        if kind == "bool":
-            kwargs[key] = raw.strip().lower() in ("1", "true", "yes", "on")
-        elif kind == "str":
-            kwargs[key] = raw.strip()
-        else:
-            kwargs[key] = float(raw)
+    items = split_items(text, f"--scenario {text!r} (keys: {', '.join(sorted(types))})")
+    unknown = sorted(set(items) - set(types))
+    if unknown:
+        raise ValueError(f"--scenario: unknown key(s) {unknown}; expected key=value with key in {sorted(types)}")
+    kind = {key: "str" if str(types[key]) == "str" else "bool" if str(types[key]) == "bool" else float for key in items}
+    kwargs: dict[str, Any] = {key: convert(key, raw, kind[key]) for key, raw in items.items()}
     return Scenario.from_kwargs(**kwargs)
 
 

@@ -1,0 +1,60 @@
+"""The one ``key=value`` grammar of drillgym's specs: ``name:key=value,key=value``.
+
+Controllers (``li2023:kp=3,y_gain=1.3``), effects (``ft_drift:rate_n_s=0.01+ft_gain:gain=1.05``, joined by ``+``)
+and scenarios (``beta_deg=20,bone=sawbones``) all use it. The values stay text here; each user converts them
+to its fields' types with :func:`convert`, so a bad value is reported with its field's name.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+TRUE_WORDS = ("1", "true", "yes", "on")
+FALSE_WORDS = ("0", "false", "no", "off")
+
+
+def split_items(text: str, what: str) -> dict[str, str]:
+    """``"a=1, b = x"`` -> ``{"a": "1", "b": "x"}`` (keys and values stripped; an empty text gives ``{}``).
+
+    Raises:
+        ValueError: ``"{what}: expected key=value, got {item!r}"`` for an item without ``=`` or without a key.
+    """
+    items: dict[str, str] = {}
+    if not text.strip():
+        return items
+    for item in text.split(","):
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            raise ValueError(f"{what}: expected key=value, got {item!r}")
+        items[key.strip()] = value.strip()
+    return items
+
+
+def split_named(spec: str) -> tuple[str, str]:
+    """``"name:rest"`` -> ``("name", "rest")``, both stripped (``rest`` is ``""`` without a colon)."""
+    name, _, rest = spec.strip().partition(":")
+    return name.strip(), rest.strip()
+
+
+def convert(name: str, raw: str, kind: Any) -> Any:
+    """``raw`` as the type ``kind`` (``bool``, ``int``, ``float``, ``str`` or their names); other types stay text.
+
+    Raises:
+        ValueError: ``"{name}={raw!r} is not a boolean"`` (or a number, an integer).
+    """
+    kind = kind if isinstance(kind, type) else str(kind)
+    if kind in (bool, "bool"):
+        if raw.lower() in TRUE_WORDS:
+            return True
+        if raw.lower() in FALSE_WORDS:
+            return False
+        raise ValueError(f"{name}={raw!r} is not a boolean")
+    try:
+        if kind in (int, "int"):
+            return int(raw)
+        if kind in (float, "float"):
+            return float(raw)
+    except ValueError as e:
+        noun = "an integer" if kind in (int, "int") else "a number"
+        raise ValueError(f"{name}={raw!r} is not {noun}") from e
+    return raw
