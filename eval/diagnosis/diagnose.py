@@ -44,6 +44,9 @@ from drillgym.eval.diagnosis.rank import (
 
 MIN_EPISODES = 4
 """At least two calibration and two held-out episodes."""
+PARTLY_EXPLAINED_RATIO = 3.0
+"""A named model that leaves a held-out gap above this many times the simulator's own level (``leftover_ratio``)
+is reported as partly explaining the gap, with the cells holding what is left."""
 
 
 @dataclass
@@ -140,7 +143,13 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     named = [] if chosen is None else list(chosen.fit.names)
     alts, seconds = [], []
     evidence: dict[str, Any] | None = None
+    leftover: dict[str, Any] | None = None
     if chosen is not None:
+        leftover = {
+            "ratio": chosen.leftover_ratio,
+            "partly_explained": bool(chosen.leftover_ratio > PARTLY_EXPLAINED_RATIO),
+            "cells": locate(chosen.fit.ho_terms, null),
+        }
         alts = alternatives(scores, chosen, baseline_score(before))
         seconds = possible_second_effects(scores, chosen, pooled(null), null)
         if len(chosen.fit.names) == 2:
@@ -151,7 +160,8 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     result = {
         "verdict": verdict,
         "named": named,
-        "summary": _summary(verdict, chosen, location, alts, seconds),
+        "summary": _summary(verdict, chosen, location, alts, seconds, leftover),
+        "leftover": leftover,
         "effects": [s.to_json() for s in scores],
         "alternatives": alts,
         "possible_second_effects": seconds,
@@ -253,6 +263,7 @@ def _summary(
     location: dict[str, Any] | None,
     alts: list[dict[str, Any]],
     seconds: list[dict[str, Any]],
+    leftover: dict[str, Any] | None = None,
 ) -> str:
     if verdict == "no_gap":
         return "no significant gap: the simulator explains these episodes within its own noise and specimen scatter"
@@ -262,6 +273,16 @@ def _summary(
     s = chosen
     pct = lambda v: "nan" if not math.isfinite(v) else f"{100 * v:.0f} %"  # noqa: E731
     text = f"explained by {' + '.join(s.fit.names)}: held-out gap shrinks by {pct(s.shrink)} ({pct(s.ci_low)} to {pct(s.ci_high)})"
+    if leftover is not None and leftover["partly_explained"] and leftover["cells"]:
+        cell = leftover["cells"][0]
+        text = (
+            "partly "
+            + text
+            + (
+                f"; what is left is {leftover['ratio']:.1f}x the simulator's own level, most of it at "
+                f"{cell['channel']}, {cell['stage']} ({pct(cell['share'])} of it)"
+            )
+        )
     if alts:
         text += "; not ruled out: " + ", ".join(f"{a['name']} (better in {pct(a['p_better'])})" for a in alts[:3])
     if seconds:

@@ -81,6 +81,8 @@ class ModelScore:
     ci_low: float
     ci_high: float
     score: float
+    leftover_ratio: float = math.nan
+    """Held-out gap after the model over the simulator's own level (1: nothing left but the sim's own scatter)."""
     p_best: float = 0.0
     named: bool = False
     shrink_draws: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
@@ -101,6 +103,7 @@ class ModelScore:
             "heldout_gap_before": self.before,
             "heldout_gap_after": self.after,
             "shrink": self.shrink,
+            "leftover_ratio": self.leftover_ratio,
             "ci_low": self.ci_low,
             "ci_high": self.ci_high,
             "score": self.score,
@@ -149,6 +152,7 @@ def score_models(fits: list[FitResult], before: list[Terms], null: list[Terms], 
                 ci_low=float(lo),
                 ci_high=float(hi),
                 score=score,
+                leftover_ratio=float(g_after / g_null) if g_null > 0 else math.nan,
                 shrink_draws=b_shrink,
                 score_draws=ja[idx].sum(1) + penalty,
             )

@@ -1,0 +1,43 @@
+"""What a named model leaves: its held-out gap over the simulator's own level, and where that rest lies."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drillgym.eval.diagnosis.diagnose import PARTLY_EXPLAINED_RATIO, _summary
+from drillgym.eval.diagnosis.fit import FitResult
+from drillgym.eval.diagnosis.gap import N_CELLS, Terms
+from drillgym.eval.diagnosis.rank import ALL_CHANNELS, STAGES, locate, score_models
+
+
+def _terms(level: float, hot: tuple[int, int] | None = None, extra: float = 0.0) -> Terms:
+    """One episode's terms: ``level`` per term in every cell, ``extra`` more in the cell ``hot`` (stage, channel)."""
+    cell_sum = np.full(N_CELLS, level)
+    if hot is not None:
+        cell_sum[hot] += extra
+    return Terms(cell_sum, np.ones(N_CELLS), np.zeros(N_CELLS))
+
+
+def test_the_leftover_ratio_is_the_gap_after_over_the_simulators_own_level():
+    null = [_terms(1.0) for _ in range(4)]
+    before = [_terms(10.0) for _ in range(4)]
+    good = FitResult(("a",), [{}], 1, ho_terms=[_terms(1.5) for _ in range(4)])
+    partial = FitResult(("b",), [{}], 1, ho_terms=[_terms(1.0, (3, 5), 800.0) for _ in range(4)])
+    ratios = {s.name: s.leftover_ratio for s in score_models([good, partial], before, null)}
+    assert ratios["a"] == 1.5
+    assert ratios["b"] == (1.0 * N_CELLS[0] * N_CELLS[1] + 800.0) / (N_CELLS[0] * N_CELLS[1])
+    cells = locate(partial.ho_terms, null)
+    assert (cells[0]["stage"], cells[0]["channel"]) == (STAGES[3], ALL_CHANNELS[5]) and cells[0]["share"] == 1.0
+
+
+def test_a_model_leaving_far_more_than_the_sims_level_is_called_partly_explaining_with_the_rest_located():
+    null = [_terms(1.0) for _ in range(4)]
+    before = [_terms(10.0) for _ in range(4)]
+    fit = FitResult(("b",), [{}], 1, ho_terms=[_terms(1.0, (3, 5), 2000.0) for _ in range(4)])
+    s = score_models([fit], before, null)[0]
+    assert s.leftover_ratio > PARTLY_EXPLAINED_RATIO
+    leftover = {"ratio": s.leftover_ratio, "partly_explained": True, "cells": locate(fit.ho_terms, null)}
+    text = _summary("explained", s, None, [], [], leftover)
+    assert text.startswith("partly explained by b") and f"{ALL_CHANNELS[5]}, {STAGES[3]}" in text
+    quiet = {**leftover, "partly_explained": False}
+    assert _summary("explained", s, None, [], [], quiet).startswith("explained by b")
