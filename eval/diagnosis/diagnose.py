@@ -39,6 +39,7 @@ from drillgym.eval.diagnosis.rank import (
     possible_second_effects,
     score_models,
     second_effect_evidence,
+    single_contradicted,
     singles_by_name,
 )
 
@@ -140,6 +141,10 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
     bar.close()
     verdict, chosen, location = _verdict(significance, scores, before, data, null)
+    best_single = next((s for s in scores if len(s.fit.names) == 1), None)
+    guard = None
+    if best_single is not None and nameable(best_single, baseline_score(before)):
+        guard = {"effect": best_single.name, "contradicted": single_contradicted(best_single, before, null)}
     named = [] if chosen is None else list(chosen.fit.names)
     alts, seconds = [], []
     evidence: dict[str, Any] | None = None
@@ -162,6 +167,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
         "named": named,
         "summary": _summary(verdict, chosen, location, alts, seconds, leftover),
         "leftover": leftover,
+        "single_guard": guard,
         "effects": [s.to_json() for s in scores],
         "alternatives": alts,
         "possible_second_effects": seconds,
@@ -239,7 +245,7 @@ def _verdict(
     singles = [s for s in scores if len(s.fit.names) == 1]
     best_single = singles[0] if singles else None
     chosen: ModelScore | None = None
-    if best_single is not None and nameable(best_single, s0):
+    if best_single is not None and nameable(best_single, s0) and not single_contradicted(best_single, before, null):
         chosen = best_single
     by_name = singles_by_name(singles)
     g_null = pooled(null)

@@ -307,6 +307,49 @@ def second_contradicted(pair: ModelScore, first: ModelScore, null: list[Terms], 
     return g is not None and g.worsened()
 
 
+def before_contact_cells(effect: str) -> np.ndarray | None:
+    """(stage, channel) cells of the approach where ``effect``'s physics acts before contact; None if unknown.
+
+    Before the drill touches the bone only the effects that declare ``channels_before_contact`` change anything
+    (an F/T drift the force, a kinematic offset the tracker); the data there are the plainest check of them.
+    """
+    e = EFFECTS.get(effect)
+    if e is None or not e.channels_before_contact:
+        return None
+    mask = np.zeros((len(STAGES), len(ALL_CHANNELS)), dtype=bool)
+    approach = STAGES.index("approach")
+    for c, channel in enumerate(ALL_CHANNELS):
+        mask[approach, c] = GROUP_OF[channel] in e.channels_before_contact
+    return mask
+
+
+def single_contradicted(single: ModelScore, before: list[Terms], null: list[Terms], seed: int = 0) -> bool:
+    """Does a single effect surely worsen the held-out gap before contact, where only its own physics acts?
+
+    The guard a pair's second effect has (:func:`second_contradicted`), for a single named effect against no
+    effect at all: e.g. an F/T drift fitted to a gain error on the lateral axes bends the force during the cut,
+    but it also predicts a force before contact that the data do not show. On the effect's
+    :func:`before_contact_cells`, its gap must not exceed the simulator-as-is gap in :data:`PAIR_P_MIN` of the
+    bootstrap resamples.
+    """
+    if len(single.fit.names) != 1:
+        return False
+    mask = before_contact_cells(single.fit.names[0])
+    if mask is None:
+        return False
+    none = ModelScore(
+        fit=FitResult((), [], 0, ho_terms=before),
+        before=single.before,
+        after=single.before,
+        shrink=0.0,
+        ci_low=0.0,
+        ci_high=0.0,
+        score=0.0,
+    )
+    g = _own_cell_gaps(single, none, null, mask, seed)
+    return g is not None and g.worsened()
+
+
 def second_is_real(
     pair: ModelScore, first: ModelScore, second: ModelScore | None, null: list[Terms] | None = None
 ) -> bool:

@@ -41,3 +41,30 @@ def test_a_model_leaving_far_more_than_the_sims_level_is_called_partly_explainin
     assert text.startswith("partly explained by b") and f"{ALL_CHANNELS[5]}, {STAGES[3]}" in text
     quiet = {**leftover, "partly_explained": False}
     assert _summary("explained", s, None, [], [], quiet).startswith("explained by b")
+
+
+def test_a_single_effect_that_predicts_a_force_before_contact_the_data_lack_is_contradicted():
+    from drillgym.eval.diagnosis.channels import GROUP_OF
+    from drillgym.eval.diagnosis.rank import before_contact_cells, single_contradicted
+
+    mask = before_contact_cells("ft_drift")
+    approach = STAGES.index("approach")
+    force = [c for c, ch in enumerate(ALL_CHANNELS) if GROUP_OF[ch] == "force"]
+    assert mask is not None and mask[approach, force].all() and mask.sum() == len(force)
+    assert before_contact_cells("density_gradient") is None  # acts only through the cut
+    rng = np.random.default_rng(0)
+    null = [_terms(1.0) for _ in range(8)]
+    before = [_terms(1.0, (4, 0), 50.0 + rng.random()) for _ in range(8)]  # a gap during the cut only
+
+    def drift_fit(extra_before_contact: float) -> FitResult:
+        terms = []
+        for _ in range(8):
+            t = _terms(1.0)
+            t.cell_sum[approach, force] += extra_before_contact * (1.0 + 0.1 * rng.random())
+            terms.append(t)
+        return FitResult(("ft_drift",), [{}], 3, ho_terms=terms)
+
+    wrong = score_models([drift_fit(5.0)], before, null)[0]  # cut gap removed, a force before contact added
+    right = score_models([drift_fit(0.0)], before, null)[0]
+    assert single_contradicted(wrong, before, null)
+    assert not single_contradicted(right, before, null)
