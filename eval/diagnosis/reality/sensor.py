@@ -1,6 +1,6 @@
-"""Reality: F/T warm-up drift and a wobbling runout.
+"""Reality: F/T warm-up drift, a lateral F/T gain error and a wobbling runout.
 
-Forms unlike the candidates' linear drift and clean once-per-revolution force.
+Forms unlike the candidates' linear drift and clean once-per-revolution force; the gain error has no candidate.
 """
 
 from __future__ import annotations
@@ -46,6 +46,27 @@ class FTWarmup(RealityEffect):
         out = np.array(wrenches, dtype=float)
         out[:, :3] += shape[:, None] * amp[None, :]
         out[:, 3:] += 0.02 * 0.005 * shape[:, None] * amp[None, :]
+        return out
+
+
+class FTLateralGain(RealityEffect):
+    """A calibration error of the F/T's lateral axes: Fx and Fy read ``1 + gain`` times the true force.
+
+    No candidate models it (outside the library). Unlike a drift it changes nothing before contact, where the
+    lateral force is zero: a drift named for it predicts a force there that the data do not show.
+    """
+
+    name = "ft_lateral_gain"
+    summary = "F/T lateral axes reading too high or low by a fixed gain (calibration error)"
+    explains = None
+    location = (("fx_n", "fy_n", "fx_hf_n", "fy_hf_n"), ("entry1", "entry2", "entry3", "stable"))
+    params = (Param("gain", -0.5, 0.5, 0.0, "relative gain error of Fx and Fy (-)"),)
+    channels = frozenset({"force"})
+
+    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Scale the lateral forces."""
+        out = np.array(wrenches, dtype=float)
+        out[:, :2] *= 1.0 + self.values["gain"]
         return out
 
 
