@@ -45,9 +45,11 @@ from drillgym.eval.diagnosis.rank import (
 
 MIN_EPISODES = 4
 """At least two calibration and two held-out episodes."""
-PARTLY_EXPLAINED_RATIO = 3.0
-"""A named model that leaves a held-out gap above this many times the simulator's own level (``leftover_ratio``)
-is reported as partly explaining the gap, with the cells holding what is left."""
+LEFTOVER_REPORT_RATIO = 3.0
+"""When a named model leaves a held-out gap above this many times the simulator's own level (``leftover_ratio``),
+the summary says how much is left and where. It is a report, not a verdict: on the withheld-effect benchmark the
+right candidate leaves from 1 to over 1000 times that level (the candidates are other forms of the same physics,
+and the simulator's own level in the kinematic channels is tiny), so no ratio tells a missing effect apart."""
 
 
 @dataclass
@@ -152,7 +154,6 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     if chosen is not None:
         leftover = {
             "ratio": chosen.leftover_ratio,
-            "partly_explained": bool(chosen.leftover_ratio > PARTLY_EXPLAINED_RATIO),
             "cells": locate(chosen.fit.ho_terms, null),
         }
         alts = alternatives(scores, chosen, baseline_score(before))
@@ -279,15 +280,11 @@ def _summary(
     s = chosen
     pct = lambda v: "nan" if not math.isfinite(v) else f"{100 * v:.0f} %"  # noqa: E731
     text = f"explained by {' + '.join(s.fit.names)}: held-out gap shrinks by {pct(s.shrink)} ({pct(s.ci_low)} to {pct(s.ci_high)})"
-    if leftover is not None and leftover["partly_explained"] and leftover["cells"]:
+    if leftover is not None and leftover["ratio"] > LEFTOVER_REPORT_RATIO and leftover["cells"]:
         cell = leftover["cells"][0]
-        text = (
-            "partly "
-            + text
-            + (
-                f"; what is left is {leftover['ratio']:.1f}x the simulator's own level, most of it at "
-                f"{cell['channel']}, {cell['stage']} ({pct(cell['share'])} of it)"
-            )
+        text += (
+            f"; left: {leftover['ratio']:.3g}x the simulator's own level, most of it at "
+            f"{cell['channel']}, {cell['stage']} ({pct(cell['share'])})"
         )
     if alts:
         text += "; not ruled out: " + ", ".join(f"{a['name']} (better in {pct(a['p_better'])})" for a in alts[:3])

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drillgym.eval.diagnosis.diagnose import PARTLY_EXPLAINED_RATIO, _summary
+from drillgym.eval.diagnosis.diagnose import LEFTOVER_REPORT_RATIO, _summary
 from drillgym.eval.diagnosis.fit import FitResult
 from drillgym.eval.diagnosis.gap import N_CELLS, Terms
 from drillgym.eval.diagnosis.rank import ALL_CHANNELS, STAGES, locate, score_models
@@ -30,17 +30,18 @@ def test_the_leftover_ratio_is_the_gap_after_over_the_simulators_own_level():
     assert (cells[0]["stage"], cells[0]["channel"]) == (STAGES[3], ALL_CHANNELS[5]) and cells[0]["share"] == 1.0
 
 
-def test_a_model_leaving_far_more_than_the_sims_level_is_called_partly_explaining_with_the_rest_located():
+def test_a_model_leaving_far_more_than_the_sims_level_has_the_rest_and_its_place_in_the_summary():
     null = [_terms(1.0) for _ in range(4)]
     before = [_terms(10.0) for _ in range(4)]
     fit = FitResult(("b",), [{}], 1, ho_terms=[_terms(1.0, (3, 5), 2000.0) for _ in range(4)])
     s = score_models([fit], before, null)[0]
-    assert s.leftover_ratio > PARTLY_EXPLAINED_RATIO
-    leftover = {"ratio": s.leftover_ratio, "partly_explained": True, "cells": locate(fit.ho_terms, null)}
+    assert s.leftover_ratio > LEFTOVER_REPORT_RATIO
+    leftover = {"ratio": s.leftover_ratio, "cells": locate(fit.ho_terms, null)}
     text = _summary("explained", s, None, [], [], leftover)
-    assert text.startswith("partly explained by b") and f"{ALL_CHANNELS[5]}, {STAGES[3]}" in text
-    quiet = {**leftover, "partly_explained": False}
-    assert _summary("explained", s, None, [], [], quiet).startswith("explained by b")
+    assert text.startswith("explained by b") and f"; left: {s.leftover_ratio:.3g}x" in text
+    assert f"{ALL_CHANNELS[5]}, {STAGES[3]}" in text
+    small = {**leftover, "ratio": LEFTOVER_REPORT_RATIO / 2}
+    assert "left:" not in _summary("explained", s, None, [], [], small)
 
 
 def test_a_single_effect_that_predicts_a_force_before_contact_the_data_lack_is_contradicted():
