@@ -142,11 +142,13 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
                 scores = score_models(singles + pairs, before, null, opt.seed)
     timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
     bar.close()
-    verdict, chosen, location = _verdict(significance, scores, before, data, null)
     best_single = next((s for s in scores if len(s.fit.names) == 1), None)
-    guard = None
+    guard: dict[str, Any] | None = None
+    contradicted = False
     if best_single is not None and nameable(best_single, baseline_score(before)):
-        guard = {"effect": best_single.name, "contradicted": single_contradicted(best_single, before, null)}
+        contradicted = single_contradicted(best_single, before, null)
+        guard = {"effect": best_single.name, "contradicted": contradicted}
+    verdict, chosen, location = _verdict(significance, scores, before, data, null, contradicted)
     named = [] if chosen is None else list(chosen.fit.names)
     alts, seconds = [], []
     evidence: dict[str, Any] | None = None
@@ -237,16 +239,25 @@ def _collect(results: Iterable[tuple[int, FitResult]], n: int, bar: tqdm) -> lis
 
 
 def _verdict(
-    significance: dict[str, Any], scores: list[ModelScore], before: list[Any], data: DiagnosisData, null: list[Any]
+    significance: dict[str, Any],
+    scores: list[ModelScore],
+    before: list[Any],
+    data: DiagnosisData,
+    null: list[Any],
+    single_contradicted: bool = False,
 ) -> tuple[str, ModelScore | None, dict[str, Any] | None]:
-    """Verdict, the named model (marked ``named``) and, when unexplained, where the gap lies."""
+    """Verdict, the named model (marked ``named``) and, when unexplained, where the gap lies.
+
+    ``single_contradicted``: the best single effect fails the before-contact guard
+    (:func:`drillgym.eval.diagnosis.rank.single_contradicted`) and is not named.
+    """
     if not significance["significant"]:
         return "no_gap", None, None
     s0 = baseline_score(before)
     singles = [s for s in scores if len(s.fit.names) == 1]
     best_single = singles[0] if singles else None
     chosen: ModelScore | None = None
-    if best_single is not None and nameable(best_single, s0) and not single_contradicted(best_single, before, null):
+    if best_single is not None and nameable(best_single, s0) and not single_contradicted:
         chosen = best_single
     by_name = singles_by_name(singles)
     g_null = pooled(null)

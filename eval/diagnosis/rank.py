@@ -265,14 +265,21 @@ def _own_cell_gaps(
     """Gaps on ``mask`` (default: the :func:`own_cells` of the pair's second effect); None without cells."""
     if mask is None and len(pair.fit.names) == 2:
         mask = own_cells(first.fit.names[0], pair.fit.names[-1])
+    return _cell_gaps(first.fit.ho_terms, pair.fit.ho_terms, null, mask, seed)
+
+
+def _cell_gaps(
+    first: list[Terms], pair: list[Terms], null: list[Terms], mask: np.ndarray | None, seed: int = 0
+) -> _OwnCellGaps | None:
+    """Held-out gaps on ``mask`` of two models' terms and the null's, with bootstrap draws; None without cells."""
     m = len(null)
-    if mask is None or not mask.any() or m == 0 or len(pair.fit.ho_terms) != m or len(first.fit.ho_terms) != m:
+    if mask is None or not mask.any() or m == 0 or len(pair) != m or len(first) != m:
         return None
 
     def part(terms: list[Terms]) -> tuple[np.ndarray, np.ndarray]:
         return np.array([t.cell_sum[mask].sum() for t in terms]), np.array([t.cell_n[mask].sum() for t in terms])
 
-    parts = [part(first.fit.ho_terms), part(pair.fit.ho_terms), part(null)]
+    parts = [part(first), part(pair), part(null)]
     if min(n.sum() for _, n in parts) <= 0:
         return None
     idx = np.random.default_rng(seed).integers(0, m, size=(BOOTSTRAP, m))
@@ -334,19 +341,7 @@ def single_contradicted(single: ModelScore, before: list[Terms], null: list[Term
     """
     if len(single.fit.names) != 1:
         return False
-    mask = before_contact_cells(single.fit.names[0])
-    if mask is None:
-        return False
-    none = ModelScore(
-        fit=FitResult((), [], 0, ho_terms=before),
-        before=single.before,
-        after=single.before,
-        shrink=0.0,
-        ci_low=0.0,
-        ci_high=0.0,
-        score=0.0,
-    )
-    g = _own_cell_gaps(single, none, null, mask, seed)
+    g = _cell_gaps(before, single.fit.ho_terms, null, before_contact_cells(single.fit.names[0]), seed)
     return g is not None and g.worsened()
 
 

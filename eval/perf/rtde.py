@@ -137,7 +137,7 @@ def _stream_in_thread(
 ) -> tuple[dict[str, Any], str]:
     import rtde_control
 
-    from drillgym.envs.real.servo_bench import stream_coded_targets
+    from drillgym.envs.real.servo_bench import sleep_floor, stream_coded_targets
 
     control = rtde_control.RTDEControlInterface(host, 125.0)
     try:
@@ -146,18 +146,8 @@ def _stream_in_thread(
         control.stopScript()
         control.disconnect()
     if floor:
-        result["floor"] = _floor_in_thread(seconds, period)
+        result["floor"] = sleep_floor(seconds, period)  # where the stream ran: this thread
     return result, "thread of the benchmark's process"
-
-
-def _floor_in_thread(seconds: float, period: float) -> dict[str, Any]:
-    from drillgym.envs.real.servo_bench import sleep_floor
-
-    out: dict[str, Any] = {}
-    thread = threading.Thread(target=lambda: out.update(sleep_floor(seconds, period)), name="floor")
-    thread.start()
-    thread.join()
-    return out
 
 
 def _stream_in_process(

@@ -41,8 +41,9 @@ def parse_scenario(text: str | None) -> Scenario:
     unknown = sorted(set(items) - set(types))
     if unknown:
         raise ValueError(f"--scenario: unknown key(s) {unknown}; expected key=value with key in {sorted(types)}")
-    kind = {key: "str" if str(types[key]) == "str" else "bool" if str(types[key]) == "bool" else float for key in items}
-    kwargs: dict[str, Any] = {key: convert(key, raw, kind[key]) for key, raw in items.items()}
+    # text and flags as they are; every other field is a number (user units, as the env takes)
+    kinds = {key: str(types[key]) if str(types[key]) in ("str", "bool") else float for key in items}
+    kwargs: dict[str, Any] = {key: convert(key, raw, kinds[key]) for key, raw in items.items()}
     return Scenario.from_kwargs(**kwargs)
 
 
