@@ -116,8 +116,8 @@ def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float
 
 
 def _uncompensated(env: Any, seed: int) -> Any:
-    """One uncompensated episode: an :class:`drillgym.eval.bench.rollout.EpisodeResult` with the F/T trace."""
-    from drillgym.eval.bench.rollout import run_episode
+    """One uncompensated episode: an :class:`drillgym.controllers.rollout.EpisodeResult` with the F/T trace."""
+    from drillgym.controllers.rollout import run_episode
 
     return run_episode(env, None, seed=seed)
 

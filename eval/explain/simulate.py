@@ -47,7 +47,7 @@ def simulate(candidate: Candidate | None, value: float, runs: tuple[str, ...], s
     from drillgym.controllers.registry import make_controller
     from drillgym.envs.effects import build_effects
     from drillgym.eval.bench.episode import run_controller_episode
-    from drillgym.eval.bench.rollout import run_episode
+    from drillgym.controllers.rollout import run_episode
     from drillgym.eval.calibration.calibrate import fit_controller_model_n
 
     if not seeds:

@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 
 from drillgym import envs  # noqa: F401  (registers the ids)
-from drillgym.eval.bench.rollout import EpisodeResult, run_episode
+from drillgym.controllers.rollout import EpisodeResult, run_episode
 
 ENV_ID = "drillgym/UR5BoneDrill-v1"
 

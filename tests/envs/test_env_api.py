@@ -265,7 +265,7 @@ def test_reset_options_give_the_same_episode_as_a_fresh_env():
 def test_the_rollout_hands_a_controller_its_plan_and_matches_the_benchmark():
     from drillgym.controllers import make_controller
     from drillgym.eval.bench.episode import run_controller_episode
-    from drillgym.eval.bench.rollout import run_episode as rollout
+    from drillgym.controllers.rollout import run_episode as rollout
 
     env = gym.make(ENV_ID)
     result = rollout(env, make_controller("li2023_slow_entry"), seed=3, keep_trace=False)

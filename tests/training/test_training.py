@@ -183,7 +183,7 @@ def test_missing_policy_file_is_a_clear_error():
 
 @pytest.mark.skipif(not SHIPPED.exists(), reason="no shipped policy")
 def test_shipped_policy_completes_an_episode_from_real_cell_signals_only():
-    from drillgym.eval.bench.rollout import run_episode
+    from drillgym.controllers.rollout import run_episode
 
     controller = make_controller(f"residual:{SHIPPED}")
     env = gym.make(ENV_ID)
