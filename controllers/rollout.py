@@ -1,8 +1,13 @@
-"""Run episodes with any policy that follows SB3's ``predict`` protocol (classical, residual, learned)."""
+"""The one rollout loop: run an episode with any policy that follows SB3's ``predict`` protocol.
+
+Classical, residual and learned controllers alike; the benchmark, the model selection, the reproduction,
+the calibration and the real-cell runs all go through :func:`run_episode`.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import gymnasium as gym
@@ -28,25 +33,44 @@ class PolicyPredictor(Protocol):
 
 @dataclass
 class EpisodeResult:
-    """Metrics and per-F/T-sample traces of one episode."""
+    """Metrics and per-F/T-sample traces of one episode.
 
-    seed: int
+    Attributes:
+        seed: the reset seed (None: the env's wrapper chose it).
+        metrics: :data:`drillgym.envs.metrics.METRIC_NAMES`.
+        trace: per-F/T-sample traces (empty without ``keep_trace``).
+        steps: agent steps taken.
+        sim_time_s: env time at the end (s).
+        failure: ``""``, the env's failure (e.g. ``"force_limit"``) or ``"truncated"``.
+        info: the last step's ``info`` (a real cell's ``error``, stop result, ...).
+    """
+
+    seed: int | None
     metrics: dict[str, float]
     trace: dict[str, np.ndarray]
+    steps: int = 0
+    sim_time_s: float = math.nan
+    failure: str = ""
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def row(self) -> dict[str, Any]:
+        """The metrics plus ``steps``, ``sim_time_s`` and ``failure``: one row of a benchmark table."""
+        return {**self.metrics, "steps": self.steps, "sim_time_s": self.sim_time_s, "failure": self.failure}
 
 
 def run_episode(
-    env: gym.Env, policy: PolicyPredictor | None = None, seed: int = 0, keep_trace: bool = True
+    env: gym.Env, policy: PolicyPredictor | None = None, seed: int | None = 0, keep_trace: bool = True
 ) -> EpisodeResult:
     """Reset with ``seed`` and run to the end; ``policy=None`` commands zero correction, nominal feed.
 
     A policy with a ``set_plan`` method (every :class:`drillgym.controllers.Controller`) is handed the
-    episode's plan after the reset, as the benchmark does.
+    episode's plan after the reset, as the benchmark does. ``seed=None`` leaves the seed to the env (a
+    wrapper such as ``ScenarioCycle`` sets its own).
     """
     obs, _ = env.reset(seed=seed)
     if policy is not None and hasattr(policy, "set_plan"):
         policy.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
-    state, start = None, True
+    state, start, steps = None, True, 0
     zero = np.zeros(ACTION_DIM, dtype=np.float32)
     while True:
         if policy is None:
@@ -54,10 +78,11 @@ def run_episode(
         else:
             action, state = policy.predict(obs, state=state, episode_start=np.array([start]), deterministic=True)
         obs, _, terminated, truncated, info = env.step(action)
-        start = False
+        start, steps = False, steps + 1
         if terminated or truncated:
             break
     metrics = info.get("metrics") or env.unwrapped.episode_metrics()  # type: ignore[attr-defined]
+    failure = info.get("failure") or ("truncated" if truncated and not terminated else "")
     trace: dict[str, np.ndarray] = {}
     if keep_trace:
         rec = env.unwrapped.recorder  # type: ignore[attr-defined]
@@ -69,4 +94,5 @@ def run_episode(
             "deviation_m": np.asarray(rec.deviation_m),
             "ft_force_n": np.asarray(rec.ft_force_n),
         }
-    return EpisodeResult(seed, dict(metrics), trace)
+    t_s = float(info.get("t_s", math.nan))
+    return EpisodeResult(seed, dict(metrics), trace, steps, t_s, str(failure), dict(info))

@@ -10,8 +10,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from drillgym.envs.metrics import FORCE_FILTER_SAMPLES, moving_average
 from drillgym.controllers.rollout import EpisodeResult
+from drillgym.envs.metrics import FORCE_FILTER_SAMPLES, moving_average
 
 STAGE_COLOURS = {1: "#fde0c5", 2: "#facba6", 3: "#f8b58b", 4: "#e0ecf4"}
 

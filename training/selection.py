@@ -37,6 +37,7 @@ import numpy as np
 from scipy import stats
 
 from drillgym.controllers import Controller, make_controller
+from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.training.config import TrainConfig
 from drillgym.training.domain_randomization import VALIDATION_SEED, ScenarioCycle, merged_ranges, validation_scenarios
@@ -92,14 +93,7 @@ def score(controller: Controller, cfg: TrainConfig, episodes: list[tuple[dict[st
     env = ScenarioCycle(gym.make(ENV_ID, **cfg.env_kwargs), scenarios, seeds)
     try:
         for _ in episodes:
-            obs, _ = env.reset()
-            controller.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
-            start, done, info = True, False, dict[str, Any]()
-            while not done:
-                action, _ = controller.predict(obs, episode_start=np.array([start]), deterministic=True)
-                obs, _, terminated, truncated, info = env.step(action)
-                start, done = False, terminated or truncated
-            metrics = info.get("metrics") or env.unwrapped.episode_metrics()  # type: ignore[attr-defined]
+            metrics = run_episode(env, controller, seed=None, keep_trace=False).metrics  # the cycle seeds it
             for key, values in out.items():
                 values.append(float(metrics[key]))
     finally:

@@ -18,10 +18,10 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 
 from drillgym.controllers import make_controller
 from drillgym.controllers.base import Controller
+from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.metrics import METRIC_NAMES
 from drillgym.envs.scenario import Scenario
@@ -108,18 +108,7 @@ def run_controller_episode(env: gym.Env, controller: Controller, seed: int) -> d
         The episode metrics (:data:`drillgym.envs.metrics.METRIC_NAMES`) plus ``steps``, ``sim_time_s`` and
         ``failure`` (``""``, ``"force_limit"`` or ``"truncated"``).
     """
-    obs, _ = env.reset(seed=seed)
-    controller.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
-    state, start, steps = None, True, 0
-    while True:
-        action, state = controller.predict(obs, state=state, episode_start=np.array([start]), deterministic=True)
-        obs, _, terminated, truncated, info = env.step(action)
-        start, steps = False, steps + 1
-        if terminated or truncated:
-            break
-    metrics = info.get("metrics") or env.unwrapped.episode_metrics()  # type: ignore[attr-defined]
-    failure = info.get("failure") or ("truncated" if truncated and not terminated else "")
-    return {**metrics, "steps": steps, "sim_time_s": float(info["t_s"]), "failure": failure}
+    return run_episode(env, controller, seed, keep_trace=False).row()
 
 
 def run_job(job: EpisodeJob) -> dict[str, Any]:

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.drilling.bone import BUFFALO_CORTICAL, CANCELLOUS_RATIO, BonePreset
@@ -117,8 +118,6 @@ def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float
 
 def _uncompensated(env: Any, seed: int) -> Any:
     """One uncompensated episode: an :class:`drillgym.controllers.rollout.EpisodeResult` with the F/T trace."""
-    from drillgym.controllers.rollout import run_episode
-
     return run_episode(env, None, seed=seed)
 
 
@@ -190,7 +189,6 @@ def predict_li2023(cal: EntryCalibration, seeds: range | list[int], effects: str
     li2023's model is fitted to the uncompensated run of the first seed.
     """
     from drillgym.controllers.registry import make_controller
-    from drillgym.eval.bench.episode import run_controller_episode
 
     env = make_env(cal.structure, cal.lateral_scale, cal.stickout_mm, effects)
     try:
@@ -199,7 +197,7 @@ def predict_li2023(cal: EntryCalibration, seeds: range | list[int], effects: str
         results: dict[str, list[dict[str, Any]]] = {"none": [r.metrics for r in none]}
         for name, overrides in PREDICTED.items():
             spec = f"li2023:{overrides}model_peak_force_n={peak:.4f}"
-            results[name] = [run_controller_episode(env, make_controller(spec), s) for s in seeds]
+            results[name] = [run_episode(env, make_controller(spec), s, keep_trace=False).row() for s in seeds]
     finally:
         env.close()
     out: dict[str, float] = {"model_peak_n": peak}

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.controllers.rollout import run_episode
 from drillgym.eval.explain.candidates import Candidate
 from drillgym.eval.explain.observations import METRICS
 
@@ -46,8 +47,6 @@ def simulate(candidate: Candidate | None, value: float, runs: tuple[str, ...], s
     """
     from drillgym.controllers.registry import make_controller
     from drillgym.envs.effects import build_effects
-    from drillgym.eval.bench.episode import run_controller_episode
-    from drillgym.controllers.rollout import run_episode
     from drillgym.eval.calibration.calibrate import fit_controller_model_n
 
     if not seeds:
@@ -68,7 +67,7 @@ def simulate(candidate: Candidate | None, value: float, runs: tuple[str, ...], s
                     candidate.controller_overrides(value, peak) if candidate else {"model_peak_force_n": peak}
                 )
                 ctrl = "li2023:" + ",".join(f"{k}={v!r}" for k, v in overrides.items())
-                rows = [run_controller_episode(env, make_controller(ctrl), s) for s in seeds]
+                rows = [run_episode(env, make_controller(ctrl), s, keep_trace=False).row() for s in seeds]
             out[run] = {k: [float(r[k]) for r in rows] for k in METRICS}
     finally:
         env.unwrapped.set_effects(None)

@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 
+from drillgym.controllers.rollout import run_episode
 from drillgym.envs import REAL_ENV_ID
 from drillgym.envs.real.config import SafetyLimits
 from drillgym.envs.real.devices import split_host_port
@@ -139,19 +139,6 @@ def _print_metrics(metrics: dict[str, float]) -> None:
     print("  deviation_*_mm, hole_offset_mm: measure the hole on the specimen (no true tip on a real cell)")
 
 
-def run_episode(env: gym.Env, controller: Any, seed: int) -> dict[str, Any]:
-    """One episode with ``controller``; returns the last info (``metrics``, ``failure``, ``error``)."""
-    obs, _ = env.reset(seed=seed)
-    controller.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
-    start = True
-    while True:
-        action, _ = controller.predict(obs, episode_start=np.array([start]), deterministic=True)
-        obs, _, terminated, truncated, info = env.step(action)
-        start = False
-        if terminated or truncated:
-            return dict(info)
-
-
 def run(args: argparse.Namespace) -> int:
     """Connect, confirm, drill ``--episodes`` holes, print and save the metrics."""
     from drillgym.controllers import make_controller
@@ -218,7 +205,7 @@ def run(args: argparse.Namespace) -> int:
             header = build_header(env, controller.describe(), seed, source="real", extra=extra)
             logger = EpisodeLogger(env, args.out / "logs" / name, header, overwrite=True)
             try:
-                info = run_episode(logger, controller, seed)
+                info = run_episode(logger, controller, seed, keep_trace=False).info
             except RuntimeError as e:  # refused to start (safety bits, too far from the start pose, ...)
                 print(f"episode {k}: could not start: {e}", file=sys.stderr)
                 code = 1

@@ -10,9 +10,9 @@ import gymnasium as gym
 import numpy as np
 
 from drillgym.controllers import make_controller
+from drillgym.controllers.rollout import EpisodeResult, run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.drilling import DrillGeometry, EngagementTable, get_bone_preset, stage_from_depth
-from drillgym.controllers.rollout import EpisodeResult, run_episode
 
 KP_SWEEP = (0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0)
 """KP values of the deviation-vs-KP figure (Li Fig. 12)."""

@@ -264,8 +264,8 @@ def test_reset_options_give_the_same_episode_as_a_fresh_env():
 
 def test_the_rollout_hands_a_controller_its_plan_and_matches_the_benchmark():
     from drillgym.controllers import make_controller
-    from drillgym.eval.bench.episode import run_controller_episode
     from drillgym.controllers.rollout import run_episode as rollout
+    from drillgym.eval.bench.episode import run_controller_episode
 
     env = gym.make(ENV_ID)
     result = rollout(env, make_controller("li2023_slow_entry"), seed=3, keep_trace=False)
@@ -273,3 +273,18 @@ def test_the_rollout_hands_a_controller_its_plan_and_matches_the_benchmark():
     env.close()
     for name, value in result.metrics.items():
         assert value == bench[name] or (np.isnan(value) and np.isnan(bench[name])), name
+
+
+def test_the_rollout_reports_steps_end_time_and_the_failure():
+    from drillgym.controllers.rollout import run_episode as rollout
+
+    env = gym.make(ENV_ID, force_limit_n=2.0)
+    try:
+        result = rollout(env, None, seed=0, keep_trace=False)
+    finally:
+        env.close()
+    assert result.failure == "force_limit"
+    assert result.steps > 0 and result.sim_time_s == pytest.approx(result.steps * 0.05)
+    row = result.row()
+    assert row["failure"] == "force_limit" and row["steps"] == result.steps
+    assert result.info["failure"] == "force_limit" and not result.trace

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.effects.registry import parse_effect_spec
 from drillgym.eval.diagnosis.reality.base import RealityEffect
@@ -84,15 +85,8 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
             env.reset(seed=plan["seed"], options={"scenario": plan["scenario"]})
             header = build_header(env, controller.describe(), seed=None, source="real")
             logger = EpisodeLogger(env, out / f"episode_{i:03d}.parquet", header, overwrite=overwrite)
-            obs, _ = logger.reset()  # no seed: continues the stream seeded above; the header keeps seed null
-            controller.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
-            start = True
-            while True:
-                action, _ = controller.predict(obs, episode_start=np.array([start]))
-                obs, _, terminated, truncated, _ = logger.step(action)
-                start = False
-                if terminated or truncated:
-                    break
+            # no seed: the episode continues the stream seeded above; the header keeps seed null
+            run_episode(logger, controller, seed=None, keep_trace=False)
             logger.close_log()
     finally:
         env.close()
