@@ -10,16 +10,15 @@ do not mix), or as Ray tasks with ``--ray`` / ``--address`` (:mod:`drillgym.eval
 from __future__ import annotations
 
 import argparse
-import multiprocessing
 import re
 import sys
-from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
 from drillgym.controllers.registry import BEST_CLASSICAL
 from drillgym.envs.effects.cells import cell_effects_spec
 from drillgym.eval.bench.suites import SUITES
+from drillgym.eval.pool import run_unordered
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -199,34 +198,18 @@ def run_jobs(jobs: list[Any], workers: int, desc: str = "bench") -> list[dict[st
 
     from drillgym.eval.bench.episode import close_cached, run_job
 
+    rows = []
     with tqdm(total=len(jobs), desc=desc, unit="ep", disable=None) as bar:  # no bar when not a terminal
-        if workers == 1:
-            try:
-                return [_tick(bar, run_job(job)) for job in jobs]
-            finally:
-                close_cached()
-        ctx = multiprocessing.get_context("spawn")
-        rows = []
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx) as pool:
-            futures: dict[Future, Any] = {pool.submit(run_job, job): job for job in jobs}
-            try:
-                for fut in as_completed(futures):
-                    rows.append(_tick(bar, _result(fut, futures[fut])))
-            except KeyboardInterrupt:
-                pool.shutdown(cancel_futures=True)
-                raise
-        return rows
+        try:
+            for _, row in run_unordered(run_job, jobs, workers, on_error=_worker_failed):
+                bar.update(1)
+                rows.append(row)
+        finally:
+            close_cached()  # the envs of an in-process run
+    return rows
 
 
-def _tick(bar: Any, row: dict[str, Any]) -> dict[str, Any]:
-    bar.update(1)
-    return row
-
-
-def _result(fut: Future, job: Any) -> dict[str, Any]:
-    """The job's row; a worker that died (not an episode error, which run_job records) becomes an error row."""
-    try:
-        return fut.result()
-    except Exception as e:
-        row = {"suite": job.suite, "scenario": job.scenario, "controller": job.controller, "seed": job.seed}
-        return {**row, "error": f"worker failed: {type(e).__name__}: {e}", "log": job.log_name}
+def _worker_failed(job: Any, e: Exception) -> dict[str, Any]:
+    """A worker that died (not an episode error, which run_job records) becomes an error row."""
+    row = {"suite": job.suite, "scenario": job.scenario, "controller": job.controller, "seed": job.seed}
+    return {**row, "error": f"worker failed: {type(e).__name__}: {e}", "log": job.log_name}

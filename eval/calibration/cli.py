@@ -11,9 +11,7 @@ from __future__ import annotations
 
 import argparse
 import csv
-import multiprocessing as mp
 from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from itertools import product
 from pathlib import Path
 from typing import Any
@@ -27,6 +25,7 @@ from drillgym.eval.calibration.calibrate import (
     passes_li2023_checks,
     predict_li2023,
 )
+from drillgym.eval.pool import run_unordered
 from drillgym.eval.reproduce.paper import LI2023_UNCOMPENSATED
 
 
@@ -112,14 +111,11 @@ def _evaluate_all(
     grid: list[EntryStructure], seeds: int, workers: int, effects: str = ""
 ) -> Iterator[tuple[int, dict[str, Any]]]:
     """``(grid index, row)`` as each structure finishes: in this process with one worker, else in a pool."""
-    if workers == 1:
-        for i, structure in enumerate(grid):
-            yield i, evaluate(structure, seeds, effects)
-        return
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
-        futures = {pool.submit(evaluate, s, seeds, effects): i for i, s in enumerate(grid)}
-        for fut in as_completed(futures):
-            yield futures[fut], fut.result()
+    yield from run_unordered(_evaluate_job, [(s, seeds, effects) for s in grid], workers)
+
+
+def _evaluate_job(job: tuple[EntryStructure, int, str]) -> dict[str, Any]:
+    return evaluate(*job)
 
 
 def run(args: argparse.Namespace) -> int:

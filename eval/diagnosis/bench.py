@@ -9,7 +9,6 @@ process each); each diagnosis runs in its process.
 from __future__ import annotations
 
 import json
-import multiprocessing as mp
 import statistics
 import sys
 import tempfile
@@ -22,6 +21,7 @@ from typing import Any
 from tqdm import tqdm
 
 from drillgym.eval.diagnosis.bench_cases import Case
+from drillgym.eval.pool import run_unordered
 
 ACCEPTANCE = {
     "top1_accuracy_single": 0.90,
@@ -87,11 +87,8 @@ def _run_case(job: CaseJob) -> dict[str, Any]:
 
 def local_rows(jobs: list[CaseJob], workers: int) -> Iterator[dict[str, Any]]:
     """Run the cases in this process (one worker) or a ``spawn`` pool, yielding rows as they finish."""
-    if workers <= 1:
-        yield from map(run_case, jobs)
-        return
-    with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
-        yield from pool.imap_unordered(run_case, jobs)
+    for _, row in run_unordered(run_case, jobs, max(workers, 1)):
+        yield row
 
 
 def score_case(case: Case, res: dict[str, Any], gen_s: float = 0.0, skipped: list[str] | None = None) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""Run diagnosis jobs on every core: a ``spawn`` process pool, each worker with its own simulator.
+"""Run diagnosis jobs on every core (:mod:`drillgym.eval.pool`), each worker with its own simulator.
 
 Workers receive the shared :class:`~drillgym.eval.diagnosis.context.DiagnosisData` once (pool initializer) and
 keep one env (:class:`~drillgym.eval.diagnosis.replay.Replayer`). With one worker everything runs in this process.
@@ -6,13 +6,13 @@ keep one env (:class:`~drillgym.eval.diagnosis.replay.Replayer`). With one worke
 
 from __future__ import annotations
 
-import multiprocessing as mp
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 from drillgym.eval.diagnosis.context import DiagnosisData, Evaluator, baseline_job
 from drillgym.eval.diagnosis.fit import FitResult, fit_model, refit_jointly
 from drillgym.eval.diagnosis.replay import Replayer
+from drillgym.eval.pool import run_unordered
 
 _WORKER: dict[str, Any] = {}
 
@@ -45,13 +45,8 @@ class Runner:
     def _map(
         self, data: DiagnosisData, fn: Callable[[Any], tuple[int, Any]], jobs: list[Any]
     ) -> Iterator[tuple[int, Any]]:
-        if self.workers == 1 or len(jobs) <= 1:
-            _init(data)
-            yield from map(fn, jobs)
-            return
-        ctx = mp.get_context("spawn")
-        with ctx.Pool(min(self.workers, len(jobs)), initializer=_init, initargs=(data,)) as pool:
-            yield from pool.imap_unordered(fn, jobs)
+        for _, result in run_unordered(fn, jobs, self.workers, initializer=_init, initargs=(data,)):
+            yield result
 
     def baselines(self, data: DiagnosisData) -> Iterable[tuple[int, Any]]:
         """Nominal and null replays of every episode."""

@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing as mp
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +21,7 @@ from drillgym.eval.explain.observations import (
     calibration_targets,
     held_out_targets,
 )
+from drillgym.eval.pool import run_ordered
 
 FULL = {"fit_seeds": 3, "predict_seeds": 5, "grid_points": 9, "refine_evals": 6}
 QUICK_SETTINGS = {"fit_seeds": 1, "predict_seeds": 2, "grid_points": 4, "refine_evals": 2}
@@ -80,12 +79,8 @@ def explain(names: list[str], settings: dict[str, int], workers: int) -> dict[st
         (n, targets, seed_sd, fit_seeds, predict_seeds, settings["grid_points"], settings["refine_evals"])
         for n in names
     ]
-    if workers == 1 or len(jobs) == 1:
-        results = [_job(j) for j in jobs]
-        close()
-    else:
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=mp.get_context("spawn")) as pool:
-            results = list(pool.map(_job, jobs))
+    results = run_ordered(_job, jobs, workers)
+    close()  # the env of an in-process run
     nominal = {
         "fit": nominal_fit,
         "prediction": {k: {"sim": float(np.mean(v)), "per_seed": v} for k, v in nominal_pred[HELD_OUT_RUN].items()},

@@ -1,0 +1,85 @@
+"""The one process pool: run jobs on several cores, each worker a fresh ``spawn`` process.
+
+``spawn`` (not ``fork``) because a worker builds its own PyBullet client, Pinocchio model and, for policies,
+torch: none of them survives a fork safely. With one worker (or one job) everything runs in this process,
+so a single-core run has no pool overhead and a traceback points at the job itself.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from typing import Any, TypeVar
+
+Job = TypeVar("Job")
+Result = TypeVar("Result")
+
+
+def run_unordered(
+    fn: Callable[[Job], Result],
+    jobs: Sequence[Job],
+    workers: int,
+    *,
+    initializer: Callable[..., None] | None = None,
+    initargs: tuple[Any, ...] = (),
+    on_error: Callable[[Job, Exception], Result] | None = None,
+) -> Iterator[tuple[int, Result]]:
+    """Yield ``(index in jobs, fn(job))`` as each job finishes.
+
+    Args:
+        fn: a module-level function (workers import it by name).
+        jobs: its arguments, one per call.
+        workers: processes at most (1: in this process, in order).
+        initializer: run once per worker (and once here with one worker), e.g. to hand every worker
+            shared data once instead of with each job.
+        initargs: the initializer's arguments.
+        on_error: turns a job whose worker failed (it raised, or its process died) into a result; without
+            it the error is raised here.
+
+    A ``KeyboardInterrupt`` cancels the jobs that have not started and is raised again.
+    """
+    if workers < 1:
+        raise ValueError(f"workers={workers} must be >= 1")
+    if workers == 1 or len(jobs) <= 1:
+        if initializer is not None:
+            initializer(*initargs)
+        for i, job in enumerate(jobs):
+            yield i, _call(fn, job, on_error)
+        return
+    ctx = mp.get_context("spawn")
+    with ProcessPoolExecutor(
+        max_workers=min(workers, len(jobs)), mp_context=ctx, initializer=initializer, initargs=initargs
+    ) as pool:
+        futures: dict[Future, int] = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
+        try:
+            for fut in as_completed(futures):
+                i = futures[fut]
+                yield i, _result(fut, jobs[i], on_error)
+        except BaseException:
+            pool.shutdown(cancel_futures=True)
+            raise
+
+
+def run_ordered(fn: Callable[[Job], Result], jobs: Sequence[Job], workers: int, **kwargs: Any) -> list[Result]:
+    """:func:`run_unordered`'s results in the order of ``jobs``."""
+    out: dict[int, Result] = dict(run_unordered(fn, jobs, workers, **kwargs))
+    return [out[i] for i in range(len(jobs))]
+
+
+def _call(fn: Callable[[Job], Result], job: Job, on_error: Callable[[Job, Exception], Result] | None) -> Result:
+    if on_error is None:
+        return fn(job)
+    try:
+        return fn(job)
+    except Exception as e:
+        return on_error(job, e)
+
+
+def _result(fut: Future, job: Any, on_error: Callable[[Any, Exception], Any] | None) -> Any:
+    if on_error is None:
+        return fut.result()
+    try:
+        return fut.result()
+    except Exception as e:
+        return on_error(job, e)
