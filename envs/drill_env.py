@@ -29,6 +29,7 @@ from drillgym.envs.metrics import EpisodeRecorder, episode_metrics
 from drillgym.envs.observation import OBS_SIZE, observation_space, pack_flat_observation
 from drillgym.envs.plan import DrillPlan
 from drillgym.envs.pybullet_world import PyBulletWorld
+from drillgym.envs.reward import RewardWeights, checked_action
 from drillgym.envs.robot.ur5 import TRACKER_FRAME
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
@@ -222,12 +223,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         _check_arguments(scenario_kwargs)
         self.scenario = Scenario.from_kwargs(**scenario_kwargs)
         self.render_mode = render_mode
-        self.w_dev, self.w_force, self.w_smooth = (
-            float(reward_deviation_weight),
-            float(reward_force_weight),
-            float(reward_smooth_weight),
+        self.reward = RewardWeights(
+            reward_deviation_weight, reward_force_weight, reward_smooth_weight, reward_peak_force_weight
         )
-        self.w_peak = float(reward_peak_force_weight)
         self.cell_params = cell_params
         self.bone_material = bone_material
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
@@ -318,14 +316,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Apply one correction + feed override for 50 ms (5 physics updates / F/T samples)."""
-        a = np.asarray(action, dtype=float)
-        if a.shape != (ACTION_DIM,):
-            raise ValueError(f"action must have shape ({ACTION_DIM},), got {np.shape(action)}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"action={a.tolist()} contains NaN or inf; rejected (env state unchanged)")
+        a = checked_action(action, "env state unchanged")
         if self.path.phase == Phase.DONE or self.failure is not None:
             raise RuntimeError("step() called after the episode ended; call reset()")
-        a = np.clip(a, -1.0, 1.0)
         corr, scale = scale_action(a)
         fx = self.effects
         delay_s = self.scenario.latency_s if fx is None else fx.command_delay_s(self, self.scenario.latency_s)
@@ -364,12 +357,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         rec.tracker_deviation_m.extend([self.tracker_lateral_m] * SUBSTEPS_PER_STEP)
         dev_mean = sum(deviations) / SUBSTEPS_PER_STEP
         lat_mean = sum(math.hypot(f[0], f[1]) for _, _, f, *_ in samples) / SUBSTEPS_PER_STEP
-        terms = {
-            "deviation": -self.w_dev * dev_mean * 1e3,
-            "force": -self.w_force * lat_mean,
-            "smooth": -self.w_smooth * float(np.add.reduce((a - self.prev_action) ** 2)),  # np.sum's reduction
-            "peak_force": -self.w_peak * max(lat_mean - self.peak_lateral_n, 0.0),
-        }
+        terms = self.reward.terms(dev_mean, lat_mean, a, self.prev_action, self.peak_lateral_n)
         self.peak_lateral_n = max(self.peak_lateral_n, lat_mean)
         self.step_terms = terms
         self.prev_action = a

@@ -24,6 +24,7 @@ from drillgym.envs.real.robot_link import LinkError
 from drillgym.envs.real.safety import check_safety_bits
 from drillgym.envs.real.servo import BLIND_FAULTS, CellGeometry, ServoLoop
 from drillgym.envs.real.servo_process import RemoteServo
+from drillgym.envs.reward import RewardWeights, checked_action
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.task import DrillPath
 
@@ -130,9 +131,8 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.limits = safety_limits or SafetyLimits()
         self.servo_params = servo_params or ServoParams()
         self.dry_run = bool(dry_run)
-        self.weights = tuple(
-            float(w)
-            for w in (reward_deviation_weight, reward_force_weight, reward_smooth_weight, reward_peak_force_weight)
+        self.reward = RewardWeights(
+            reward_deviation_weight, reward_force_weight, reward_smooth_weight, reward_peak_force_weight
         )
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = observation_space()  # type: ignore[assignment]
@@ -234,26 +234,18 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Command one correction + feed override and let one control period (50 ms) pass."""
-        a = np.asarray(action, dtype=float)
-        if a.shape != (ACTION_DIM,):
-            raise ValueError(f"action must have shape ({ACTION_DIM},), got {np.shape(action)}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action={a.tolist()} contains NaN or inf; rejected (nothing sent)")
+        a = checked_action(action, "nothing sent")
         if self.servo is None or self.streams is None or self.streams.ended:
             raise RuntimeError("step() before reset() or after the episode ended; call reset()")
-        a = np.clip(a, -1.0, 1.0)
         corr, scale = scale_action(a)
         self.servo.command(corr, scale)
         sample = self.streams.advance(CONTROL_DT_S)
         self.rtde_tcp_base, self.tracker_reading = self.streams.tcp_base, self.streams.tracker_reading
-        w_dev, w_force, w_smooth, w_peak = self.weights
-        self.step_terms = {
-            "deviation": -w_dev * sample.tracker_lateral_m * 1e3,
-            "force": -w_force * sample.lateral_force_mean_n,
-            "smooth": -w_smooth * float(np.sum((a - self.prev_action) ** 2)),
-            "peak_force": -w_peak * max(sample.lateral_force_mean_n - self.peak_lateral_n, 0.0),
-        }
-        self.peak_lateral_n = max(self.peak_lateral_n, sample.lateral_force_mean_n)
+        lateral_n = sample.lateral_force_mean_n
+        self.step_terms = self.reward.terms(
+            sample.tracker_lateral_m, lateral_n, a, self.prev_action, self.peak_lateral_n
+        )
+        self.peak_lateral_n = max(self.peak_lateral_n, lateral_n)
         self.prev_action = a
         terminated = self.servo.fault is not None or sample.path_done
         truncated = not terminated and sample.t_s >= self.max_time_s

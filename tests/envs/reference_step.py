@@ -440,10 +440,10 @@ def reference_step(env: Any, action: np.ndarray) -> tuple[dict[str, np.ndarray],
     dev_mean = sum(math.hypot(x.tip[0], x.tip[1]) for x in samples) / SUBSTEPS_PER_STEP
     lat_mean = sum(math.hypot(x.force[0], x.force[1]) for x in samples) / SUBSTEPS_PER_STEP
     terms = {
-        "deviation": -env.w_dev * dev_mean * 1e3,
-        "force": -env.w_force * lat_mean,
-        "smooth": -env.w_smooth * float(np.sum((a - env.prev_action) ** 2)),
-        "peak_force": -env.w_peak * max(lat_mean - env.peak_lateral_n, 0.0),
+        "deviation": -env.reward.deviation * dev_mean * 1e3,
+        "force": -env.reward.force * lat_mean,
+        "smooth": -env.reward.smooth * float(np.sum((a - env.prev_action) ** 2)),
+        "peak_force": -env.reward.peak_force * max(lat_mean - env.peak_lateral_n, 0.0),
     }
     env.peak_lateral_n = max(env.peak_lateral_n, lat_mean)
     env.step_terms = terms

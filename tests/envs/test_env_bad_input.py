@@ -119,3 +119,9 @@ def test_out_of_range_action_is_clipped_to_the_box(twins):
             env.step(np.array([5, -7, 3, 10], np.float32)),
             twin.step(np.array([1, -1, 1, 1], np.float32)),
         )
+
+
+@pytest.mark.parametrize("weight", [-1.0, float("nan"), float("inf"), "1"])
+def test_a_negative_or_non_finite_reward_weight_is_an_error(weight):
+    with pytest.raises(ValueError, match="reward_force_weight"):
+        gym.make(ENV_ID, reward_force_weight=weight)

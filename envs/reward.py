@@ -1,0 +1,69 @@
+"""The drilling task's reward and action checks, shared by the simulated and the real env.
+
+Per agent step::
+
+    r = -w_dev · deviation_mm - w_force · lateral_force_n - w_smooth · |a - a_prev|² - w_peak · Δpeak_n
+
+``deviation_mm`` is the step's lateral deviation (the sim's true tip; on a real cell the tracker's),
+``lateral_force_n`` the step's mean lateral F/T force, and ``Δpeak_n`` how far that force raises the
+episode's running maximum, so the last term sums to ``w_peak`` times the episode's peak lateral force.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from drillgym.envs.constants import ACTION_DIM
+
+
+@dataclass(frozen=True)
+class RewardWeights:
+    """Weights of the reward terms.
+
+    Attributes:
+        deviation: per mm of lateral deviation.
+        force: per N of the step's mean lateral force.
+        smooth: per unit² of action change.
+        peak_force: per N by which the step raises the episode's peak lateral force.
+    """
+
+    deviation: float = 1.0
+    force: float = 0.1
+    smooth: float = 0.01
+    peak_force: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("deviation", "force", "smooth", "peak_force"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"reward_{name}_weight={value!r} must be a finite number >= 0")
+            object.__setattr__(self, name, float(value))
+
+    def terms(
+        self, deviation_m: float, lateral_force_n: float, action: np.ndarray, prev_action: np.ndarray, peak_n: float
+    ) -> dict[str, float]:
+        """The step's reward terms (``info["reward_terms"]``); ``peak_n`` is the running peak before this step (N)."""
+        return {
+            "deviation": -self.deviation * deviation_m * 1e3,
+            "force": -self.force * lateral_force_n,
+            "smooth": -self.smooth * float(np.add.reduce((action - prev_action) ** 2)),  # np.sum's reduction
+            "peak_force": -self.peak_force * max(lateral_force_n - peak_n, 0.0),
+        }
+
+
+def checked_action(action: np.ndarray, consequence: str) -> np.ndarray:
+    """``action`` as a float array clipped to [-1, 1]; ``ValueError`` naming ``consequence`` if its shape or values are bad.
+
+    Args:
+        action: the agent's action (:data:`drillgym.envs.constants.ACTION_DIM` entries).
+        consequence: what the env did about a bad action, e.g. ``"env state unchanged"`` or ``"nothing sent"``.
+    """
+    a = np.asarray(action, dtype=float)
+    if a.shape != (ACTION_DIM,):
+        raise ValueError(f"action must have shape ({ACTION_DIM},), got {np.shape(action)}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"action={a.tolist()} contains NaN or inf; rejected ({consequence})")
+    return np.clip(a, -1.0, 1.0)
