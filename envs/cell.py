@@ -9,11 +9,13 @@ Pure numpy + Pinocchio: no PyBullet here.
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 from numpy.linalg import _umath_linalg
 
 from drillgym.envs.cell_params import R_BASE_TASK, CellParams
+from drillgym.envs.constants import PHYSICS_DT_S
 from drillgym.envs.drilling.bone import BonePreset, get_bone_preset
 from drillgym.envs.drilling.contact import ContactSample, SampleRow, TipContactSolver
 from drillgym.envs.drilling.force_model import EngagementTable
@@ -40,8 +42,33 @@ def _kinematics(tcp_offset_m: float, marker: tuple[float, float, float]) -> UR5K
     return UR5Kinematics(tcp_offset_m, marker)
 
 
+HARDNESS_FACTOR_LIMITS = (0.5, 1.5)
+"""A drawn specimen's hardness factor is clamped to these (relative to its bone preset)."""
+
+
+def servo_gain(time_constant_s: float) -> float:
+    """Share of the way to its target the servo moves per physics update (first-order lag of ``time_constant_s``)."""
+    return 1.0 - math.exp(-PHYSICS_DT_S / time_constant_s)
+
+
+def draw_specimen_hardness(rng: np.random.Generator, variability: float) -> float:
+    """A specimen's hardness factor: ``1 + variability · z`` for ``rng``'s next standard normal ``z``, clamped.
+
+    Bone varies from sample to sample; the simulated env (at ``reset(seed)``) and the emulator (per
+    specimen seed) draw it the same way, so a seed gives the same specimen in both.
+    """
+    factor = 1.0 + variability * float(rng.standard_normal())
+    low, high = HARDNESS_FACTOR_LIMITS
+    return min(max(factor, low), high)
+
+
 class SimCell:
-    """Quasi-static physics of the UR5 drilling cell for one scenario."""
+    """Quasi-static physics of the UR5 drilling cell for one scenario.
+
+    Attributes (besides the physics):
+        servo_gain: the scenario's servo lag as a share per physics update (:func:`servo_gain`).
+        specimen_hardness: this specimen's hardness factor (:meth:`set_specimen_hardness`).
+    """
 
     def __init__(self, scenario: Scenario, params: CellParams | None = None, bone: BonePreset | None = None) -> None:
         """Build the cell; ``bone`` overrides the scenario's named preset with a custom specimen."""
@@ -82,6 +109,8 @@ class SimCell:
             p.wall_length_m,
         )
         self.C_tool = self.tool.compliance_tool_m_n()
+        self.servo_gain = servo_gain(scenario.servo_time_constant_s)
+        self.specimen_hardness = 1.0
         self._q_start = self._ik_cached(0.0)
         self.clear_effects()
         self.reset()
@@ -125,6 +154,11 @@ class SimCell:
         self.q_motor_rad = _start_ik(self.kin, tuple(self.tip_pose_base(start)[:3, 3])).copy()
         self._update_compliance()
         self.sample = ContactSample(tuple(start), tuple(start), (0.0, 0.0, 0.0), 0.0, float(start[2]), 0, False)
+
+    def set_specimen_hardness(self, factor: float) -> None:
+        """Cut a specimen ``factor`` times as hard as the bone preset (every cutting force scales with it)."""
+        self.specimen_hardness = factor
+        self.solver.force_scale = factor
 
     def _update_compliance(self) -> None:
         j = self.kin.jacobian(self.q_motor_rad, TCP_FRAME)

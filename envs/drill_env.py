@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from drillgym.envs.cell import SimCell
+from drillgym.envs.cell import SimCell, draw_specimen_hardness
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.constants import (
     ACTION_DIM,
@@ -277,10 +277,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.path.reset()
         self.cell.reset(np.array([0.0, 0.0, self.path.s_m]))
         rng = self.np_random
-        # This specimen's hardness: bone varies from sample to sample (std ``bone_variability``).
-        factor = 1.0 + self.scenario.bone_variability * float(rng.standard_normal())
-        self.specimen_hardness = min(max(factor, 0.5), 1.5)
-        self.cell.solver.force_scale = self.specimen_hardness
+        self.specimen_hardness = draw_specimen_hardness(rng, self.scenario.bone_variability)
+        self.cell.set_specimen_hardness(self.specimen_hardness)
         self.ft = ForceTorqueSensor(self.scenario.ft_noise_n, rng)
         self.tracker = PositionTracker(self.scenario.tracker_noise_m, rng)
         self.t_s = 0.0
@@ -303,7 +301,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.tracker_reading = np.zeros(3)
         self.rtde_tcp_base = self.cell.tcp_rtde_base_m()
         self.step_terms: dict[str, float] = {}
-        self.servo_gain = 1.0 - math.exp(-PHYSICS_DT_S / self.scenario.servo_time_constant_s)
+        self.servo_gain = self.cell.servo_gain
         if self.effects is not None or self._effects_attached:
             self.cell.clear_effects()
             self._effects_attached = self.effects is not None

@@ -184,3 +184,25 @@ def test_wall_guidance_rises_from_its_floor_to_full_over_the_wall_length():
         assert solver._wall_factor() == pytest.approx(expected)
     with pytest.raises(ValueError, match="wall_guidance_floor"):
         SimCell(Scenario(), CellParams(wall_guidance_floor=0.0))
+
+
+def test_a_specimen_hardness_is_one_plus_variability_times_a_normal_draw_clamped():
+    from drillgym.envs.cell import HARDNESS_FACTOR_LIMITS, draw_specimen_hardness
+
+    z = np.random.default_rng(7).standard_normal(2)
+    assert draw_specimen_hardness(np.random.default_rng(7), 0.05) == 1.0 + 0.05 * z[0]
+    low, high = HARDNESS_FACTOR_LIMITS
+    for seed in range(20):
+        expected = float(np.clip(1.0 + 2.0 * np.random.default_rng(seed).standard_normal(), low, high))
+        assert draw_specimen_hardness(np.random.default_rng(seed), 2.0) == expected
+    draws = {draw_specimen_hardness(np.random.default_rng(s), 2.0) for s in range(20)}
+    assert {low, high} <= draws  # a large variability reaches both clamps
+
+
+def test_the_servo_gain_is_a_first_order_lag_per_physics_update():
+    from drillgym.envs.cell import servo_gain
+    from drillgym.envs.constants import PHYSICS_DT_S
+
+    tau = 0.02
+    remaining = (1.0 - servo_gain(tau)) ** 10  # ten updates
+    assert remaining == pytest.approx(np.exp(-10 * PHYSICS_DT_S / tau), rel=1e-12)

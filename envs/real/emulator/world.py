@@ -4,8 +4,8 @@ The physics is the simulator's own (:class:`drillgym.envs.cell.SimCell`, 100 Hz 
 compliance refresh), driven by what the controller program commands instead of by the env: servo
 targets (``servoL``), straight moves (``moveL``) and stops. The feed the bone sees is estimated from the
 commanded targets' axial speed (their arrival times), as the real bone sees the real motion.
-The specimen's hardness is drawn like the simulated env's (``default_rng(seed)``, first normal draw), so
-a seed gives the same specimen in both.
+The specimen's hardness is drawn like the simulated env's (:func:`drillgym.envs.cell.draw_specimen_hardness`
+from ``default_rng(seed)``), and the servo lag is the cell's, so a seed gives the same specimen in both.
 
 Frames: ``base`` (UR base), ``task`` (planned entry point, z along the drill into the bone), TCP poses
 as UR poses of the *configured* TCP (``setTcp``), the physical drill tip at the cell's true TCP offset.
@@ -18,7 +18,7 @@ from collections import deque
 
 import numpy as np
 
-from drillgym.envs.cell import SimCell
+from drillgym.envs.cell import SimCell, draw_specimen_hardness
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.constants import FT_TORQUE_NOISE_ARM_M, PHYSICS_DT_S, SUBSTEPS_PER_STEP
 from drillgym.envs.drilling.contact import ContactSample
@@ -80,7 +80,7 @@ class EmulatedCell:
         oversample = math.sqrt(max(ft_rate_hz, 100.0) / 100.0)
         noise = scenario.ft_noise_n * oversample
         self.ft_noise_std = np.array([noise] * 3 + [noise * FT_TORQUE_NOISE_ARM_M] * 3)
-        self.servo_gain = 1.0 - math.exp(-PHYSICS_DT_S / scenario.servo_time_constant_s)
+        self.servo_gain = self.cell.servo_gain
         self.truth = TruthRecorder()
         self.halted = False
         self.halted_at_s = -math.inf
@@ -104,10 +104,9 @@ class EmulatedCell:
             seed, self.next_specimen_seed = self.next_specimen_seed, None
         self.specimen_seed = self.seed + self.specimen if seed is None else int(seed)
         self.rng = np.random.default_rng(self.specimen_seed)
-        factor = 1.0 + sc.bone_variability * float(self.rng.standard_normal())
+        self.hardness_factor = draw_specimen_hardness(self.rng, sc.bone_variability)
         self.cell.reset(np.asarray(start_tip_task_m, dtype=float))
-        self.cell.solver.force_scale = min(max(factor, 0.5), 1.5)
-        self.hardness_factor = self.cell.solver.force_scale
+        self.cell.set_specimen_hardness(self.hardness_factor)
         self.target_task = np.array(self.cell.rigid_tip)
         self.move: tuple[np.ndarray, np.ndarray, float, float] | None = None
         self.targets: deque[tuple[float, float]] = deque()
