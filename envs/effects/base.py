@@ -17,6 +17,9 @@ Hook points, in the order of one agent step (50 ms, 5 F/T samples):
 * ``sensor_wrenches(env, wrenches, t_s)``: the true wrenches of the step's samples (5, 6) (N, N·m,
   sensor frame) before the F/T noise and resolution.
 
+The hooks see the env through :class:`EffectHost`: the cell's physics and the episode's path, pending
+commands, recorded samples and specimen, nothing else of the env.
+
 Offsets the encoders do *not* see (the tool or the arm is not where the controller's model puts it)
 go on the cell: :attr:`drillgym.envs.cell.SimCell.geometry_offset_task_m` and ``marker_offset_base_m``.
 
@@ -28,14 +31,46 @@ the re-simulation.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from drillgym.envs.cell import SimCell
+    from drillgym.envs.metrics import EpisodeRecorder
+    from drillgym.envs.scenario import Scenario
+    from drillgym.envs.task import DrillPath
+
 CHANNEL_GROUPS = ("force", "torque", "tracker", "q", "tcp")
 """What an effect can change: F/T force, F/T torque, tracker marker, RTDE joint angles, RTDE TCP."""
+
+
+class EffectHost(Protocol):
+    """What an effect's hooks may read and change of the simulated episode (the env implements it).
+
+    Attributes:
+        cell: the physics (tip balance ``cell.solver``, last sample ``cell.sample``, the effect state of
+            :meth:`drillgym.envs.cell.SimCell.clear_effects`, the specimen's ``cell.specimen_hardness``).
+        scenario: the episode's scenario.
+        path: the nominal path (depth ``path.s_m``, ``path.speed_m_s(feed_scale)``).
+        recorder: the samples recorded so far (``recorder.tip_task_m``, ...).
+        feed_scale: the feed override in force (-).
+        correction_base_m: the correction the servo holds now (m, base frame).
+        pending: commands not yet applied: ``(apply time s, correction m base, feed scale)``, oldest first.
+        specimen_hardness: this specimen's drawn hardness factor (-).
+    """
+
+    cell: SimCell
+    scenario: Scenario
+    path: DrillPath
+    recorder: EpisodeRecorder
+    feed_scale: float
+    correction_base_m: np.ndarray
+    pending: deque[tuple[float, np.ndarray, float]]
+    specimen_hardness: float
 
 
 @dataclass(frozen=True)
@@ -107,21 +142,21 @@ class Effect:
         return f"{type(self).__name__}({args})"
 
     # ------------------------------------------------------------------ hooks (no-ops)
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """At reset, after the cell and the sensors are reset."""
 
-    def command_delay_s(self, env: Any, delay_s: float) -> float:
+    def command_delay_s(self, env: EffectHost, delay_s: float) -> float:
         """Latency (s) of the command being queued; ``delay_s`` is the cell's nominal one."""
         return delay_s
 
-    def begin_step(self, env: Any) -> None:
+    def begin_step(self, env: EffectHost) -> None:
         """Before the samples of an agent step."""
 
     def delay_target(self, t_s: float, target: tuple[float, float, float]) -> tuple[float, float, float]:
         """The servo target (m, task frame) the servo really follows at sample time ``t_s`` (s)."""
         return target
 
-    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """True wrenches (5, 6) (N, N·m, sensor frame) at the sample times ``t_s`` (s), before noise."""
         return wrenches
 
@@ -159,19 +194,19 @@ class EffectStack:
             self._delay_target if self._target else None
         )
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Attach every effect (the cell has just been cleared)."""
         for e in self.effects:
             e.servo_offset_task_m = None
             e.attach(env)
 
-    def command_delay_s(self, env: Any, delay_s: float) -> float:
+    def command_delay_s(self, env: EffectHost, delay_s: float) -> float:
         """Latency of a command after every effect."""
         for e in self._delay:
             delay_s = e.command_delay_s(env, delay_s)
         return delay_s
 
-    def begin_step(self, env: Any) -> None:
+    def begin_step(self, env: EffectHost) -> None:
         """Run the effects' step-start hooks."""
         for e in self._begin:
             e.begin_step(env)
@@ -192,7 +227,7 @@ class EffectStack:
             target = e.delay_target(t_s, target)
         return target
 
-    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """True wrenches after every sensor-side effect."""
         for e in self._sensor:
             wrenches = e.sensor_wrenches(env, wrenches, t_s)

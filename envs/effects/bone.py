@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from drillgym.envs.constants import CONTROL_DT_S
-from drillgym.envs.effects.base import Effect, Param
+from drillgym.envs.effects.base import Effect, EffectHost, Param
 
 MIN_HARDNESS = 0.05
 """Floor of any hardness factor (the bone never vanishes)."""
@@ -30,7 +29,7 @@ class DensityGradient(Effect):
     )
     channels = frozenset({"force", "torque", "tracker"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Multiply the force table by the profile."""
         a, g = self.values["offset"], self.values["gradient_per_m"]
         if a == 0.0 and g == 0.0:
@@ -60,11 +59,11 @@ class ThermalSoftening(Effect):
     )
     channels = frozenset({"force", "torque", "tracker"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Cold bone."""
         self.work_j = 0.0
 
-    def begin_step(self, env: Any) -> None:
+    def begin_step(self, env: EffectHost) -> None:
         """Add the last step's cutting work and scale the specimen's forces by the softening reached."""
         a = self.values["softening"]
         if a == 0.0:
@@ -90,7 +89,7 @@ class SkidFriction(Effect):
     params = (Param("mu", 0.0, 3.0, 0.0, "extra side guidance at first touch (share of full guidance)"),)
     channels = frozenset({"force", "torque", "tracker"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Install the guidance hook."""
         mu = self.values["mu"]
         if mu == 0.0:

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.envs.constants import CONTROL_DT_S
-from drillgym.envs.effects.base import Effect, Param
+from drillgym.envs.effects.base import Effect, EffectHost, Param
 
 SIGN_SMOOTHING_RAD_S = 1e-5
 """Joint speed below which Coulomb friction fades out (rad/s): a joint at rest holds its position."""
@@ -37,7 +37,7 @@ def add_geometry_offset(cell: Any, offset_task_m: np.ndarray, marker_base_m: np.
         cell.marker_offset_base_m = m if cell.marker_offset_base_m is None else cell.marker_offset_base_m + m
 
 
-def commanded_velocity_task_m_s(env: Any) -> np.ndarray:
+def commanded_velocity_task_m_s(env: EffectHost) -> np.ndarray:
     """Velocity of the commanded tip target at the start of a step (m/s, task frame).
 
     The path speed along the planned axis plus the rate of the newest queued correction (taken over one
@@ -72,7 +72,7 @@ class JointFriction(Effect):
     channels = frozenset({"force", "torque", "tracker", "q", "tcp"})
     channels_before_contact = frozenset({"tracker", "q", "tcp"})
 
-    def begin_step(self, env: Any) -> None:
+    def begin_step(self, env: EffectHost) -> None:
         """Set the servo offset from the joint speeds of the commanded motion."""
         cell = env.cell
         v_base = cell.R_base_task @ commanded_velocity_task_m_s(env)
@@ -111,7 +111,7 @@ class KinematicOffset(Effect):
         lims = [(p.low, p.high) for p in cls.params]
         return {p.name: float(np.clip(v, lo, hi)) for p, v, (lo, hi) in zip(cls.params, d, lims, strict=True)}
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Shift the physical tool and the marker."""
         d = np.array([self.values["dx_base_m"], self.values["dy_base_m"], self.values["dz_base_m"]])
         if np.any(d != 0.0):

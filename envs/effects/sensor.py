@@ -7,11 +7,10 @@ Both act on the true wrench before the sensor's noise and resolution, and on a r
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
-from drillgym.envs.effects.base import Effect, Param, TraceView
+from drillgym.envs.effects.base import Effect, EffectHost, Param, TraceView
 
 
 class FTDrift(Effect):
@@ -37,7 +36,7 @@ class FTDrift(Effect):
         v = self.values
         return np.array([v["fx_rate_n_s"], v["fy_rate_n_s"], v["fz_rate_n_s"]])
 
-    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Add the drift to the force axes."""
         out = np.array(wrenches, dtype=float)
         out[:, :3] += self._rates()[None, :] * np.asarray(t_s)[:, None]
@@ -75,7 +74,7 @@ class ToolRunout(Effect):
         angle = 2.0 * math.pi * rpm / 60.0 * np.asarray(t_s)
         return np.stack([amp * np.cos(angle), amp * np.sin(angle)], axis=1)
 
-    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Add the rotating force (and its moment about the sensor) to the step's samples."""
         cell = env.cell
         tips = np.asarray(env.recorder.tip_task_m[-len(t_s) :], dtype=float)

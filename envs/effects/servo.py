@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
-
-from drillgym.envs.effects.base import Effect, Param
+from drillgym.envs.effects.base import Effect, EffectHost, Param
 
 
 class ServoDeadband(Effect):
@@ -26,7 +24,7 @@ class ServoDeadband(Effect):
     channels = frozenset({"force", "torque", "tracker", "q", "tcp"})
     channels_before_contact = frozenset({"tracker", "q", "tcp"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """No held position yet: the first target is taken as it is."""
         self.held: list[float] | None = None
 

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import bisect
-from typing import Any
 
-from drillgym.envs.effects.base import Effect, Param
+from drillgym.envs.effects.base import Effect, EffectHost, Param
 
 
 class DelayLine:
@@ -57,7 +56,7 @@ class Latency(Effect):
     channels = frozenset({"force", "torque", "tracker", "q", "tcp"})
     channels_before_contact = frozenset({"tracker", "q", "tcp"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Start an empty delay line."""
         self.line = DelayLine()
 

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from drillgym.envs.drilling.tool import CantileverTool
-from drillgym.envs.effects.base import Effect, Param
+from drillgym.envs.effects.base import Effect, EffectHost, Param
 from drillgym.envs.effects.joints import add_geometry_offset
 
 
@@ -25,7 +23,7 @@ class ToolLength(Effect):
     params = (Param("dl_m", -8e-3, 8e-3, 0.0, "real minus planned stick-out (m)"),)
     channels = frozenset({"force", "torque", "tracker"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Rebuild the drill's compliance, move the tip and lengthen the sensor arm."""
         dl = self.values["dl_m"]
         if dl == 0.0:

@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import bisect
 import math
-from typing import Any
 
 import numpy as np
 
 from drillgym.envs.constants import CONTROL_DT_S
-from drillgym.envs.effects.base import Param
+from drillgym.envs.effects.base import EffectHost, Param
 from drillgym.envs.robot.ur5 import TCP_FRAME, TRACKER_FRAME
 from drillgym.eval.diagnosis.reality.base import RealityEffect, shift_tool
 
@@ -33,14 +32,14 @@ class JitteredLatency(RealityEffect):
     )
     channels = frozenset({"force", "torque", "tracker", "q", "tcp"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Empty history."""
         self.times: list[float] = []
         self.targets: list[tuple[float, float, float]] = []
         self.src = -math.inf
         self.delay = self.values["mean_s"]
 
-    def begin_step(self, env: Any) -> None:
+    def begin_step(self, env: EffectHost) -> None:
         """A new packet: a new delay."""
         v = self.values
         self.delay = max(0.0, v["mean_s"] + v["jitter_s"] * (float(self.rng.exponential()) - 1.0))
@@ -74,12 +73,12 @@ class StribeckFriction(RealityEffect):
     )
     channels = frozenset({"force", "torque", "tracker", "q", "tcp"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """At rest."""
         self.qd = np.zeros(6)
         self.prev: np.ndarray | None = None
 
-    def begin_step(self, env: Any) -> None:
+    def begin_step(self, env: EffectHost) -> None:
         """Offset of the servo from the friction at the filtered joint speeds."""
         cell = env.cell
         target = cell.R_base_task.T @ env.correction_base_m + np.array([0.0, 0.0, env.path.s_m])
@@ -111,7 +110,7 @@ class JointZeroOffsets(RealityEffect):
     )
     channels = frozenset({"force", "torque", "tracker"})
 
-    def _offsets(self, env: Any) -> tuple[np.ndarray, np.ndarray]:
+    def _offsets(self, env: EffectHost) -> tuple[np.ndarray, np.ndarray]:
         cell = env.cell
         dq = np.array([self.values["dq0_rad"], self.values["dq1_rad"], self.values["dq2_rad"], 0.0, 0.0, 0.0])
         q = cell.q_motor_rad
@@ -119,12 +118,12 @@ class JointZeroOffsets(RealityEffect):
         marker = cell.kin.fk(q + dq, TRACKER_FRAME)[:3, 3] - cell.kin.fk(q, TRACKER_FRAME)[:3, 3]
         return cell.R_base_task.T @ tip, marker
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Put the tool where the true kinematics have it."""
         tip, marker = self._offsets(env)
         shift_tool(env, self, tip, marker, at_attach=True)
 
-    def begin_step(self, env: Any) -> None:
+    def begin_step(self, env: EffectHost) -> None:
         """The offsets at the current pose."""
         tip, marker = self._offsets(env)
         shift_tool(env, self, tip, marker, at_attach=False)
@@ -146,7 +145,7 @@ class ChuckToolLength(RealityEffect):
     )
     channels = frozenset({"force", "torque", "tracker"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Soften and lengthen the tool."""
         dl, c_chuck = self.values["dl_m"], self.values["chuck_rad_per_nm"]
         if dl == 0.0 and c_chuck == 0.0:

@@ -10,11 +10,11 @@ the matching candidate has earned it. ``explains`` names the candidate that mode
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
-from drillgym.envs.effects.base import Effect
+from drillgym.envs.effects.base import Effect, EffectHost
 
 
 class RealityEffect(Effect):
@@ -37,7 +37,7 @@ class RealityEffect(Effect):
 
 
 def shift_tool(
-    env: Any, owner: RealityEffect, offset_task_m: np.ndarray, marker_base_m: np.ndarray | None, at_attach: bool
+    env: EffectHost, owner: RealityEffect, offset_task_m: np.ndarray, marker_base_m: np.ndarray | None, at_attach: bool
 ) -> None:
     """Set ``owner``'s share of where the physical tool (task frame, m) and the marker (base frame, m) sit.
 
@@ -58,8 +58,9 @@ def shift_tool(
         s.rigid = [a + b for a, b in zip(s.rigid, delta, strict=True)]
         s.tip = [a + b for a, b in zip(s.tip, delta, strict=True)]
         s.depth_local = s.tip[2] + s.tip[0] * s.tan_beta
+        tip, rigid = s.tip, s.rigid
         cell.sample = dataclasses.replace(
-            cell.sample, tip=tuple(s.tip), rigid=tuple(s.rigid), depth_local=s.depth_local
+            cell.sample, tip=(tip[0], tip[1], tip[2]), rigid=(rigid[0], rigid[1], rigid[2]), depth_local=s.depth_local
         )
     cell.geometry_offset_task_m = total - old + new
     if cell.marker_offset_base_m is not None or marker_base_m is not None:

@@ -6,12 +6,11 @@ The void in the bone is deliberately outside the candidate library.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from drillgym.envs.constants import CONTROL_DT_S
-from drillgym.envs.effects.base import Param
+from drillgym.envs.effects.base import EffectHost, Param
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 
 
@@ -20,12 +19,12 @@ class ForceScaleReset(RealityEffect):
 
     name = "_force_scale_reset"
 
-    def begin_step(self, env: Any) -> None:
+    def begin_step(self, env: EffectHost) -> None:
         """Reset the force scale."""
         env.cell.solver.force_scale = env.specimen_hardness
 
 
-def _local_depth_m(env: Any) -> float:
+def _local_depth_m(env: EffectHost) -> float:
     return float(env.cell.sample.depth_local)
 
 
@@ -42,7 +41,7 @@ class DensityLayer(RealityEffect):
     )
     channels = frozenset({"force", "torque", "tracker"})
 
-    def begin_step(self, env: Any) -> None:
+    def begin_step(self, env: EffectHost) -> None:
         """Scale the forces by the hardness at the tip."""
         v = self.values
         if v["hardening"] == 0.0:
@@ -67,11 +66,11 @@ class HeatSoftening(RealityEffect):
     )
     channels = frozenset({"force", "torque", "tracker"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Bone at body temperature."""
         self.rise_k = 0.0
 
-    def begin_step(self, env: Any) -> None:
+    def begin_step(self, env: EffectHost) -> None:
         """Integrate the heat balance over the last step and soften."""
         v = self.values
         if v["softening_per_k"] == 0.0:
@@ -96,7 +95,7 @@ class EntryFriction(RealityEffect):
     params = (Param("mu", 0.0, 5.0, 0.0, "friction guidance scale"),)
     channels = frozenset({"force", "torque", "tracker"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Install the guidance hook."""
         mu = self.values["mu"]
         if mu == 0.0:
@@ -122,7 +121,7 @@ class BoneVoid(RealityEffect):
     )
     channels = frozenset({"force", "torque", "tracker"})
 
-    def begin_step(self, env: Any) -> None:
+    def begin_step(self, env: EffectHost) -> None:
         """Scale the forces by the bone left at the tip."""
         v = self.values
         if v["length_m"] == 0.0:

@@ -6,11 +6,10 @@ Forms unlike the candidates' linear drift and clean once-per-revolution force; t
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
-from drillgym.envs.effects.base import Param
+from drillgym.envs.effects.base import EffectHost, Param
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 
 
@@ -33,11 +32,11 @@ class FTWarmup(RealityEffect):
     )
     channels = frozenset({"force", "torque"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Draw how long the sensor had been on."""
         self.on_s = float(self.rng.uniform(0.0, 60.0))
 
-    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Add the settling drift."""
         v = self.values
         amp = np.array([v["fx_n"], v["fy_n"], v["fz_n"]])
@@ -63,7 +62,7 @@ class FTLateralGain(RealityEffect):
     params = (Param("gain", -0.5, 0.5, 0.0, "relative gain error of Fx and Fy (-)"),)
     channels = frozenset({"force"})
 
-    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Scale the lateral forces."""
         out = np.array(wrenches, dtype=float)
         out[:, :2] *= 1.0 + self.values["gain"]
@@ -87,11 +86,11 @@ class WobblyRunout(RealityEffect):
     )
     channels = frozenset({"force", "torque"})
 
-    def attach(self, env: Any) -> None:
+    def attach(self, env: EffectHost) -> None:
         """Random phase of the orbit."""
         self.phase0 = float(self.rng.uniform(0.0, 2 * math.pi))
 
-    def sensor_wrenches(self, env: Any, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Add the orbiting force and its moment."""
         v = self.values
         cell = env.cell
