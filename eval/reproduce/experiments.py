@@ -104,7 +104,7 @@ def force_model_trends() -> dict[str, Any]:
 
 def stiffness_identification(noise_mm: float = 0.05, load_n: float = 100.0, seed: int = 0) -> dict[str, Any]:
     """Li §3.3 and Table 1: identify Kθ from simulated load tests, predict three validation poses."""
-    from drillgym.envs.robot.stiffness_cli import identify_and_compare
+    from drillgym.envs.robot.stiffness_experiment import identify_and_compare
 
     return identify_and_compare(noise_mm=noise_mm, load_n=load_n, seed=seed)
 
