@@ -18,10 +18,10 @@ import numpy as np
 STANDARD_GRAVITY_M_S2 = 9.80665
 
 if TYPE_CHECKING:
-    from drillgym.envs.real.emulator.server import Emulator
+    from drillgym.envs.real.emulator.host import EmulatorHost
 
 
-def handle_control(emulator: Emulator, line: str) -> tuple[dict[str, Any], bool]:
+def handle_control(emulator: EmulatorHost, line: str) -> tuple[dict[str, Any], bool]:
     """Reply to one request line, and whether to close the control connection."""
     try:
         request = json.loads(line)
@@ -79,7 +79,7 @@ def handle_control(emulator: Emulator, line: str) -> tuple[dict[str, Any], bool]
     return {"ok": False, "error": f"unknown cmd {cmd!r}"}, False
 
 
-def ft_load(emulator: Emulator, request: dict[str, Any]) -> list[float]:
+def ft_load(emulator: EmulatorHost, request: dict[str, Any]) -> list[float]:
     """Hang a known load on the F/T sensor (``mass_kg``: m·g along the sensor's -z; or ``force_n``, N)."""
     if "force_n" in request:
         force = np.asarray(request["force_n"], dtype=float).reshape(3)
@@ -91,7 +91,7 @@ def ft_load(emulator: Emulator, request: dict[str, Any]) -> list[float]:
     return [float(v) for v in force]
 
 
-def status(emulator: Emulator) -> dict[str, Any]:
+def status(emulator: EmulatorHost) -> dict[str, Any]:
     """State of the emulated controller, its program and its streams."""
     prog, world = emulator.program, emulator.world
     return {

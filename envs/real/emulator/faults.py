@@ -4,12 +4,38 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from drillgym.envs.real.emulator.config import FAULT_KINDS, ScheduledFault
 
 if TYPE_CHECKING:
-    from drillgym.envs.real.emulator.server import Emulator
+    from drillgym.envs.real.emulator.script import ControlProgram
+    from drillgym.envs.real.emulator.world import EmulatedCell
+
+
+class FaultTarget(Protocol):
+    """What a fault acts on: the emulator's cell, its control program and its robot ports."""
+
+    world: EmulatedCell
+    program: ControlProgram
+    first_servo_t_s: float | None
+    """Emulator time of the first ``servoL`` (s), None before it; scheduled faults count from it."""
+
+    def log(self, line: str) -> None:
+        """Write one line to the emulator's log."""
+        ...
+
+    def drop_link(self) -> None:
+        """Close the robot ports and every connection on them."""
+        ...
+
+    def open_robot_ports(self) -> None:
+        """Listen on the robot ports again."""
+        ...
+
+    def unlock_protective_stop(self, t_s: float, wait: bool = True) -> bool:
+        """Release a protective stop at emulator time ``t_s`` (s); whether it was released."""
+        ...
 
 
 @dataclass
@@ -28,7 +54,7 @@ class FaultState:
     """The robot ports are closed until then (inf: until cleared)."""
     history: list[str] = field(default_factory=list)
 
-    def apply(self, emulator: Emulator, kind: str, value: float, t_s: float) -> None:
+    def apply(self, emulator: FaultTarget, kind: str, value: float, t_s: float) -> None:
         """Switch on fault ``kind`` (``value``: delay in s, or link-down duration in s, 0 = until cleared)."""
         if kind not in FAULT_KINDS:
             raise ValueError(f"fault kind {kind!r}; choose from {FAULT_KINDS}")
@@ -49,7 +75,7 @@ class FaultState:
         elif kind == "stale_tracker":
             self.stale_tracker = True
 
-    def clear(self, emulator: Emulator, t_s: float) -> None:
+    def clear(self, emulator: FaultTarget, t_s: float) -> None:
         """Every fault off: link restored, protective stop released, program resumed if it was paused."""
         self.delay_s = 0.0
         self.freeze_rtde_until_s = None
@@ -62,7 +88,7 @@ class FaultState:
             emulator.program.resume(t_s)
         self.history.append(f"{t_s:.3f} clear")
 
-    def fire_scheduled(self, emulator: Emulator, t_s: float) -> None:
+    def fire_scheduled(self, emulator: FaultTarget, t_s: float) -> None:
         """Inject the scheduled faults that are due (times count from the first ``servoL``)."""
         if not self.scheduled or emulator.first_servo_t_s is None:
             return
@@ -76,7 +102,7 @@ class FaultState:
             self.freeze_rtde_until_s = None
         return self.freeze_rtde_until_s is not None
 
-    def expire(self, emulator: Emulator, t_s: float) -> None:
+    def expire(self, emulator: FaultTarget, t_s: float) -> None:
         """Bring a temporarily dropped link back up."""
         if self.link_down_until_s is not None and t_s >= self.link_down_until_s:
             self.link_down_until_s = None

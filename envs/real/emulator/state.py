@@ -20,7 +20,7 @@ import numpy as np
 from drillgym.envs.real.poses import matrix_to_pose
 
 if TYPE_CHECKING:
-    from drillgym.envs.real.emulator.server import Emulator
+    from drillgym.envs.real.emulator.host import EmulatorHost
 
 ROBOT_MODE_RUNNING = 7
 ROBOT_MODES = {"POWER_OFF": 3, "IDLE": 5, "RUNNING": 7}
@@ -70,7 +70,7 @@ _STATIC: dict[str, object] = {
 }
 
 
-def controller_state(emulator: Emulator, t_s: float) -> dict[str, object]:
+def controller_state(emulator: EmulatorHost, t_s: float) -> dict[str, object]:
     """Values of every non-register output at emulator time ``t_s``."""
     world, program = emulator.world, emulator.program
     q = tuple(np.asarray(world.cell.q_motor_rad, dtype=float).tolist())
