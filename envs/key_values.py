@@ -1,6 +1,6 @@
 """The one ``key=value`` grammar of drillgym's specs: ``name:key=value,key=value``.
 
-Controllers (``li2023:kp=3,y_gain=1.3``), effects (``ft_drift:rate_n_s=0.01+ft_gain:gain=1.05``, joined by ``+``)
+Controllers (``li2023:kp=3,y_gain=1.3``; a list of them is comma-separated too, :func:`split_spec_list`), effects (``ft_drift:rate_n_s=0.01+ft_gain:gain=1.05``, joined by ``+``)
 and scenarios (``beta_deg=20,bone=sawbones``) all use it. The values stay text here; each user converts them
 to its fields' types with :func:`convert`, so a bad value is reported with its field's name.
 """
@@ -28,6 +28,29 @@ def split_items(text: str, what: str) -> dict[str, str]:
             raise ValueError(f"{what}: expected key=value, got {item!r}")
         items[key.strip()] = value.strip()
     return items
+
+
+def split_spec_list(text: str, what: str) -> list[str]:
+    """``"none,li2023:kp=1,ki=0.5,li2023"`` -> ``["none", "li2023:kp=1,ki=0.5", "li2023"]``.
+
+    A ``key=value`` item without a name before it continues the spec before it.
+
+    Raises:
+        ValueError: the list is empty, or starts with a ``key=value`` item (``what`` names the option).
+    """
+    specs: list[str] = []
+    for item in (s.strip() for s in text.split(",")):
+        if not item:
+            continue
+        if "=" in item and ":" not in item:
+            if not specs:
+                raise ValueError(f"{what} {text!r}: {item!r} has no name before it")
+            specs[-1] += "," + item
+        else:
+            specs.append(item)
+    if not specs:
+        raise ValueError(f"{what} is empty")
+    return specs
 
 
 def split_named(spec: str) -> tuple[str, str]:

@@ -10,15 +10,13 @@ do not mix), or as Ray tasks with ``--ray`` / ``--address`` (:mod:`drillgym.eval
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 from pathlib import Path
-from typing import Any
 
 from drillgym.controllers.registry import BEST_CLASSICAL
 from drillgym.envs.effects.cells import cell_effects_spec
+from drillgym.eval.bench.jobs import controller_label, run_jobs, split_controller_specs
 from drillgym.eval.bench.suites import SUITES
-from drillgym.eval.pool import run_unordered
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,29 +57,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--address", default=None, help="Ray cluster to run on, e.g. auto or HOST:6379 (implies --ray; default: local)"
     )
-
-
-def split_controller_specs(text: str) -> list[str]:
-    """``"none,li2023:kp=1,ki=0.5,li2023"`` -> ``["none", "li2023:kp=1,ki=0.5", "li2023"]``."""
-    specs: list[str] = []
-    for item in (s.strip() for s in text.split(",")):
-        if not item:
-            continue
-        if "=" in item and ":" not in item:
-            if not specs:
-                raise ValueError(f"--controllers {text!r}: {item!r} has no controller name before it")
-            specs[-1] += "," + item
-        else:
-            specs.append(item)
-    if not specs:
-        raise ValueError("--controllers is empty; e.g. --controllers none,li2023")
-    return specs
-
-
-def controller_label(spec: str) -> str:
-    """A file-name-safe label of a spec: ``"li2023:kp=1.0"`` -> ``"li2023_kp-1.0"``."""
-    label = spec.replace(":", "_").replace("=", "-").replace(",", "_")
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", label).strip("._") or "controller"
 
 
 RUN_FILES = ("episodes.csv", "summary.csv", "paired.csv", "summary.md", "errors.log")
@@ -190,26 +165,3 @@ def run(args: argparse.Namespace) -> int:
         print(f"  tracebacks: {out / 'errors.log'}", file=sys.stderr)
         return 1
     return 0
-
-
-def run_jobs(jobs: list[Any], workers: int, desc: str = "bench") -> list[dict[str, Any]]:
-    """Run every job (in-process for ``workers == 1``, else in spawned processes); rows in any order."""
-    from tqdm import tqdm
-
-    from drillgym.eval.bench.episode import close_cached, run_job
-
-    rows = []
-    with tqdm(total=len(jobs), desc=desc, unit="ep", disable=None) as bar:  # no bar when not a terminal
-        try:
-            for _, row in run_unordered(run_job, jobs, workers, on_error=_worker_failed):
-                bar.update(1)
-                rows.append(row)
-        finally:
-            close_cached()  # the envs of an in-process run
-    return rows
-
-
-def _worker_failed(job: Any, e: Exception) -> dict[str, Any]:
-    """A worker that died (not an episode error, which run_job records) becomes an error row."""
-    row = {"suite": job.suite, "scenario": job.scenario, "controller": job.controller, "seed": job.seed}
-    return {**row, "error": f"worker failed: {type(e).__name__}: {e}", "log": job.log_name}

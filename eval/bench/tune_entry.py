@@ -149,8 +149,8 @@ def check_arguments(args: argparse.Namespace) -> tuple[list[str], list[str]]:
 
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym tune-entry``."""
-    from drillgym.eval.bench.cli import run_jobs
     from drillgym.eval.bench.episode import grid_jobs
+    from drillgym.eval.bench.jobs import run_jobs
     from drillgym.eval.bench.report import episodes_frame
 
     suites, specs = check_arguments(args)

@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _check(args: argparse.Namespace) -> list[str]:
     from drillgym.controllers import make_controller
-    from drillgym.eval.bench.cli import split_controller_specs
+    from drillgym.eval.bench.jobs import split_controller_specs
 
     if args.resume or args.export or args.sweep is not None:
         raise ValueError("--seeds cannot be combined with --resume, --export or --sweep")
@@ -142,8 +142,8 @@ def judge(args: argparse.Namespace, out: Path, baselines: list[str]) -> int:
     """Benchmark every seed's policy and the baselines on the same episodes; write the seed report."""
     import pandas as pd
 
-    from drillgym.eval.bench.cli import run_jobs
     from drillgym.eval.bench.episode import grid_jobs
+    from drillgym.eval.bench.jobs import run_jobs
     from drillgym.eval.bench.report import episodes_frame
     from drillgym.eval.learning.seed_report import write_seed_report
 

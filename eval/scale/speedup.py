@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from drillgym.eval.bench.cli import controller_label, run_jobs, split_controller_specs
 from drillgym.eval.bench.episode import EpisodeJob
+from drillgym.eval.bench.jobs import controller_label, run_jobs, split_controller_specs
 from drillgym.eval.bench.suites import suite_scenarios
 
 

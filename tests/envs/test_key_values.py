@@ -37,3 +37,13 @@ def test_controller_effect_and_scenario_specs_report_the_same_grammar_error():
     ):
         with pytest.raises(ValueError, match="expected key=value"):
             parse(bad)
+
+
+def test_a_spec_list_splits_on_commas_and_key_values_continue_the_spec_before_them():
+    from drillgym.envs.key_values import split_spec_list
+
+    assert split_spec_list("none, li2023:kp=1,ki=0.5 ,li2023", "--x") == ["none", "li2023:kp=1,ki=0.5", "li2023"]
+    with pytest.raises(ValueError, match="--x 'kp=1': 'kp=1' has no name before it"):
+        split_spec_list("kp=1", "--x")
+    with pytest.raises(ValueError, match="--x is empty"):
+        split_spec_list(" , ", "--x")

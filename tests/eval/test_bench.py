@@ -11,8 +11,8 @@ from drillgym.controllers.none import NoCompensation, NoCompensationConfig
 from drillgym.controllers.registry import CONTROLLERS
 from drillgym.envs.metrics import METRIC_NAMES
 from drillgym.eval.bench import episode as bench_episode
-from drillgym.eval.bench.cli import controller_label, split_controller_specs
 from drillgym.eval.bench.episode import EpisodeJob, run_job
+from drillgym.eval.bench.jobs import controller_label, split_controller_specs
 from drillgym.eval.bench.summary import SUMMARY_COLUMNS
 from drillgym.eval.cli import main
 from drillgym.eval.logs import read_episode_log

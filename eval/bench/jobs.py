@@ -1,0 +1,48 @@
+"""Run a benchmark's episodes and name its controllers: what ``drillgym bench`` and the commands built on it share."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from drillgym.envs.key_values import split_spec_list
+from drillgym.eval.pool import run_unordered
+
+
+def split_controller_specs(text: str) -> list[str]:
+    """``"none,li2023:kp=1,ki=0.5,li2023"`` -> ``["none", "li2023:kp=1,ki=0.5", "li2023"]`` (``--controllers``)."""
+    try:
+        return split_spec_list(text, "--controllers")
+    except ValueError as e:
+        if "is empty" in str(e):
+            raise ValueError("--controllers is empty; e.g. --controllers none,li2023") from None
+        raise ValueError(str(e).replace("has no name", "has no controller name")) from None
+
+
+def controller_label(spec: str) -> str:
+    """A file-name-safe label of a spec: ``"li2023:kp=1.0"`` -> ``"li2023_kp-1.0"``."""
+    label = spec.replace(":", "_").replace("=", "-").replace(",", "_")
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", label).strip("._") or "controller"
+
+
+def run_jobs(jobs: list[Any], workers: int, desc: str = "bench") -> list[dict[str, Any]]:
+    """Run every job (in-process for ``workers == 1``, else in spawned processes); rows in any order."""
+    from tqdm import tqdm
+
+    from drillgym.eval.bench.episode import close_cached, run_job
+
+    rows = []
+    with tqdm(total=len(jobs), desc=desc, unit="ep", disable=None) as bar:  # no bar when not a terminal
+        try:
+            for _, row in run_unordered(run_job, jobs, workers, on_error=_worker_failed):
+                bar.update(1)
+                rows.append(row)
+        finally:
+            close_cached()  # the envs of an in-process run
+    return rows
+
+
+def _worker_failed(job: Any, e: Exception) -> dict[str, Any]:
+    """A worker that died (not an episode error, which run_job records) becomes an error row."""
+    row = {"suite": job.suite, "scenario": job.scenario, "controller": job.controller, "seed": job.seed}
+    return {**row, "error": f"worker failed: {type(e).__name__}: {e}", "log": job.log_name}
