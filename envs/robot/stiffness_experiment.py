@@ -4,7 +4,7 @@ The simulated robot has Li's Kθ; loads along ±x, ±y, ±z of the base frame ar
 few poses and the tip displacement is read by a tracker with some noise per axis. Eq. 8 is solved for Kθ
 with bootstrap 95 % intervals; joints the data cannot pin down are reported as not identified. Then Li's
 Table 1 is reproduced: predicted vs "measured" tip deflections at three validation poses.
-``drillgym identify-stiffness`` (:mod:`drillgym.envs.robot.stiffness_cli`) prints it; the reproduction
+``drillgym identify-stiffness`` (:mod:`drillgym.eval.cli.identify_stiffness`) prints it; the reproduction
 report uses :func:`identify_and_compare`.
 """
 

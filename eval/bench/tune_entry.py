@@ -1,4 +1,6 @@
-"""``drillgym tune-entry``: tune a slow entry on top of a base controller, on the paper and sweep suites.
+"""Tune a slow entry on top of a base controller, on the paper and sweep suites.
+
+The command is :mod:`drillgym.eval.cli.tune_entry`.
 
 A grid of entry feed multipliers × entry depths (:mod:`drillgym.controllers.feed_schedule`), and optionally × the
 base's proportional gain (``--kps``: a slower entry changes how hard the base should push), is run on every
@@ -17,55 +19,11 @@ Outputs in ``--out``: ``episodes.csv`` (every episode), ``grid.csv`` (one row pe
 
 from __future__ import annotations
 
-import argparse
-import json
-import sys
-from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
-from drillgym.eval.bench.suites import SUITES
-from drillgym.eval.calibration.cli import comma_floats
-
 TUNING_SUITES = ("paper", "sweep")
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """CLI arguments."""
-    parser.add_argument("--base", default="li2023", help="base controller spec (default li2023)")
-    parser.add_argument(
-        "--scales",
-        type=comma_floats,
-        default=[0.25, 0.35, 0.5, 0.7],
-        help="entry feed multipliers (default %(default)s)",
-    )
-    parser.add_argument(
-        "--depths-mm",
-        type=comma_floats,
-        default=[0.25, 0.5, 1.0, 1.5, 2.0],
-        help="entry depths, mm (default %(default)s)",
-    )
-    parser.add_argument(
-        "--kps",
-        type=comma_floats,
-        default=None,
-        help="also tune the base's proportional gain kp over these values (default: keep the base's)",
-    )
-    parser.add_argument(
-        "--y-gains",
-        type=comma_floats,
-        default=None,
-        help="also tune li2023's y_gain (its correction across the plane of inclination) over these values "
-        "(default: keep the base's)",
-    )
-    parser.add_argument("--suites", default=",".join(TUNING_SUITES), help="tuning suites (default paper,sweep)")
-    parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 per scenario (default 5)")
-    parser.add_argument(
-        "--max-time-increase", type=float, default=0.3, help="allowed drill-time increase on paper (default 0.3)"
-    )
-    parser.add_argument("--workers", type=int, default=1, help="parallel worker processes (default 1)")
-    parser.add_argument("--out", type=Path, default=Path("results/tune_entry"), help="output folder")
 
 
 def gain_settings(kps: list[float] | None = None, y_gains: list[float] | None = None) -> list[str]:
@@ -123,114 +81,3 @@ def best_candidate(grid: pd.DataFrame) -> str:
     if feasible.empty:
         feasible = grid.iloc[:1]
     return str(feasible.sort_values("objective_mm").iloc[0]["controller"])
-
-
-def check_arguments(args: argparse.Namespace) -> tuple[list[str], list[str]]:
-    """The tuning suites and the candidate specs; bad arguments raise ``ValueError`` (the CLI's one-line error)."""
-    from drillgym.controllers import make_controller
-
-    suites = [s.strip() for s in args.suites.split(",") if s.strip()]
-    unknown = [s for s in suites if s not in SUITES]
-    if unknown or not suites:
-        raise ValueError(f"unknown suite(s) {unknown}; choose from {', '.join(SUITES)}")
-    if "heldout" in suites:
-        raise ValueError("the heldout suite judges learnt policies; tune on paper and sweep only")
-    if args.seeds < 1 or args.workers < 1:
-        raise ValueError("--seeds and --workers must be >= 1")
-    if args.kps and "kp=" in args.base:
-        raise ValueError("--kps tunes the base's kp: leave kp out of --base")
-    if args.y_gains and "y_gain=" in args.base:
-        raise ValueError("--y-gains tunes the base's y_gain: leave y_gain out of --base")
-    specs = candidate_specs(args.base, args.scales, args.depths_mm, args.kps, args.y_gains)
-    for spec in specs:
-        make_controller(spec)
-    return suites, specs
-
-
-def run(args: argparse.Namespace) -> int:
-    """Entry point of ``drillgym tune-entry``."""
-    from drillgym.eval.bench.episode import grid_jobs
-    from drillgym.eval.bench.jobs import run_jobs
-    from drillgym.eval.bench.report import episodes_frame
-
-    suites, specs = check_arguments(args)
-    rows = run_jobs(grid_jobs(suites, specs, args.seeds), args.workers, desc="tune-entry")
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    episodes = episodes_frame(rows)
-    episodes.to_csv(out / "episodes.csv", index=False)
-    failed = episodes[episodes["error"].fillna("") != ""]
-    if len(failed):
-        print(f"drillgym tune-entry: {len(failed)} episodes failed; see episodes.csv", file=sys.stderr)
-        return 1
-    grid = grid_table(episodes, args.base, suites, args.max_time_increase)
-    grid.to_csv(out / "grid.csv", index=False)
-    best = best_candidate(grid)
-    _write_markdown(out, grid, best, args)
-    _plot(out / "tune_entry.png", grid, args, best)
-    (out / "best.json").write_text(json.dumps({"best": best, "suites": suites, "seeds": args.seeds}, indent=2))
-    print((out / "tune_entry.md").read_text())
-    print(f"Results: {out.resolve()}/ (grid.csv, episodes.csv, tune_entry.md, tune_entry.png)")
-    return 0
-
-
-def _write_markdown(out: Path, grid: pd.DataFrame, best: str, args: argparse.Namespace) -> None:
-    cols = [c for c in grid.columns if c != "controller"]
-    lines = [
-        f"# Slow-entry tuning on `{args.base}`",
-        "",
-        f"Suites {args.suites}, seeds 0..{args.seeds - 1}, the same episodes for every candidate"
-        + (f", gains kp {args.kps}" if args.kps else "")
-        + (f", y gains {args.y_gains}" if args.y_gains else "")
-        + ". Objective: "
-        "mean deviation averaged over the suites; feasible: peak lateral force not above the base's on any "
-        f"suite and paper drill time at most +{args.max_time_increase:.0%}.",
-        "",
-        f"**Chosen: `{best}`**",
-        "",
-        "| controller | " + " | ".join(cols) + " |",
-        "|---|" + "---|" * len(cols),
-    ]
-    for r in grid.sort_values("objective_mm").itertuples(index=False):
-        values = [f"{v:.4g}" if isinstance(v, float) else str(v) for v in r[1:]]
-        lines.append(f"| `{r[0]}` | " + " | ".join(values) + " |")
-    (out / "tune_entry.md").write_text("\n".join(lines) + "\n")
-
-
-def _plot(path: Path, grid: pd.DataFrame, args: argparse.Namespace, best: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
-    gains = [g.rstrip(",").replace(",", ", ") for g in gain_settings(args.kps, args.y_gains)]
-    shape = (len(gains), len(args.scales), len(args.depths_mm))
-    values = grid["objective_mm"].to_numpy()[1:].reshape(shape)
-    feasible = grid["feasible"].to_numpy()[1:].reshape(shape)
-    specs = grid["controller"].to_numpy()[1:].reshape(shape)
-    ncols = min(len(gains), 4)
-    nrows = -(-len(gains) // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(6 * ncols, 4 * nrows), squeeze=False)
-    for ax in axes.flat[len(gains) :]:
-        ax.set_visible(False)
-    lo, hi = float(np.nanmin(values)), float(np.nanmax(values))
-    for g, ax in enumerate(axes.flat[: len(gains)]):
-        im = ax.imshow(values[g], cmap="viridis_r", aspect="auto", vmin=lo, vmax=hi)
-        for i in range(shape[1]):
-            for j in range(shape[2]):
-                text = f"{values[g, i, j]:.3f}" + ("" if feasible[g, i, j] else "\n(force/time)")
-                color = "red" if specs[g, i, j] == best else "white"
-                ax.text(j, i, text, ha="center", va="center", fontsize=7, color=color)
-        ax.set_xticks(np.arange(shape[2]), [f"{d:g}" for d in args.depths_mm])
-        ax.set_yticks(np.arange(shape[1]), [f"{s:g}" for s in args.scales])
-        ax.set_xlabel("entry depth (mm)")
-        ax.set_ylabel("entry feed multiplier (-)")
-        if gains[g]:
-            ax.set_title(gains[g], fontsize=9)
-        fig.colorbar(im, ax=ax)
-    base = float(grid["objective_mm"].iloc[0])
-    fig.suptitle(f"mean deviation (mm) on {args.suites}; {args.base} alone: {base:.3f}", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)

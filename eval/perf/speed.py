@@ -1,4 +1,6 @@
-"""``drillgym bench-speed``: the simulated cell's speed as ratios measured in the same run, and its memory.
+"""The simulated cell's speed as ratios measured in the same run, and its memory.
+
+The command is :mod:`drillgym.eval.cli.bench_speed`.
 
 One core, the paper scenario, zero action. Each run times a block of bare PyBullet steps of the same UR5
 (DIRECT, torque mode, 1 ms: :meth:`drillgym.envs.pybullet_world.PyBulletWorld.torque_mode`), one whole
@@ -10,8 +12,6 @@ one) slows both sides alike. Reported: the median over runs of that ratio and of
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import resource
 import statistics
@@ -25,12 +25,6 @@ from drillgym.envs import SIM_ENV_ID
 
 BARE_STEPS_PER_BLOCK = 2000
 """Bare PyBullet steps per timed block (~20 ms on a 2020s core)."""
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """CLI arguments."""
-    parser.add_argument("--runs", type=int, default=7, help="timed runs (medians reported; default 7)")
-    parser.add_argument("--json", action="store_true", help="print the result as JSON (every figure)")
 
 
 def _bare_block_s(step: Any, n: int) -> float:
@@ -151,43 +145,3 @@ def controller_cycle_times(
         }
     env.close()
     return out
-
-
-def run(args: argparse.Namespace) -> int:
-    """Entry point of ``drillgym bench-speed``."""
-    result = measure(args.runs)
-    result["controllers"] = controller_cycle_times()
-    if args.json:
-        print(json.dumps(result, indent=2))
-        return 0
-    load = result["loadavg_before"]
-    print(
-        f"paper scenario, zero action, {result['runs']} runs (medians), one core; "
-        f"load average {load[0]:.2f} on {result['cpu_count']} CPUs"
-    )
-    print(
-        f"  env step / bare PyBullet step  {result['env_step_per_bare_pybullet_step_median']:6.1f}  "
-        f"(min {result['env_step_per_bare_pybullet_step_min']:.1f}, max {result['env_step_per_bare_pybullet_step_max']:.1f}; "
-        f"{result['env_step_us_median']:.1f} µs vs {result['bare_pybullet_step_us_median']:.2f} µs, "
-        "UR5 in DIRECT torque mode, 1 ms)"
-    )
-    print(
-        f"  real-time factor   {result['real_time_factor_median']:8.1f}  "
-        f"(min {result['real_time_factor_min']:.1f}, max {result['real_time_factor_max']:.1f})"
-    )
-    print(
-        f"  episode            {result['episode_sim_s']:.2f} s simulated in {result['episode_wall_s_median'] * 1e3:.1f} ms "
-        f"({result['agent_steps_per_episode']} agent steps)"
-    )
-    print(
-        f"  env construction   {result['construct_s'] * 1e3:.0f} ms (gym.make + first reset); "
-        f"first episode {result['warmup_episode_s'] * 1e3:.0f} ms"
-    )
-    print(
-        f"  peak memory        {result['peak_rss_mib']:.0f} MiB RSS; "
-        f"{result['episode_python_peak_mib']:.2f} MiB Python peak within an episode"
-    )
-    print("controller cycle time (one predict per 50 ms agent step; Li's budget: 50 ms)")
-    for spec, t in result["controllers"].items():
-        print(f"  {spec:10s} p50 {t['p50_us']:7.1f} µs   p99 {t['p99_us']:7.1f} µs   max {t['max_us']:7.1f} µs")
-    return 0

@@ -8,7 +8,7 @@ import pytest
 import drillgym.eval.explain.predict as predict_mod
 import drillgym.eval.explain.simulate as simulate_mod
 from drillgym.eval.cli import main
-from drillgym.eval.explain import cli as explain_cli
+from drillgym.eval.explain import pipeline as explain_pipeline
 from drillgym.eval.explain.candidates import CANDIDATES, candidate
 from drillgym.eval.explain.fit import fit_candidate, profile_interval
 from drillgym.eval.explain.observations import METRICS, calibration_targets, held_out_targets, sigma
@@ -55,10 +55,10 @@ def test_poisoned_held_out_numbers_change_no_fit_and_no_choice(fake_sim, monkeyp
         return real_fit(cand, targets, *args)
 
     monkeypatch.setattr(predict_mod, "fit_candidate", spy)
-    clean = explain_cli.explain(NAMES, SETTINGS, workers=1)
+    clean = explain_pipeline.explain(NAMES, SETTINGS, workers=1)
     for key in ("deviation_mean_mm", "lateral_force_max_n", "lateral_force_stable_n", "hole_offset_mm"):
         monkeypatch.setitem(paper.LI2023_COMPENSATED, key, 1e3)  # KP 4 numbers poisoned
-    poisoned = explain_cli.explain(NAMES, SETTINGS, workers=1)
+    poisoned = explain_pipeline.explain(NAMES, SETTINGS, workers=1)
     assert _fits(poisoned) == _fits(clean)
     assert poisoned["chosen"] == clean["chosen"] and clean["chosen"] is not None
     assert all(run != "kp4" for t in seen_targets for run, _ in t)
@@ -147,7 +147,7 @@ def test_the_reproduction_section_reports_fit_prediction_and_what_is_unexplained
     from drillgym.eval.explain.report import reproduction_section
 
     assert "drillgym explain-paper" in "\n".join(reproduction_section(None))
-    doc = json.loads(json.dumps(explain_cli.explain(NAMES, SETTINGS, workers=1)))  # as read from explanation.json
+    doc = json.loads(json.dumps(explain_pipeline.explain(NAMES, SETTINGS, workers=1)))  # as read from explanation.json
     text = "\n".join(reproduction_section(doc, "x/explanation.json"))
     assert f"**{doc['chosen']}**" in text and "Fitted:" in text
     for metric in METRICS:

@@ -38,7 +38,7 @@ def test_reproduce_quick_writes_report_rows_and_figures(tmp_path, capsys):
 
 
 def test_terminal_table_keeps_every_name_and_unit_whole(capsys):
-    from drillgym.eval.reproduce.cli import Row
+    from drillgym.eval.cli.reproduce import Row
     from drillgym.eval.reproduce.report import headline
 
     long_name = "mean tip deviation, li2023_tuned (best classical baseline)"

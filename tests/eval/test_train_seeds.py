@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from drillgym.eval.cli import main
-from drillgym.eval.learning.cli import _seeds, add_arguments, seed_command
+from drillgym.eval.cli.train import _seeds, add_arguments, seed_command
 
 SMOKE = Path(__file__).resolve().parents[2] / "training" / "configs" / "smoke.yaml"
 

@@ -10,7 +10,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def test_core_modules_and_a_local_bench_do_not_import_ray(tmp_path):
     code = f"""
 import sys
-import drillgym.envs, drillgym.controllers, drillgym.eval.bench.cli, drillgym.eval.bench.episode, drillgym.eval.cli
+import drillgym.envs, drillgym.controllers, drillgym.eval.cli.bench, drillgym.eval.bench.episode, drillgym.eval.cli
 import drillgym.training.train, drillgym.training.sweep
 from drillgym.eval.cli import main
 assert main(["bench", "--controllers", "none", "--seeds", "1", "--no-logs", "--out", {str(tmp_path / "b")!r}]) == 0

@@ -1,6 +1,7 @@
 """The ``drillgym`` command: one front for every user-facing job.
 
-Each sub-command lives in its own module exposing ``add_arguments(parser)`` and ``run(args) -> int``;
+Each sub-command lives in its own module of this package, named after it (``drillgym bench-speed`` is
+:mod:`drillgym.eval.cli.bench_speed`), exposing ``add_arguments(parser)`` and ``run(args) -> int``;
 modules are imported only when their sub-command runs, so ``drillgym --help`` stays fast and a job
 never imports what it does not use (Ray, torch, ...).
 """
@@ -15,66 +16,66 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 COMMANDS: dict[str, tuple[str, str]] = {
-    "demo": ("drillgym.eval.demo", "Run the paper scenario end to end and print where the results are."),
+    "demo": ("drillgym.eval.cli.demo", "Run the paper scenario end to end and print where the results are."),
     "identify-stiffness": (
-        "drillgym.envs.robot.stiffness_cli",
+        "drillgym.eval.cli.identify_stiffness",
         "Identify the UR5 joint stiffnesses from simulated load tests (Li 2023 eq. 8, Table 1).",
     ),
-    "bench-speed": ("drillgym.eval.perf.speed", "Real-time factor and peak memory of the simulated cell."),
+    "bench-speed": ("drillgym.eval.cli.bench_speed", "Real-time factor and peak memory of the simulated cell."),
     "reproduce": (
-        "drillgym.eval.reproduce.cli",
+        "drillgym.eval.cli.reproduce",
         "Reproduce Li 2023 (and Zhang 2005's claims): report.md, reproduction.json, figures.",
     ),
     "calibrate": (
-        "drillgym.eval.calibration.cli",
+        "drillgym.eval.cli.calibrate",
         "Calibrate the entry mechanics on the uncompensated paper run and predict li2023 on each candidate.",
     ),
     "explain-paper": (
-        "drillgym.eval.explain.cli",
+        "drillgym.eval.cli.explain_paper",
         "Which unmodelled effect explains Li's compensated runs: fit on the uncompensated and KP 1 runs, predict KP 4.",
     ),
     "tune-entry": (
-        "drillgym.eval.bench.tune_entry",
+        "drillgym.eval.cli.tune_entry",
         "Tune a slow entry (feed schedule) on top of a controller on the paper and sweep suites; pick the best.",
     ),
     "train": (
-        "drillgym.eval.learning.cli",
+        "drillgym.eval.cli.train",
         "Train a residual policy (SB3) on top of a compensator; resumable; --seeds: several seeds and their report.",
     ),
     "bench": (
-        "drillgym.eval.bench.cli",
+        "drillgym.eval.cli.bench",
         "Benchmark controllers on a scenario suite over seeds: metrics with confidence intervals, paired differences, plots, logs.",
     ),
     "run": (
-        "drillgym.eval.real.run",
+        "drillgym.eval.cli.run",
         "Drill with a controller on the real UR5 cell (or the emulator); same episode logs as the sim.",
     ),
     "emulate": (
-        "drillgym.envs.real.emulator.cli",
+        "drillgym.eval.cli.emulate",
         "Serve a UR CB3 controller + ATI Net F/T emulator, backed by the simulator, on a loopback address.",
     ),
     "ft-check": (
-        "drillgym.eval.real.ft_check",
+        "drillgym.eval.cli.ft_check",
         "Check the F/T sensor's force scale with a known mass (calibration read from the sensor); exit 1 if off.",
     ),
     "bench-rtde": (
-        "drillgym.eval.perf.rtde",
+        "drillgym.eval.cli.bench_rtde",
         "Timing of the 125 Hz servoL stream through ur_rtde: missed cycles, command-to-state latency.",
     ),
     "diagnose": (
-        "drillgym.eval.diagnosis.cli_diagnose",
+        "drillgym.eval.cli.diagnose",
         "Sim-to-real gap diagnosis of real episode logs: where, which unmodelled effect, how far it shrinks.",
     ),
     "make-reality": (
-        "drillgym.eval.diagnosis.reality.cli",
+        "drillgym.eval.cli.make_reality",
         "Write real-schema episode logs from the simulator with unmodelled effects switched on.",
     ),
     "bench-diagnosis": (
-        "drillgym.eval.diagnosis.bench_cli",
+        "drillgym.eval.cli.bench_diagnosis",
         "Withheld-effect benchmark of the diagnosis: identification, shrink, false alarms, out-of-library effect.",
     ),
     "import-rtde": (
-        "drillgym.eval.diagnosis.rtde_cli",
+        "drillgym.eval.cli.import_rtde",
         "Import ur_rtde file recordings joined with F/T and tracker CSVs into episode logs.",
     ),
 }
@@ -157,7 +158,3 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print(f"drillgym {name}: error: {_one_line(e)}", file=sys.stderr)
         return 2
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

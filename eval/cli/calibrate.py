@@ -1,17 +1,9 @@
-"""``drillgym calibrate``: calibrate the entry mechanics on the uncompensated run and predict li2023.
-
-Each combination of the listed structural constants is calibrated (:func:`drillgym.eval.calibration.calibrate.calibrate_entry`)
-and its li2023 predictions are run (:func:`drillgym.eval.calibration.calibrate.predict_li2023`). Writes
-``DIR/calibration.csv`` (one row per combination, written as each finishes), ``DIR/calibration.md`` and
-``DIR/calibration.png`` (:func:`drillgym.eval.calibration.plot.plot_screen`).
-With the defaults it reproduces the shipped calibration.
-"""
+"""``drillgym calibrate``: calibrate the entry mechanics on the uncompensated paper run (:mod:`drillgym.eval.calibration.screen`)."""
 
 from __future__ import annotations
 
 import argparse
 import csv
-from collections.abc import Iterator
 from itertools import product
 from pathlib import Path
 from typing import Any
@@ -21,11 +13,8 @@ from drillgym.eval.calibration.calibrate import (
     LI2023_CHECKS,
     METRICS,
     EntryStructure,
-    calibrate_entry,
-    passes_li2023_checks,
-    predict_li2023,
 )
-from drillgym.eval.pool import run_unordered
+from drillgym.eval.calibration.screen import evaluate_all
 from drillgym.eval.reproduce.paper import LI2023_UNCOMPENSATED
 
 
@@ -65,16 +54,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
 
 
-def evaluate(structure: EntryStructure, seeds: int, effects: str = "") -> dict[str, Any]:
-    """Calibrate one structure and predict li2023 on it (with the cell's ``effects``): one CSV row."""
-    cal = calibrate_entry(structure, effects=effects)
-    row = cal.row()
-    pred = predict_li2023(cal, list(range(seeds)), effects)
-    row.update(pred)
-    row.update(passes_li2023_checks(pred))
-    return row
-
-
 def _markdown(rows: list[dict[str, Any]]) -> str:
     head = (
         "| relief | K_lat (N) | exponent | wall floor | wall (mm) | lateral scale | stick-out (mm) | none: dev / peak / stable / hole "
@@ -107,17 +86,6 @@ def _markdown(rows: list[dict[str, Any]]) -> str:
     return intro + head + "\n".join(lines) + "\n"
 
 
-def _evaluate_all(
-    grid: list[EntryStructure], seeds: int, workers: int, effects: str = ""
-) -> Iterator[tuple[int, dict[str, Any]]]:
-    """``(grid index, row)`` as each structure finishes: in this process with one worker, else in a pool."""
-    yield from run_unordered(_evaluate_job, [(s, seeds, effects) for s in grid], workers)
-
-
-def _evaluate_job(job: tuple[EntryStructure, int, str]) -> dict[str, Any]:
-    return evaluate(*job)
-
-
 def run(args: argparse.Namespace) -> int:
     """Calibrate every combination, write the table, print where it is."""
     from tqdm import tqdm
@@ -146,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
         csv_path.open("w", newline="") as fh,
         tqdm(total=len(grid), desc="calibrate", unit="model", disable=None) as bar,
     ):
-        for i, row in _evaluate_all(grid, args.seeds, args.workers, args.effects):
+        for i, row in evaluate_all(grid, args.seeds, args.workers, args.effects):
             if writer is None:
                 writer = csv.DictWriter(fh, fieldnames=list(row))
                 writer.writeheader()

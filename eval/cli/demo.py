@@ -19,7 +19,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``drillgym reproduce`` into ``--out``."""
-    from drillgym.eval.reproduce import cli as reproduce
+    from drillgym.eval.cli import reproduce
 
     print("drillgym demo: Li et al. 2023's experiment (beta 30 deg, 0.5 mm/s, 1.5 mm drill) in the simulated cell\n")
     return reproduce.run(args)

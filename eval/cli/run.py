@@ -20,15 +20,11 @@ from typing import Any
 import gymnasium as gym
 
 from drillgym.controllers.rollout import run_episode
-from drillgym.envs import REAL_ENV_ID
 from drillgym.envs.real.config import SafetyLimits
-from drillgym.envs.real.devices import split_host_port
 from drillgym.envs.real.emulator.cli import parse_scenario
 from drillgym.envs.real.metrics import OBSERVABLE_METRICS
-from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
-from drillgym.envs.real.netft_calibration import CAL_PORT, check_calibration, read_calibration
-
-ENV_ID = REAL_ENV_ID
+from drillgym.envs.real.netft import NetFTCalibration
+from drillgym.eval.real.preflight import ENV_ID, ft_calibration, seed_emulated_specimen
 
 
 def _limits(max_gap_ms: float) -> SafetyLimits:
@@ -100,36 +96,6 @@ def _given_calibration(args: argparse.Namespace) -> NetFTCalibration | None:
         default.counts_per_force if args.counts_per_force is None else args.counts_per_force,
         default.counts_per_torque if args.counts_per_torque is None else args.counts_per_torque,
     )
-
-
-def ft_calibration(ft_address: str, given: NetFTCalibration | None) -> tuple[NetFTCalibration, str]:
-    """The F/T calibration to use and where it came from: the sensor's (checked against ``given``), else ``given``.
-
-    Raises ``ValueError`` when the sensor's disagrees with ``given`` or is not in N and N·m. A sensor that
-    does not answer on its TCP port leaves ``given`` (or the default), with a warning.
-    """
-    host, _ = split_host_port(ft_address, RDT_PORT)
-    try:
-        device = read_calibration(host, timeout_s=1.0)
-    except OSError as e:
-        print(f"warning: could not read the F/T sensor's calibration at {host}:{CAL_PORT} ({e})", file=sys.stderr)
-        return (given or NetFTCalibration()), ("command line" if given else "default, unchecked")
-    return check_calibration(given, device), "sensor" if given is None else "sensor, matches the command line"
-
-
-def seed_emulated_specimen(host: str, seed: int) -> dict[str, Any] | None:
-    """On the UR emulator, draw the next specimen from ``seed`` (as the sim's ``reset(seed=seed)``); else None.
-
-    The emulator answers on its control port; a real controller has none there, so the probe costs one
-    refused connection and changes nothing.
-    """
-    from drillgym.envs.real.emulator.process import emulator_control
-
-    try:
-        reply = emulator_control(host, {"cmd": "specimen", "seed": int(seed)}, timeout_s=0.5)
-    except (OSError, RuntimeError):
-        return None
-    return {k: reply[k] for k in ("specimen", "seed", "hardness_factor", "replaced_now")}
 
 
 def _print_metrics(metrics: dict[str, float]) -> None:

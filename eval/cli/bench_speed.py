@@ -1,0 +1,54 @@
+"""``drillgym bench-speed``: the simulated cell's speed as same-run ratios and its memory (:mod:`drillgym.eval.perf.speed`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from drillgym.eval.perf.speed import controller_cycle_times, measure
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """CLI arguments."""
+    parser.add_argument("--runs", type=int, default=7, help="timed runs (medians reported; default 7)")
+    parser.add_argument("--json", action="store_true", help="print the result as JSON (every figure)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Entry point of ``drillgym bench-speed``."""
+    result = measure(args.runs)
+    result["controllers"] = controller_cycle_times()
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0
+    load = result["loadavg_before"]
+    print(
+        f"paper scenario, zero action, {result['runs']} runs (medians), one core; "
+        f"load average {load[0]:.2f} on {result['cpu_count']} CPUs"
+    )
+    print(
+        f"  env step / bare PyBullet step  {result['env_step_per_bare_pybullet_step_median']:6.1f}  "
+        f"(min {result['env_step_per_bare_pybullet_step_min']:.1f}, max {result['env_step_per_bare_pybullet_step_max']:.1f}; "
+        f"{result['env_step_us_median']:.1f} µs vs {result['bare_pybullet_step_us_median']:.2f} µs, "
+        "UR5 in DIRECT torque mode, 1 ms)"
+    )
+    print(
+        f"  real-time factor   {result['real_time_factor_median']:8.1f}  "
+        f"(min {result['real_time_factor_min']:.1f}, max {result['real_time_factor_max']:.1f})"
+    )
+    print(
+        f"  episode            {result['episode_sim_s']:.2f} s simulated in {result['episode_wall_s_median'] * 1e3:.1f} ms "
+        f"({result['agent_steps_per_episode']} agent steps)"
+    )
+    print(
+        f"  env construction   {result['construct_s'] * 1e3:.0f} ms (gym.make + first reset); "
+        f"first episode {result['warmup_episode_s'] * 1e3:.0f} ms"
+    )
+    print(
+        f"  peak memory        {result['peak_rss_mib']:.0f} MiB RSS; "
+        f"{result['episode_python_peak_mib']:.2f} MiB Python peak within an episode"
+    )
+    print("controller cycle time (one predict per 50 ms agent step; Li's budget: 50 ms)")
+    for spec, t in result["controllers"].items():
+        print(f"  {spec:10s} p50 {t['p50_us']:7.1f} µs   p99 {t['p99_us']:7.1f} µs   max {t['max_us']:7.1f} µs")
+    return 0

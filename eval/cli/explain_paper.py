@@ -1,0 +1,55 @@
+"""``drillgym explain-paper``: which unmodelled effect explains Li's compensated runs (:mod:`drillgym.eval.explain.pipeline`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from drillgym.eval.explain.candidates import CANDIDATES, QUICK, candidate
+from drillgym.eval.explain.pipeline import FULL, QUICK_SETTINGS, explain
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """CLI arguments."""
+    parser.add_argument("--out", type=Path, required=True, help="output folder (explanation.json, explanation.md)")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help=f"3 candidates, 1 fit seed, 2 prediction seeds, 4 grid points ({', '.join(QUICK)})",
+    )
+    parser.add_argument(
+        "--candidates",
+        default=None,
+        help="comma-separated candidate names (default: all, or the quick set with --quick)",
+    )
+    parser.add_argument("--workers", type=int, default=2, help="parallel processes (default 2)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Entry point (bad arguments raise ``ValueError``/``LookupError`` for the CLI's one-line error)."""
+    from drillgym.eval.explain.report import markdown
+
+    if args.workers < 1:
+        raise ValueError(f"--workers={args.workers} must be >= 1")
+    if args.candidates is not None:
+        names = [n.strip() for n in args.candidates.split(",") if n.strip()]
+        if not names:
+            raise ValueError("--candidates is empty")
+    else:
+        names = list(QUICK) if args.quick else [c.name for c in CANDIDATES]
+    for n in names:
+        candidate(n)
+    if len(set(names)) != len(names):
+        raise ValueError(f"--candidates lists a name twice: {names}")
+    if args.out.exists() and not args.out.is_dir():
+        raise ValueError(f"--out {args.out} exists and is not a folder")
+    settings = QUICK_SETTINGS if args.quick else FULL
+    result = explain(names, settings, args.workers)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "explanation.json").write_text(json.dumps(result, indent=2) + "\n")
+    md = markdown(result)
+    (args.out / "explanation.md").write_text(md)
+    print(md)
+    print(f"Results: {args.out / 'explanation.json'} and {args.out / 'explanation.md'}")
+    return 0
