@@ -1,4 +1,6 @@
-"""``drillgym train``: residual RL with stable-baselines3 on top of a classical compensator.
+"""Residual RL with stable-baselines3 on top of a classical compensator: one training run.
+
+``drillgym train`` (:mod:`drillgym.eval.cli.train`) runs it from the command line.
 
 SB3 machinery throughout: ``make_vec_env`` (SubprocVecEnv), ``VecNormalize`` (saved with the model),
 ``EvalCallback`` (here also scoring the base controller), ``CheckpointCallback`` (with replay buffer
@@ -7,54 +9,15 @@ and normaliser, so a killed run resumes), TensorBoard logs and the progress bar.
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from drillgym.training.config import load_config
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """CLI arguments."""
-    parser.add_argument("--config", type=Path, default=None, help="YAML overrides of training.config.TrainConfig")
-    parser.add_argument("--out", type=Path, required=True, help="run folder (checkpoints, logs, policy)")
-    parser.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in --out")
-    parser.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="start over in an --out that already holds a run (its files are removed)",
-    )
-    parser.add_argument(
-        "--select-only",
-        action="store_true",
-        help="no training: score the saved models of --out on the validation episodes and export the one "
-        "model_selection picks (training.selection)",
-    )
-    parser.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
-    parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
-    parser.add_argument("--seed", type=int, default=None, help="override seed")
-    parser.add_argument("--export", type=Path, default=None, help="also copy the best policy bundle here (NAME.zip)")
-    parser.add_argument(
-        "--torch-threads",
-        type=int,
-        default=1,
-        help="CPU threads of the learner (default 1: the networks are small, and more threads spin-wait "
-        "against the env workers and other jobs for the cores)",
-    )
-    parser.add_argument(
-        "--sweep",
-        type=Path,
-        default=None,
-        help="tune hyperparameters on Ray Tune (training/sweeps/*.yaml; implies --ray)",
-    )
-    parser.add_argument("--ray", action="store_true", help="run the --sweep on Ray (local Ray unless --address)")
-    parser.add_argument("--address", default=None, help="Ray cluster for --sweep, e.g. auto or HOST:6379")
+from drillgym.training.config import TrainConfig, load_config
 
 
 def latest_checkpoint(folder: Path) -> tuple[Path, int] | None:
@@ -110,22 +73,6 @@ def check_run_folder(out: Path, resume: bool, overwrite: bool) -> None:
         )
 
 
-def _prepare(args: argparse.Namespace, overrides: dict[str, Any]) -> Any:
-    """The run's configuration, or None after printing the error.
-
-    Checks ``--out`` against ``--resume`` and ``--overwrite`` first, and clears it for ``--overwrite``.
-    """
-    try:
-        check_run_folder(args.out, args.resume, getattr(args, "overwrite", False))
-        cfg = load_config(args.out / "config.yaml" if args.resume else args.config, overrides)
-    except ValueError as e:
-        print(f"drillgym train: error: {e}", file=sys.stderr)
-        return None
-    if getattr(args, "overwrite", False):
-        clear_run(args.out)
-    return cfg
-
-
 def _export(out: Path, cfg: Any, model: Any, evaluation: Any, wall_s: float, export: Path | None) -> None:
     """Write ``summary.json`` and the curves; bundle the selected model as ``out/policy.zip`` (and ``export``)."""
     from drillgym.training.plots import plot_curves
@@ -172,27 +119,40 @@ def export_selected(out: Path, cfg: Any, summary: dict[str, Any], export: Path |
         save_bundle(source, norm, cfg, {"training": summary}, export)
 
 
-def select_only(args: argparse.Namespace) -> int:
-    """``--select-only``: apply the configuration's model selection to a finished run and export its choice."""
-    out: Path = args.out
+def select_only(out: Path, config: Path | None = None, export: Path | None = None) -> Path:
+    """Apply a configuration's model selection to the finished run in ``out`` and export its choice.
+
+    Args:
+        out: the run folder (it must hold ``summary.json``).
+        config: the configuration whose ``model_selection`` applies (default: the run's own ``config.yaml``).
+        export: also copy the chosen policy bundle here.
+
+    Returns:
+        The run's policy bundle (``out/policy.zip``).
+    """
     summary_path = out / "summary.json"
     if not summary_path.exists():
-        print(f"drillgym train: error: {out} holds no finished run (no summary.json)", file=sys.stderr)
-        return 2
-    cfg = load_config(args.config if args.config is not None else out / "config.yaml")
+        raise ValueError(f"{out} holds no finished run (no summary.json)")
+    cfg = load_config(config if config is not None else out / "config.yaml")
     (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
     summary = json.loads(summary_path.read_text())
     summary.pop("selection", None)
-    export_selected(out, cfg, summary, args.export)
-    print(f"policy: {(out / 'policy.zip').resolve()}")
-    return 0
+    export_selected(out, cfg, summary, export)
+    return out / "policy.zip"
 
 
-def run(args: argparse.Namespace) -> int:
-    """Train (or resume), export the best policy bundle, plot the curves (a sweep: :mod:`drillgym.eval.scale.sweep_run`)."""
-    if getattr(args, "select_only", False):
-        return select_only(args)
-    import torch
+def train(cfg: TrainConfig, out: Path, resume: bool = False, export: Path | None = None) -> Path:
+    """Train ``cfg`` into ``out`` (or resume its newest checkpoint), export the chosen policy bundle, plot the curves.
+
+    Args:
+        cfg: the resolved configuration (``out/config.yaml`` is written from it).
+        out: the run folder (check it first with :func:`check_run_folder`).
+        resume: continue from the newest checkpoint in ``out/checkpoints``.
+        export: also copy the policy bundle here (``NAME.zip``).
+
+    Returns:
+        The run's policy bundle (``out/policy.zip``).
+    """
     from stable_baselines3.common.callbacks import CheckpointCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
@@ -200,21 +160,10 @@ def run(args: argparse.Namespace) -> int:
     from drillgym.training.env_factory import make_eval_vec_env, make_train_vec_env
     from drillgym.training.model import ALGO_CLASSES, build_model
 
-    overrides: dict[str, Any] = {
-        k: v
-        for k, v in (("total_timesteps", args.timesteps), ("n_envs", args.n_envs), ("seed", args.seed))
-        if v is not None
-    }
-    if getattr(args, "torch_threads", None):
-        torch.set_num_threads(max(int(args.torch_threads), 1))
-    out: Path = args.out
-    cfg = _prepare(args, overrides)
-    if cfg is None:
-        return 2
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
     ckpt_dir = out / "checkpoints"
-    ckpt = latest_checkpoint(ckpt_dir) if args.resume else None
+    ckpt = latest_checkpoint(ckpt_dir) if resume else None
 
     venv = make_train_vec_env(cfg)
     if cfg.normalize_obs:
@@ -265,7 +214,7 @@ def run(args: argparse.Namespace) -> int:
     model.save(out / "model.zip")
     if cfg.normalize_obs:
         venv.save(str(out / "vecnormalize.pkl"))  # type: ignore[attr-defined]
-    _export(out, cfg, model, evaluation, wall_s, args.export)
+    _export(out, cfg, model, evaluation, wall_s, export)
     venv.close()
     eval_env.close()
     print(f"trained {model.num_timesteps} steps in {wall_s / 60:.1f} min; policy: {(out / 'policy.zip').resolve()}")
@@ -275,4 +224,4 @@ def run(args: argparse.Namespace) -> int:
             f"last evaluation: deviation {last['policy_deviation_mean_mm']:.3f} mm "
             f"vs base {last['base_deviation_mean_mm']:.3f} mm"
         )
-    return 0
+    return out / "policy.zip"

@@ -56,7 +56,10 @@ def run(args: argparse.Namespace) -> int:
     if args.ray or args.address:
         from drillgym.eval.scale.cluster import require_ray
 
-        require_ray()
+        try:
+            require_ray()
+        except RuntimeError as e:  # Ray is not installed: a set-up error, said on one line
+            raise ValueError(str(e)) from e
         from drillgym.eval.diagnosis.bench_ray import ray_rows
 
         rows_of = lambda jobs: ray_rows(jobs, args.address, args.workers)  # noqa: E731

@@ -1,6 +1,7 @@
 """``drillgym train``: one residual training run, or ``--seeds 0,1,2,3,4``: the same configuration on each seed.
 
-Without ``--seeds`` this is :mod:`drillgym.training.train` unchanged. With it, every seed trains in its own process
+Without ``--seeds`` it is one run of :func:`drillgym.training.train.train`; with ``--sweep`` a Ray Tune sweep
+(:mod:`drillgym.eval.scale.tune_sweep`). With it, every seed trains in its own process
 (``--jobs`` at a time; each run is the single-seed command with ``--seed N --out OUT/seedN``, so any seed's
 policy is reproduced by that command alone), then every policy and every baseline are benchmarked on the
 same episodes (``--eval-suites``, ``--eval-seeds`` seeds per scenario) and :mod:`drillgym.eval.learning.seed_report` writes the
@@ -19,6 +20,7 @@ import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 from drillgym.controllers.registry import BEST_CLASSICAL
 from drillgym.training import train
@@ -37,9 +39,46 @@ def _seeds(text: str) -> list[int]:
     return seeds
 
 
+def _single_run_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of one training run (and of a sweep)."""
+    parser.add_argument("--config", type=Path, default=None, help="YAML overrides of training.config.TrainConfig")
+    parser.add_argument("--out", type=Path, required=True, help="run folder (checkpoints, logs, policy)")
+    parser.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in --out")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="start over in an --out that already holds a run (its files are removed)",
+    )
+    parser.add_argument(
+        "--select-only",
+        action="store_true",
+        help="no training: score the saved models of --out on the validation episodes and export the one "
+        "model_selection picks (training.selection)",
+    )
+    parser.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
+    parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
+    parser.add_argument("--seed", type=int, default=None, help="override seed")
+    parser.add_argument("--export", type=Path, default=None, help="also copy the best policy bundle here (NAME.zip)")
+    parser.add_argument(
+        "--torch-threads",
+        type=int,
+        default=1,
+        help="CPU threads of the learner (default 1: the networks are small, and more threads spin-wait "
+        "against the env workers and other jobs for the cores)",
+    )
+    parser.add_argument(
+        "--sweep",
+        type=Path,
+        default=None,
+        help="tune hyperparameters on Ray Tune (training/sweeps/*.yaml; implies --ray)",
+    )
+    parser.add_argument("--ray", action="store_true", help="run the --sweep on Ray (local Ray unless --address)")
+    parser.add_argument("--address", default=None, help="Ray cluster for --sweep, e.g. auto or HOST:6379")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The single-run arguments of :mod:`drillgym.training.train` plus the multi-seed ones."""
-    train.add_arguments(parser)
+    """The single-run arguments plus the multi-seed ones."""
+    _single_run_arguments(parser)
     group = parser.add_argument_group("several training seeds (--seeds)")
     group.add_argument("--seeds", type=_seeds, default=None, help="train each of these seeds, e.g. 0,1,2,3,4")
     group.add_argument("--jobs", type=int, default=2, help="training runs at a time (default 2)")
@@ -61,11 +100,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Single run (no ``--seeds``) or train several seeds, benchmark them and write the seed report."""
     if args.sweep is not None or args.ray or args.address:  # a Ray Tune sweep (imports nothing of Ray before)
-        from drillgym.eval.scale import sweep_run
-
-        return sweep_run.run(args)
+        return _sweep(args)
     if args.seeds is None:
-        return train.run(args)
+        return _single_run(args)
     baselines = _check(args)  # bad arguments raise ValueError: the CLI prints it on one line
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -74,6 +111,55 @@ def run(args: argparse.Namespace) -> int:
         print(f"drillgym train: seeds {failed} failed; see {out}/seed<N>.log", file=sys.stderr)
         return 1
     return judge(args, out, baselines)
+
+
+def _overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """``--timesteps``, ``--n-envs`` and ``--seed`` as configuration overrides (the ones given)."""
+    given = (("total_timesteps", args.timesteps), ("n_envs", args.n_envs), ("seed", args.seed))
+    return {k: v for k, v in given if v is not None}
+
+
+def _single_run(args: argparse.Namespace) -> int:
+    """One training run (or ``--select-only``); a bad ``--out``/``--config`` raises ``ValueError``."""
+    if args.select_only:
+        policy = train.select_only(args.out, args.config, args.export)
+        print(f"policy: {policy.resolve()}")
+        return 0
+    import torch
+
+    if args.torch_threads:
+        torch.set_num_threads(max(int(args.torch_threads), 1))
+    train.check_run_folder(args.out, args.resume, args.overwrite)
+    cfg = load_config(args.out / "config.yaml" if args.resume else args.config, _overrides(args))
+    if args.overwrite:
+        train.clear_run(args.out)
+    train.train(cfg, args.out, resume=args.resume, export=args.export)
+    return 0
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    """``--sweep SPEC.yaml [--ray] [--address ADDR]``: tune residual training on Ray Tune, export the best policy.
+
+    The sweep file is read and checked by :func:`drillgym.training.sweep.load_sweep`; the trials run in
+    :mod:`drillgym.eval.scale.tune_sweep`.
+    """
+    from drillgym.training.sweep import load_sweep
+
+    if args.sweep is None:
+        raise ValueError("--ray/--address need --sweep SPEC.yaml (a single run trains on one machine)")
+    if args.resume:
+        raise ValueError("--resume does not apply to --sweep (a failed trial restarts from its checkpoint)")
+    from drillgym.eval.scale.cluster import require_ray
+
+    try:
+        require_ray()
+    except RuntimeError as e:  # Ray is not installed: a set-up error, said on one line
+        raise ValueError(str(e)) from e
+    spec = load_sweep(args.sweep, _overrides(args), args.config)
+    from drillgym.eval.scale.tune_sweep import run_sweep
+
+    outcome = run_sweep(spec, args.out, args.address, export=args.export)
+    return 0 if outcome.best is not None else 1
 
 
 def _check(args: argparse.Namespace) -> list[str]:
