@@ -14,6 +14,7 @@ from drillgym.eval.explain.observations import (
     li_values,
 )
 from drillgym.eval.explain.predict import score_prediction
+from drillgym.eval.reproduce.paper import LI2023_COMPENSATED
 
 TARGET_REL_ERR = {"deviation_mean_mm": 0.25, "lateral_force_max_n": 0.35, "lateral_force_stable_n": 0.35}
 """The acceptance target on the chosen model's held-out predictions (|rel_err| at most this)."""
@@ -188,7 +189,7 @@ def reproduction_section(doc: dict[str, Any] | None, source: str = "") -> list[s
     lines.append(
         f"Fitted: {param} = {v['value']:.4g} [{v['interval'][0]:.4g}, {v['interval'][1]:.4g}] "
         f"(physical range {v['physical_range'][0]:g}–{v['physical_range'][1]:g}); KP 1 deviation "
-        f"{entry['calibration']['kp1.deviation_mean_mm']['sim']:.3f} mm (Li 0.587; nominal cell "
+        f"{entry['calibration']['kp1.deviation_mean_mm']['sim']:.3f} mm (Li {LI2023_COMPENSATED['deviation_mean_mm_kp1']}; nominal cell "
         f"{doc['nominal']['calibration']['kp1.deviation_mean_mm']['sim']:.3f})."
     )
     lines.append("")

@@ -14,6 +14,7 @@ import numpy as np
 from drillgym.envs.metrics import FORCE_FILTER_SAMPLES, moving_average
 from drillgym.eval.bench.summary import mean_ci
 from drillgym.eval.plots import STAGE_COLOURS, label_span, shade_stages
+from drillgym.eval.reproduce.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
 
 
 def _lateral(trace: dict[str, np.ndarray]) -> np.ndarray:
@@ -77,8 +78,10 @@ def fig12(out: Path, results: dict[str, list], kp_values: tuple[float, ...]) -> 
     ax.errorbar(kp_values, m, yerr=err, fmt="o-", capsize=3, label="simulated li2023 (mean, 95% CI)")
     none = mean_ci([r.metrics["deviation_mean_mm"] for r in results["none"]])[0]
     ax.axhline(none, color="C3", ls="--", label=f"simulated none ({none:.3f} mm)")
-    ax.plot([1.0, 4.0], [0.587, 0.305], "k*", ms=10, label="Li 2023 (KP 1, 4)")
-    ax.axhline(0.703, color="k", ls=":", lw=0.8, label="Li 2023 none (0.703 mm)")
+    li_kp = [LI2023_COMPENSATED["deviation_mean_mm_kp1"], LI2023_COMPENSATED["deviation_mean_mm"]]
+    ax.plot([1.0, 4.0], li_kp, "k*", ms=10, label="Li 2023 (KP 1, 4)")
+    li_none = LI2023_UNCOMPENSATED["deviation_mean_mm"]
+    ax.axhline(li_none, color="k", ls=":", lw=0.8, label=f"Li 2023 none ({li_none:.3f} mm)")
     ax.set(xlabel="KP", ylabel="mean tip deviation (mm)", title="Deviation vs proportional gain (Li Fig. 12)")
     ax.title.set_fontsize(9)
     ax.grid(alpha=0.3)

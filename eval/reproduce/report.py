@@ -7,6 +7,8 @@ from typing import Any
 
 from drillgym.controllers.models import LI2023_MODEL_PEAK_N
 from drillgym.eval.bench.summary import md_table, mean_ci
+from drillgym.eval.reproduce.paper import LI2023_COMPENSATED as _LI_KP
+from drillgym.eval.reproduce.paper import LI2023_UNCOMPENSATED as _LI_NONE
 
 ZERO = 1e-9
 """Magnitudes below this print as 0: the quantities are mm, N and s, and 1e-16 is rounding, not a result."""
@@ -97,15 +99,15 @@ def write_report(
         "",
         "### Where the simulation agrees with the paper and where it does not",
         "",
-        "* **Deviation and hole offset fall** with compensation, more than in Li (0.703 → 0.305 mm, 0.8 → "
-        "0.2 mm). Most of the reduction comes from the model-based terms, which do not depend on KP: the "
+        f"* **Deviation and hole offset fall** with compensation, more than in Li ({_LI_NONE['deviation_mean_mm']} → "
+        f"{_LI_KP['deviation_mean_mm']} mm, {_LI_NONE['hole_offset_mm']} → {_LI_KP['hole_offset_mm']} mm). Most of the reduction comes from the model-based terms, which do not depend on KP: the "
         "offline correction bends the drill uphill *while* the tip enters, and the tip stays movable until "
         "its hole has a wall (about 1 mm after the full diameter is in), so the online loop, slow by "
         "construction (0.2 s filter, 600 ms points, applied two points ahead: ≈ 1.2-1.8 s of delay), still "
         "moves it rather than bending the drill. li2023's models here are fitted to the simulated cell "
         "itself, and are likely closer to its truth than Li's were to his cell.",
         "* **KP matters less than in Li's experiment.** Raising KP from 1 to 4 lowers the deviation by "
-        "≈ 0.05 mm here; Li saw 0.587 → 0.305 mm. KP multiplies the change of deviation between two points, "
+        f"≈ 0.05 mm here; Li saw {_LI_KP['deviation_mean_mm_kp1']} → {_LI_KP['deviation_mean_mm']} mm. KP multiplies the change of deviation between two points, "
         "which arrives after most of the entry.",
         "* **Max lateral force falls, but far less than in Li's run.** The entry peak is the skid-and-catch at "
         "first contact: on a planar slope it does not depend on where the drill meets the surface (a constant "
