@@ -18,6 +18,24 @@ Q_CHANNELS = tuple(f"q{i}_rad" for i in range(6))
 """RTDE joint angles (rad, motor side)."""
 LF_CHANNELS = FORCE_CHANNELS + TORQUE_CHANNELS + TRACKER_CHANNELS + Q_CHANNELS
 """Channels compared as block means, in column order."""
+
+
+def _columns(channels: tuple[str, ...]) -> slice:
+    start = LF_CHANNELS.index(channels[0])
+    return slice(start, start + len(channels))
+
+
+FORCE = _columns(FORCE_CHANNELS)
+"""Columns of the F/T force in an (n, len(LF_CHANNELS)) array of LF channels."""
+TORQUE = _columns(TORQUE_CHANNELS)
+"""Columns of the F/T torque."""
+WRENCH = _columns(FORCE_CHANNELS + TORQUE_CHANNELS)
+"""Columns of the F/T force and torque."""
+TRACKER = _columns(TRACKER_CHANNELS)
+"""Columns of the tracker marker (task frame)."""
+Q = _columns(Q_CHANNELS)
+"""Columns of the RTDE joint angles."""
+
 HF_CHANNELS = ("fx_hf_n", "fy_hf_n", "fz_hf_n")
 """Power of each force axis about its 0.1 s block means (reported as RMS, N)."""
 ALL_CHANNELS = LF_CHANNELS + HF_CHANNELS

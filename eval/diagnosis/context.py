@@ -15,6 +15,7 @@ import numpy as np
 
 from drillgym.envs.effects.base import Effect
 from drillgym.envs.effects.registry import EFFECTS
+from drillgym.eval.diagnosis.channels import FORCE
 from drillgym.eval.diagnosis.episodes import EpisodeData
 from drillgym.eval.diagnosis.features import Blocks, Features, features, make_blocks, smooth_blocks
 from drillgym.eval.diagnosis.gap import HARDNESS_LEVELS, EpisodeNull, Terms, episode_null, gap_terms, noise_variance
@@ -84,8 +85,8 @@ class DiagnosisData:
             gap_terms(test[i], self.nominal_features[i], self.blocks[i], self.nulls[i]) for i in range(n)
         ]
         self.spectrum = spectrum_summary(
-            [ep.lf[:, :3] - r.nominal.lf[:, :3] for ep, r in zip(self.episodes, results, strict=True)],
-            [r.test.lf[:, :3] - r.nominal.lf[:, :3] for r in results],
+            [ep.lf[:, FORCE] - r.nominal.lf[:, FORCE] for ep, r in zip(self.episodes, results, strict=True)],
+            [r.test.lf[:, FORCE] - r.nominal.lf[:, FORCE] for r in results],
         )
         self.baseline_terms = [
             gap_terms(self.real[i], self.nominal_features[i], self.blocks[i], self.nulls[i]) for i in range(n)

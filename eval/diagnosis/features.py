@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drillgym.eval.diagnosis.channels import BLOCK_SAMPLES, STAGES
+from drillgym.eval.diagnosis.channels import BLOCK_SAMPLES, FORCE, STAGES, WRENCH
 
 
 @dataclass(frozen=True)
@@ -110,10 +110,10 @@ def features(lf_rows: np.ndarray, blocks: Blocks, hf_mask: np.ndarray | None = N
     LF: block means, of the 3-sample smoothed F/T (:func:`smooth3`); HF: power of the raw forces about
     their block means.
     """
-    raw_means = block_means(lf_rows[:, 0:3], blocks)
+    raw_means = block_means(lf_rows[:, FORCE], blocks)
     smoothed = lf_rows.copy()
-    smoothed[:, 0:6] = smooth3(lf_rows[:, 0:6])
-    return Features(lf=block_means(smoothed, blocks), hf=hf_power(lf_rows[:, 0:3], blocks, raw_means, hf_mask))
+    smoothed[:, WRENCH] = smooth3(lf_rows[:, WRENCH])
+    return Features(lf=block_means(smoothed, blocks), hf=hf_power(lf_rows[:, FORCE], blocks, raw_means, hf_mask))
 
 
 HF_JUMP_N = 0.1
@@ -123,7 +123,7 @@ its power says more about timing than about vibration, so the HF comparison leav
 
 def smooth_blocks(nominal_rows: np.ndarray, blocks: Blocks) -> np.ndarray:
     """Blocks (nb,) of the nominal replay without a force jump above :data:`HF_JUMP_N`."""
-    return np.asarray(block_jumps(nominal_rows[:, 0:3], blocks).max(axis=1) <= HF_JUMP_N)
+    return np.asarray(block_jumps(nominal_rows[:, FORCE], blocks).max(axis=1) <= HF_JUMP_N)
 
 
 def block_jumps(x: np.ndarray, blocks: Blocks) -> np.ndarray:

@@ -17,7 +17,7 @@ import numpy as np
 
 from drillgym.envs.drill_env import UR5BoneDrillEnv
 from drillgym.envs.effects.base import Effect, TraceView
-from drillgym.eval.diagnosis.channels import LF_CHANNELS
+from drillgym.eval.diagnosis.channels import FORCE, LF_CHANNELS, TORQUE, TRACKER, Q
 from drillgym.eval.diagnosis.episodes import EpisodeData
 
 
@@ -50,16 +50,16 @@ class SimTrace:
         if effects:
             view = TraceView(
                 t_s=self.t_s,
-                force_n=out.lf[:, 0:3],
-                torque_nm=out.lf[:, 3:6],
+                force_n=out.lf[:, FORCE],
+                torque_nm=out.lf[:, TORQUE],
                 engaged_share=self.engaged_share,
                 sensor_arm_m=self.sensor_arm_m,
                 spindle_rpm=self.spindle_rpm,
             )
             for e in effects:
                 e.apply_to_trace(view)
-            out.lf[:, 0:3] = view.force_n
-            out.lf[:, 3:6] = view.torque_nm
+            out.lf[:, FORCE] = view.force_n
+            out.lf[:, TORQUE] = view.torque_nm
         return out
 
 
@@ -125,10 +125,10 @@ class Replayer:
         if not env.scenario.tracker:
             tr_task[:] = np.nan
         lf = np.full((ep.n, len(LF_CHANNELS)), np.nan)
-        lf[:m, 0:3] = np.asarray(rec.ft_force_n[:m])
-        lf[:m, 3:6] = np.asarray(rec.ft_torque_nm[:m])
-        lf[:m, 6:9] = tr_task
-        lf[:m, 9:15] = q_rows
+        lf[:m, FORCE] = np.asarray(rec.ft_force_n[:m])
+        lf[:m, TORQUE] = np.asarray(rec.ft_torque_nm[:m])
+        lf[:m, TRACKER] = tr_task
+        lf[:m, Q] = q_rows
         tips = np.asarray(rec.tip_task_m[:m], dtype=float).reshape(m, 3)
         share = np.zeros(ep.n)
         depth = tips[:, 2] + tips[:, 0] * cell.solver.tan_beta

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from drillgym.eval.diagnosis.channels import STAGES
+from drillgym.eval.diagnosis.channels import FORCE, STAGES
 from drillgym.eval.diagnosis.context import build, make_spec
 from drillgym.eval.diagnosis.diagnose import Diagnosis
 from drillgym.eval.diagnosis.figures import plot_gap_map, plot_overlays, plot_ranking, plot_spectra
@@ -58,8 +58,8 @@ def _figures(diag: Diagnosis, out: Path) -> dict[str, Path]:
         figs["overlays"] = plot_overlays(ep.name, ep.t_s, ep.stage, traces, out / "overlays.png", OVERLAY_CHANNELS)
         null = rp.run(ep, seed=seed_for(ep.name, 99), noise=True, variability=True)
         residuals = {
-            "real − sim": ep.lf[:, :3] - data.nominal[i].lf[:, :3],
-            "sim's own (null) − sim": null.lf[:, :3] - data.nominal[i].lf[:, :3],
+            "real − sim": ep.lf[:, FORCE] - data.nominal[i].lf[:, FORCE],
+            "sim's own (null) − sim": null.lf[:, FORCE] - data.nominal[i].lf[:, FORCE],
         }
         figs["spectra"] = plot_spectra(residuals, out / "spectra.png")
     finally:
