@@ -34,8 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print its figures."""
     from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
-    from drillgym.eval.diagnosis.bench import run_bench
-    from drillgym.eval.diagnosis.bench_cases import QUICK_CANDIDATES, full_cases, quick_cases
+    from drillgym.eval.diagnosis.bench.cases import QUICK_CANDIDATES, full_cases, quick_cases
+    from drillgym.eval.diagnosis.bench.run import run_bench
 
     cases = quick_cases() if args.quick else full_cases()
     if args.only:
@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
             require_ray()
         except RuntimeError as e:  # Ray is not installed: a set-up error, said on one line
             raise ValueError(str(e)) from e
-        from drillgym.eval.diagnosis.bench_ray import ray_rows
+        from drillgym.eval.diagnosis.bench.on_ray import ray_rows
 
         rows_of = lambda jobs: ray_rows(jobs, args.address, args.workers)  # noqa: E731
     result = run_bench(  # a Ray cluster that cannot be reached raises ConnectionError: the CLI's one-line error

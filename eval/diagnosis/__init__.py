@@ -1,8 +1,22 @@
 """Sim-to-real gap diagnosis: where the gap lies, which unmodelled effect explains it, how far it shrinks.
 
 ``diagnose(load_episodes(DIR)[0])`` returns the ``diagnosis.json`` dict; ``docs/diagnosis.md`` explains
-the method. The reality generator is :mod:`drillgym.eval.diagnosis.reality`, the benchmark
-:mod:`drillgym.eval.diagnosis.bench`, the candidate effects :mod:`drillgym.envs.effects`.
+the method. The modules, in pipeline order:
+
+1. **Load**: :mod:`.validate` (checks of a log, clear errors or documented repairs), :mod:`.rtde_import`
+   (a ``ur_rtde`` recording session into episode logs), :mod:`.episodes` (commands, channels, stages).
+2. **Label**: :mod:`.channels` (what is compared, and its scales), :mod:`.stages` (the drilling stage of
+   every sample, from the commanded depth).
+3. **Replay**: :mod:`.replay` (the simulator's answer to the logged commands), :mod:`.pool` (on every core).
+4. **Compare**: :mod:`.features` (block means, HF power per stage), :mod:`.gap` (the gap in units of the
+   simulator's own scatter), :mod:`.spectrum` (the gap over frequency), :mod:`.context` (what every
+   process shares, and the misfit of a set of effects).
+5. **Explain**: :mod:`.fit` (each candidate's parameters on calibration episodes, scored on held-out
+   ones), :mod:`.rank` (intervals, the parameter penalty, the guards and the verdict).
+6. **Report**: :mod:`.report`, :mod:`.figures`; :mod:`.diagnose` runs 1–6.
+
+The candidate effects are :mod:`drillgym.envs.effects`; the reality generator (effects the diagnosing
+simulator is not told about) is :mod:`.reality`, the withheld-effect benchmark :mod:`.bench`.
 """
 
 from drillgym.eval.diagnosis.diagnose import DiagnoseOptions, Diagnosis, diagnose, run_diagnosis

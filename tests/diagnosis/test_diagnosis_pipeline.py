@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from drillgym.eval.diagnosis.bench import score_case, summarise
-from drillgym.eval.diagnosis.bench_cases import Case, full_cases, quick_cases
+from drillgym.eval.diagnosis.bench.cases import Case, full_cases, quick_cases
+from drillgym.eval.diagnosis.bench.run import score_case, summarise
 from drillgym.eval.diagnosis.diagnose import DiagnoseOptions, diagnose
 from drillgym.eval.diagnosis.episodes import load_episodes
 from drillgym.eval.diagnosis.reality.generate import make_reality

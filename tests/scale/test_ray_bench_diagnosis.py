@@ -7,7 +7,7 @@ import signal
 import pytest
 
 from drillgym.eval.cli import main
-from drillgym.eval.diagnosis.bench_cases import QUICK_CANDIDATES, quick_cases
+from drillgym.eval.diagnosis.bench.cases import QUICK_CANDIDATES, quick_cases
 
 KEYS = ("case", "verdict", "named", "top_single", "location", "correct")
 
@@ -33,14 +33,14 @@ def test_ray_cases_give_the_local_verdicts_and_write_every_case_file(tmp_path, r
 
 
 def test_a_case_whose_worker_dies_past_its_retries_is_an_error_row(ray_local):
-    from drillgym.eval.diagnosis.bench_ray import ray_rows
+    from drillgym.eval.diagnosis.bench.on_ray import ray_rows
 
     case = quick_cases()[1]  # clean data
 
     def die(job):
         os.kill(os.getpid(), signal.SIGKILL)
 
-    import drillgym.eval.diagnosis.bench_ray as bench_ray
+    import drillgym.eval.diagnosis.bench.on_ray as bench_ray
 
     real = bench_ray.run_case
     bench_ray.run_case = die

@@ -13,7 +13,7 @@ from typing import Any
 
 import ray
 
-from drillgym.eval.diagnosis.bench import CaseJob, error_row, run_case
+from drillgym.eval.diagnosis.bench.run import CaseJob, error_row, run_case
 from drillgym.eval.scale.cluster import ray_session
 
 MAX_RETRIES = 2

@@ -1,6 +1,6 @@
 """``drillgym bench-diagnosis``: generate each case's reality, diagnose it blind, tabulate how it did.
 
-Per case (:mod:`drillgym.eval.diagnosis.bench_cases`): write the reality's logs, diagnose them with the candidate
+Per case (:mod:`drillgym.eval.diagnosis.bench.cases`): write the reality's logs, diagnose them with the candidate
 library (the true effect is never in the diagnosing simulator: the library holds other models of the
 same physics, and none of the outside effect), and compare with the truth. Cases run in parallel (one
 process each); each diagnosis runs in its process.
@@ -20,7 +20,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from drillgym.eval.diagnosis.bench_cases import Case
+from drillgym.eval.diagnosis.bench.cases import Case
 from drillgym.eval.pool import run_unordered
 
 ACCEPTANCE = {
@@ -171,7 +171,7 @@ def run_bench(
     """Run every case and write ``bench.json``, ``bench.md`` and ``cases/NAME/diagnosis.json`` into ``out``.
 
     ``rows_of`` runs the jobs and yields their rows as they finish (default: :func:`local_rows` with
-    ``workers`` processes; ``eval.diagnosis.bench_ray.ray_rows`` for a Ray cluster).
+    ``workers`` processes; :func:`drillgym.eval.diagnosis.bench.on_ray.ray_rows` for a Ray cluster).
     """
     out.mkdir(parents=True, exist_ok=True)
     jobs: list[CaseJob] = [(c, episodes, candidates, True) for c in cases]
