@@ -84,11 +84,10 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     ``robot_host`` (required), ``ft_sensor`` (``HOST[:PORT]``; default: ``robot_host``), ``tracker``
     (``"none"`` or ``"udp:HOST[:PORT]"``), ``ft_calibration`` (:class:`drillgym.envs.real.netft.NetFTCalibration`),
     ``dry_run`` (no control interface at all: commands are only logged), ``command_log_path`` (JSONL of every
-    command sent or, dry, not sent), ``servo_process`` (True: the servo loop, the ``ur_rtde`` interfaces and the
-    F/T stream run in a process of their own at real-time priority where the OS allows it, see
-    :mod:`drillgym.envs.real.servo_process`; default False: a thread in this process, because with the process
-    li2023's closed-loop entry on the emulator moved with the machine's load, for reasons not yet found,
-    ``docs/deployment.md`` §7), ``safety_limits`` (:class:`drillgym.envs.real.config.SafetyLimits`),
+    command sent or, dry, not sent), ``servo_process`` (default True: the servo loop, the ``ur_rtde`` interfaces and
+    the F/T stream run in a process of their own at real-time priority where the OS allows it, see
+    :mod:`drillgym.envs.real.servo_process`, so the agent's compute cannot starve them; False: a thread in this
+    process, which under load misses cycles and can stop on the watchdog, ``docs/deployment.md`` §7), ``safety_limits`` (:class:`drillgym.envs.real.config.SafetyLimits`),
     ``servo_params`` (:class:`drillgym.envs.real.config.ServoParams`), ``cell_params`` (the entry point in the base
     frame, sensor-to-chuck length, as registered on the real cell), the reward weights, and the sim's
     scenario arguments: they define the plan (β, feed, rpm, drill, stick-out, depth, cortical thickness,
@@ -111,7 +110,7 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         ft_calibration: NetFTCalibration | None = None,
         dry_run: bool = False,
         command_log_path: str | None = None,
-        servo_process: bool = False,
+        servo_process: bool = True,
         safety_limits: SafetyLimits | None = None,
         servo_params: ServoParams | None = None,
         cell_params: CellParams | None = None,

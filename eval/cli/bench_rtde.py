@@ -17,9 +17,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--loop",
         choices=("process", "thread"),
-        default="thread",
-        help="where the stream runs: a thread of this process (as the real env by default), or a servo process "
-        "of its own (as drillgym run --servo-process)",
+        default="process",
+        help="where the stream runs: a servo process of its own (as the real env by default), or a thread of this "
+        "process (as drillgym run --servo-thread)",
     )
     parser.add_argument(
         "--load-procs", type=int, default=0, help="busy processes to run alongside (load generator; default none)"

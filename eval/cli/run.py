@@ -68,10 +68,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dry-run", action="store_true", help="connect and stream nothing: log what would be sent")
     parser.add_argument("--yes", action="store_true", help="do not ask before moving the robot")
     parser.add_argument(
-        "--servo-process",
+        "--servo-thread",
         action="store_true",
-        help="run the 125 Hz servo loop in a process of its own at real-time priority where allowed (default: a "
-        "thread of this process; docs/deployment.md)",
+        help="run the 125 Hz servo loop as a thread of this process instead of a process of its own at real-time "
+        "priority (the default; a thread starves under load: docs/deployment.md)",
     )
     parser.add_argument("--out", type=Path, required=True, help="output folder (logs, metrics.json, commands.jsonl)")
 
@@ -146,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
             dry_run=args.dry_run,
             command_log_path=str(args.out / "commands.jsonl"),
             safety_limits=limits,
-            servo_process=args.servo_process,
+            servo_process=not args.servo_thread,
             **scenario,
         )
     except (RuntimeError, OSError, ValueError) as e:

@@ -3,8 +3,8 @@
 The command is :mod:`drillgym.eval.cli.bench_rtde`.
 
 Streams ``servoL`` for ``--seconds`` with ``initPeriod`` / ``waitPeriod`` where the real env's loop runs
-(``--loop thread``, the default: a thread of this process, as the real env runs it by default; ``--loop
-process``: a servo process of its own at real-time priority where allowed, :mod:`drillgym.envs.real.servo_process`) and reports:
+(``--loop process``, the default: a servo process of its own at real-time priority where allowed, as the real env
+runs it by default, :mod:`drillgym.envs.real.servo_process`; ``--loop thread``: a thread of this process) and reports:
 
 * missed cycles (client side): periods in which no command went out (a late cycle counts the periods it
   skipped; the target is <= 0.1 %), and the cycle-gap distribution;
@@ -142,7 +142,7 @@ def _stream_in_process(
         proc.close()
 
 
-def bench(host: str, seconds: float, loop: str = "thread", floor: bool = False) -> dict[str, Any]:
+def bench(host: str, seconds: float, loop: str = "process", floor: bool = False) -> dict[str, Any]:
     """Stream for ``seconds`` against ``host`` from ``loop`` (``process`` or ``thread``); the timing figures.
 
     ``floor``: then, in the same place and under the same load, time a bare sleep loop at the same rate for as

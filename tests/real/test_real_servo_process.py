@@ -99,9 +99,14 @@ def test_the_servo_process_stops_the_robot_when_the_agents_process_goes_away(sta
 
 
 @pytest.mark.realtime
-def test_the_loop_runs_as_a_thread_by_default(start_emulator):
+def test_the_loop_runs_in_its_own_process_by_default_and_as_a_thread_on_request(start_emulator):
     emu = start_emulator()
     env = make_real_env(emu, safety_limits=CI_LIMITS)
+    try:
+        assert env.unwrapped.devices.process is not None
+    finally:
+        env.close()
+    env = make_real_env(emu, safety_limits=CI_LIMITS, servo_process=False)
     try:
         assert env.unwrapped.devices.process is None
         t0 = time.monotonic()
