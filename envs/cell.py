@@ -171,17 +171,17 @@ class SimCell:
         """Freeze compliance, chip thickness (m) and the axial advance per F/T sample (m)."""
         self.solver.prepare(self.C_total, chip_m, advance_per_update_m)
 
-    def update(self, target_task_m: tuple[float, float, float], servo_gain: float) -> ContactSample:
-        """One F/T sample: servo moves ``servo_gain`` of the way to the target, then the tip balances."""
-        self.sample = self.solver.update(target_task_m, servo_gain)
+    def update(self, target_task_m: tuple[float, float, float], servo_gain: float | None = None) -> ContactSample:
+        """One F/T sample: servo moves ``servo_gain`` (default: the cell's own) of the way to the target, then the tip balances."""
+        self.sample = self.solver.update(target_task_m, self.servo_gain if servo_gain is None else servo_gain)
         return self.sample
 
-    def run(self, targets_task_m: list[tuple[float, float, float]], servo_gain: float) -> list[SampleRow]:
+    def run(self, targets_task_m: list[tuple[float, float, float]], servo_gain: float | None = None) -> list[SampleRow]:
         """Consecutive F/T samples, one per servo target (task frame, m): :meth:`update` for each, fused.
 
         Returns the samples as plain rows (fields of :class:`ContactSample`); :attr:`sample` is the last.
         """
-        rows = self.solver.run(targets_task_m, servo_gain)
+        rows = self.solver.run(targets_task_m, self.servo_gain if servo_gain is None else servo_gain)
         if rows:
             self.sample = ContactSample(*rows[-1])
         return rows

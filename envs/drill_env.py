@@ -277,8 +277,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.path.reset()
         self.cell.reset(np.array([0.0, 0.0, self.path.s_m]))
         rng = self.np_random
-        self.specimen_hardness = draw_specimen_hardness(rng, self.scenario.bone_variability)
-        self.cell.set_specimen_hardness(self.specimen_hardness)
+        self.cell.set_specimen_hardness(draw_specimen_hardness(rng, self.scenario.bone_variability))
         self.ft = ForceTorqueSensor(self.scenario.ft_noise_n, rng)
         self.tracker = PositionTracker(self.scenario.tracker_noise_m, rng)
         self.t_s = 0.0
@@ -301,7 +300,6 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.tracker_reading = np.zeros(3)
         self.rtde_tcp_base = self.cell.tcp_rtde_base_m()
         self.step_terms: dict[str, float] = {}
-        self.servo_gain = self.cell.servo_gain
         if self.effects is not None or self._effects_attached:
             self.cell.clear_effects()
             self._effects_attached = self.effects is not None
@@ -391,7 +389,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             while pending and pending[0][0] <= t_next + 1e-12:
                 _, self.correction_base_m, scale = pending.popleft()
                 if scale != self.feed_scale:
-                    samples += cell.run(targets[len(samples) :], self.servo_gain)
+                    samples += cell.run(targets[len(samples) :])
                     self.feed_scale = scale
                     self.t_s = t_s  # _advance_m reads the time of this sample
                     cell.begin_step(self._chip_m(), self._advance_m())
@@ -405,7 +403,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             phases.append(phase.value)
             depths.append(s)
             t_s = t_next
-        samples += cell.run(targets[len(samples) :], self.servo_gain)
+        samples += cell.run(targets[len(samples) :])
         self.t_s = t_s
         if rtde_k >= 0:  # the RTDE sample saw the servo-held tip before sample rtde_k
             self.rtde_tcp_base = cell.tcp_rtde_base_m(samples[rtde_k - 1][1] if rtde_k > 0 else None)
@@ -494,6 +492,11 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             info["metrics"] = dict(self.metrics)
             info["metrics_truncated"] = self.truncated
         return info
+
+    @property
+    def specimen_hardness(self) -> float:
+        """This episode's specimen hardness factor (privileged; drawn at ``reset``, :func:`drillgym.envs.cell.draw_specimen_hardness`)."""
+        return self.cell.specimen_hardness
 
     @property
     def plan(self) -> DrillPlan:

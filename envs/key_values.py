@@ -30,13 +30,19 @@ def split_items(text: str, what: str) -> dict[str, str]:
     return items
 
 
-def split_spec_list(text: str, what: str) -> list[str]:
+def split_spec_list(text: str, what: str, noun: str = "name", example: str = "") -> list[str]:
     """``"none,li2023:kp=1,ki=0.5,li2023"`` -> ``["none", "li2023:kp=1,ki=0.5", "li2023"]``.
 
     A ``key=value`` item without a name before it continues the spec before it.
 
+    Args:
+        text: the comma-separated specs.
+        what: the option they came with, for the errors (e.g. ``"--controllers"``).
+        noun: what the first item lacks when it is a ``key=value`` item (``"controller name"``).
+        example: a good value, shown when the list is empty.
+
     Raises:
-        ValueError: the list is empty, or starts with a ``key=value`` item (``what`` names the option).
+        ValueError: the list is empty, or starts with a ``key=value`` item.
     """
     specs: list[str] = []
     for item in (s.strip() for s in text.split(",")):
@@ -44,12 +50,12 @@ def split_spec_list(text: str, what: str) -> list[str]:
             continue
         if "=" in item and ":" not in item:
             if not specs:
-                raise ValueError(f"{what} {text!r}: {item!r} has no name before it")
+                raise ValueError(f"{what} {text!r}: {item!r} has no {noun} before it")
             specs[-1] += "," + item
         else:
             specs.append(item)
     if not specs:
-        raise ValueError(f"{what} is empty")
+        raise ValueError(f"{what} is empty" + (f"; e.g. {what} {example}" if example else ""))
     return specs
 
 

@@ -7,6 +7,7 @@ so a single-core run has no pool overhead and a traceback points at the job itse
 
 from __future__ import annotations
 
+import functools
 import multiprocessing as mp
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
@@ -45,7 +46,7 @@ def run_unordered(
         if initializer is not None:
             initializer(*initargs)
         for i, job in enumerate(jobs):
-            yield i, _call(fn, job, on_error)
+            yield i, _guarded(functools.partial(fn, job), job, on_error)
         return
     ctx = mp.get_context("spawn")
     with ProcessPoolExecutor(
@@ -55,7 +56,7 @@ def run_unordered(
         try:
             for fut in as_completed(futures):
                 i = futures[fut]
-                yield i, _result(fut, jobs[i], on_error)
+                yield i, _guarded(fut.result, jobs[i], on_error)
         except BaseException:
             pool.shutdown(cancel_futures=True)
             raise
@@ -67,19 +68,11 @@ def run_ordered(fn: Callable[[Job], Result], jobs: Sequence[Job], workers: int, 
     return [out[i] for i in range(len(jobs))]
 
 
-def _call(fn: Callable[[Job], Result], job: Job, on_error: Callable[[Job, Exception], Result] | None) -> Result:
+def _guarded(get: Callable[[], Result], job: Job, on_error: Callable[[Job, Exception], Result] | None) -> Result:
+    """``get()``; with ``on_error``, a job that raised becomes ``on_error(job, error)``."""
     if on_error is None:
-        return fn(job)
+        return get()
     try:
-        return fn(job)
-    except Exception as e:
-        return on_error(job, e)
-
-
-def _result(fut: Future, job: Any, on_error: Callable[[Any, Exception], Any] | None) -> Any:
-    if on_error is None:
-        return fut.result()
-    try:
-        return fut.result()
+        return get()
     except Exception as e:
         return on_error(job, e)

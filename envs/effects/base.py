@@ -60,7 +60,6 @@ class EffectHost(Protocol):
         feed_scale: the feed override in force (-).
         correction_base_m: the correction the servo holds now (m, base frame).
         pending: commands not yet applied: ``(apply time s, correction m base, feed scale)``, oldest first.
-        specimen_hardness: this specimen's drawn hardness factor (-).
     """
 
     cell: SimCell
@@ -70,7 +69,6 @@ class EffectHost(Protocol):
     feed_scale: float
     correction_base_m: np.ndarray
     pending: deque[tuple[float, np.ndarray, float]]
-    specimen_hardness: float
 
 
 @dataclass(frozen=True)

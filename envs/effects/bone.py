@@ -73,7 +73,7 @@ class ThermalSoftening(Effect):
         power_w = abs(smp.torque_axis) * omega + abs(smp.force[2]) * max(env.path.speed_m_s(env.feed_scale), 0.0)
         self.work_j += power_w * CONTROL_DT_S
         factor = 1.0 - a * (1.0 - math.exp(-self.work_j / self.values["work_j"]))
-        env.cell.solver.force_scale = env.specimen_hardness * max(factor, MIN_HARDNESS)
+        env.cell.solver.force_scale = env.cell.specimen_hardness * max(factor, MIN_HARDNESS)
 
 
 class SkidFriction(Effect):

@@ -11,12 +11,7 @@ from drillgym.eval.pool import run_unordered
 
 def split_controller_specs(text: str) -> list[str]:
     """``"none,li2023:kp=1,ki=0.5,li2023"`` -> ``["none", "li2023:kp=1,ki=0.5", "li2023"]`` (``--controllers``)."""
-    try:
-        return split_spec_list(text, "--controllers")
-    except ValueError as e:
-        if "is empty" in str(e):
-            raise ValueError("--controllers is empty; e.g. --controllers none,li2023") from None
-        raise ValueError(str(e).replace("has no name", "has no controller name")) from None
+    return split_spec_list(text, "--controllers", noun="controller name", example="none,li2023")
 
 
 def controller_label(spec: str) -> str:

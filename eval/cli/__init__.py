@@ -81,10 +81,11 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, OSError, LookupError)
+USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, OSError, LookupError, ModuleNotFoundError)
 """What a command raises on bad input: a bad value or spec (``ValueError``, which argparse's type errors and
 YAML's parse errors are too), a missing, existing or unreadable file, a refused or dropped connection, a port
-in use (``OSError``), an unknown name (``LookupError``). The top-level handler prints these on one line; set
+in use (``OSError``), an unknown name (``LookupError``), an optional package that is not installed, e.g. Ray
+(``ModuleNotFoundError``, :func:`drillgym.eval.scale.cluster.require_ray`). The top-level handler prints these on one line; set
 ``DRILLGYM_TRACEBACK=1`` to see the traceback instead."""
 
 

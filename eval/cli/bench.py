@@ -101,10 +101,7 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
     if getattr(args, "ray", False) or getattr(args, "address", None):
         from drillgym.eval.scale.cluster import require_ray
 
-        try:
-            require_ray()
-        except RuntimeError as e:
-            raise ValueError(str(e)) from e
+        require_ray()
     specs = split_controller_specs(args.controllers)
     if len(set(specs)) != len(specs):
         raise ValueError(f"--controllers lists a spec twice: {specs}")

@@ -56,10 +56,7 @@ def run(args: argparse.Namespace) -> int:
     if args.ray or args.address:
         from drillgym.eval.scale.cluster import require_ray
 
-        try:
-            require_ray()
-        except RuntimeError as e:  # Ray is not installed: a set-up error, said on one line
-            raise ValueError(str(e)) from e
+        require_ray()
         from drillgym.eval.diagnosis.bench.on_ray import ray_rows
 
         rows_of = lambda jobs: ray_rows(jobs, args.address, args.workers)  # noqa: E731

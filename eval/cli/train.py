@@ -151,10 +151,7 @@ def _sweep(args: argparse.Namespace) -> int:
         raise ValueError("--resume does not apply to --sweep (a failed trial restarts from its checkpoint)")
     from drillgym.eval.scale.cluster import require_ray
 
-    try:
-        require_ray()
-    except RuntimeError as e:  # Ray is not installed: a set-up error, said on one line
-        raise ValueError(str(e)) from e
+    require_ray()
     spec = load_sweep(args.sweep, _overrides(args), args.config)
     from drillgym.eval.scale.tune_sweep import run_sweep
 

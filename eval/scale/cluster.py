@@ -15,9 +15,9 @@ INSTALL_HINT = "Ray is not installed; install it with: pip install 'drillgym[ray
 
 
 def require_ray() -> None:
-    """Raise ``RuntimeError`` with the install command when Ray is not importable."""
+    """Raise ``ModuleNotFoundError`` with the install command when Ray is not importable."""
     if importlib.util.find_spec("ray") is None:
-        raise RuntimeError(INSTALL_HINT)
+        raise ModuleNotFoundError(INSTALL_HINT, name="ray")
 
 
 @dataclass(frozen=True)

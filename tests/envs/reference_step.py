@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import bisect
 import math
-import numbers
 from typing import Any
 
 import numpy as np
@@ -411,7 +410,7 @@ def reference_step(env: Any, action: np.ndarray) -> tuple[dict[str, np.ndarray],
         if env.t_s <= rtde_time < t_next:
             env.rtde_tcp_base = _tcp_rtde_base_m(cell)
         target = (cx, cy, cz + s) if hook is None else hook(t_next, (cx, cy, cz + s))
-        smp = cell.sample = _update(cell.solver, target, env.servo_gain)
+        smp = cell.sample = _update(cell.solver, target, env.cell.servo_gain)
         samples.append(smp)
         env.t_s = t_next
         fx_, fy_, fz_ = smp.force
@@ -455,31 +454,3 @@ def reference_step(env: Any, action: np.ndarray) -> tuple[dict[str, np.ndarray],
     if terminated or truncated:
         env.metrics = env.episode_metrics()
     return reference_observation(env), float(sum(terms.values())), terminated, truncated, reference_info(env)
-
-
-def first_difference(a: Any, b: Any, path: str = "") -> str | None:
-    """Path of the first quantity that is not bit-for-bit identical (dtype and signs of zero included)."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        if set(a) != set(b):
-            return f"{path} keys {sorted(set(a) ^ set(b))}"
-        for k in a:
-            diff = first_difference(a[k], b[k], f"{path}.{k}" if path else k)
-            if diff is not None:
-                return diff
-        return None
-    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        if len(a) != len(b):
-            return f"{path}: lengths {len(a)} != {len(b)}"
-        for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            diff = first_difference(x, y, f"{path}[{i}]")
-            if diff is not None:
-                return diff
-        return None
-    if isinstance(a, np.ndarray | numbers.Number) and not isinstance(a, bool):
-        x, y = np.asarray(a), np.asarray(b)
-        if x.dtype != y.dtype or x.shape != y.shape or x.tobytes() != y.tobytes():
-            return f"{path}: {a!r} != {b!r}"
-        return None
-    if a != b:
-        return f"{path}: {a!r} != {b!r}"
-    return None

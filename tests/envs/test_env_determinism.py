@@ -1,9 +1,8 @@
 from __future__ import annotations
 
-import numbers
-
 import gymnasium as gym
 import numpy as np
+from bitwise import first_difference
 
 from drillgym import envs
 
@@ -24,26 +23,6 @@ def rollout(env: gym.Env, seed: int, actions: np.ndarray) -> list[dict]:
         if terminated or truncated:
             return records
     raise AssertionError("episode did not end")
-
-
-def first_difference(a, b, path: str = "") -> str | None:
-    """Path of the first quantity that is not bit-for-bit identical (numeric entries only), else None."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        if set(a) != set(b):
-            return f"{path} keys {sorted(set(a) ^ set(b))}"
-        for k in a:
-            diff = first_difference(a[k], b[k], f"{path}.{k}" if path else k)
-            if diff is not None:
-                return diff
-        return None
-    if isinstance(a, np.ndarray | numbers.Number) and not isinstance(a, bool):
-        x, y = np.asarray(a), np.asarray(b)
-        if x.dtype != y.dtype or x.shape != y.shape or x.tobytes() != y.tobytes():
-            return f"{path}: {a!r} != {b!r}"
-        return None
-    if a != b:  # bool / str / None
-        return f"{path}: {a!r} != {b!r}"
-    return None
 
 
 def assert_identical(run_a: list[dict], run_b: list[dict]) -> None:

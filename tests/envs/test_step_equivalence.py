@@ -9,7 +9,8 @@ and every candidate effect of the diagnosis.
 import gymnasium as gym
 import numpy as np
 import pytest
-from reference_step import first_difference, reference_info, reference_observation, reference_step
+from bitwise import first_difference
+from reference_step import reference_info, reference_observation, reference_step
 
 from drillgym import envs
 from drillgym.controllers import make_controller

@@ -80,7 +80,6 @@ class EmulatedCell:
         oversample = math.sqrt(max(ft_rate_hz, 100.0) / 100.0)
         noise = scenario.ft_noise_n * oversample
         self.ft_noise_std = np.array([noise] * 3 + [noise * FT_TORQUE_NOISE_ARM_M] * 3)
-        self.servo_gain = self.cell.servo_gain
         self.truth = TruthRecorder()
         self.halted = False
         self.halted_at_s = -math.inf
@@ -104,9 +103,9 @@ class EmulatedCell:
             seed, self.next_specimen_seed = self.next_specimen_seed, None
         self.specimen_seed = self.seed + self.specimen if seed is None else int(seed)
         self.rng = np.random.default_rng(self.specimen_seed)
-        self.hardness_factor = draw_specimen_hardness(self.rng, sc.bone_variability)
+        hardness = draw_specimen_hardness(self.rng, sc.bone_variability)
         self.cell.reset(np.asarray(start_tip_task_m, dtype=float))
-        self.cell.set_specimen_hardness(self.hardness_factor)
+        self.cell.set_specimen_hardness(hardness)
         self.target_task = np.array(self.cell.rigid_tip)
         self.move: tuple[np.ndarray, np.ndarray, float, float] | None = None
         self.targets: deque[tuple[float, float]] = deque()
@@ -124,6 +123,11 @@ class EmulatedCell:
             return False
         self.new_specimen(np.array(self.cell.rigid_tip), seed=seed)
         return True
+
+    @property
+    def hardness_factor(self) -> float:
+        """This specimen's drawn hardness factor (the cell's)."""
+        return self.cell.specimen_hardness
 
     @property
     def bone_cut(self) -> bool:
@@ -204,7 +208,7 @@ class EmulatedCell:
             sc = self.scenario
             cell.begin_step(sc.geometry.chip_thickness_m(max(v, 0.0), sc.spindle_rpm), max(v, 0.0) * PHYSICS_DT_S)
         tip_before = np.array(cell.rigid_tip, dtype=float)
-        smp = cell.update(tuple(self.target_task.tolist()), self.servo_gain)
+        smp = cell.update(tuple(self.target_task.tolist()))
         self.tcp_velocity_base_m_s = self.R @ (np.array(cell.rigid_tip, dtype=float) - tip_before) / PHYSICS_DT_S
         twist = np.concatenate([self.tcp_velocity_base_m_s, np.zeros(3)])
         self.qd_rad_s = np.linalg.solve(cell.J_tcp, twist)  # the joint rates behind that TCP velocity

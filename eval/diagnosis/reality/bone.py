@@ -21,7 +21,7 @@ class ForceScaleReset(RealityEffect):
 
     def begin_step(self, env: EffectHost) -> None:
         """Reset the force scale."""
-        env.cell.solver.force_scale = env.specimen_hardness
+        env.cell.solver.force_scale = env.cell.specimen_hardness
 
 
 def _local_depth_m(env: EffectHost) -> float:
