@@ -35,7 +35,7 @@ from drillgym.envs.scenario import Scenario
 from drillgym.envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
 from drillgym.envs.task import DrillPath, Phase
 
-RESET_OPTIONS = frozenset({"scenario", "effects"})
+RESET_OPTIONS = frozenset({"scenario", "effects", "specimen_seed"})
 """Keys ``reset(options=...)`` accepts."""
 
 
@@ -256,6 +256,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         the constructor's; the others keep their values): domain randomisation and log replay use it.
         ``options={"effects": [...]}`` switches unmodelled effects on from this episode on (see
         :meth:`set_effects`).
+        ``options={"specimen_seed": k}`` drills the specimen that ``reset(seed=k)`` draws, with the sensor
+        noise of this reset's ``seed``: one specimen under many noise draws (the emulator seeds its specimen the
+        same way). With ``k == seed`` the episode is the plain ``reset(seed=seed)``'s, bit for bit.
         """
         super().reset(seed=seed)
         unknown = sorted(set(options or {}) - RESET_OPTIONS)
@@ -264,20 +267,24 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
                 f"reset(options=...): unknown key(s) {unknown}; allowed: {sorted(RESET_OPTIONS)} "
                 '(scenario arguments go inside options={"scenario": {...}})'
             )
+        specimen_seed = _checked_specimen_seed((options or {}).get("specimen_seed"))
         if options and "effects" in options:
             self.set_effects(options["effects"])
         if options and "scenario" in options:
             changes = dict(options["scenario"])
             if changes:
                 self._build(Scenario.from_kwargs(**{**self.scenario.to_dict(), **changes}))
-        self._reset_state()
+        self._reset_state(specimen_seed)
         return self._observation(), self._info()
 
-    def _reset_state(self) -> None:
+    def _reset_state(self, specimen_seed: int | None = None) -> None:
         self.path.reset()
         self.cell.reset(np.array([0.0, 0.0, self.path.s_m]))
         rng = self.np_random
-        self.cell.set_specimen_hardness(draw_specimen_hardness(rng, self.scenario.bone_variability))
+        hardness = draw_specimen_hardness(rng, self.scenario.bone_variability)  # drawn either way: same noise stream
+        if specimen_seed is not None:
+            hardness = draw_specimen_hardness(np.random.default_rng(specimen_seed), self.scenario.bone_variability)
+        self.cell.set_specimen_hardness(hardness)
         self.ft = ForceTorqueSensor(self.scenario.ft_noise_n, rng)
         self.tracker = PositionTracker(self.scenario.tracker_noise_m, rng)
         self.t_s = 0.0
@@ -533,3 +540,12 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def tracker_marker_pose_base(self) -> np.ndarray:
         """True ``T_base_marker`` (privileged; for tests and diagnostics)."""
         return self.cell.kin.fk(self.cell.q_actual_rad(), TRACKER_FRAME)
+
+
+def _checked_specimen_seed(value: Any) -> int | None:
+    """``reset``'s ``specimen_seed`` option: None or a non-negative integer."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise ValueError(f"reset(options={{'specimen_seed': {value!r}}}): a non-negative integer seed, or None")
+    return int(value)

@@ -262,6 +262,32 @@ def test_reset_options_give_the_same_episode_as_a_fresh_env():
         b.close()
 
 
+def test_the_specimen_seed_option_keeps_the_specimen_and_changes_only_the_noise():
+    env = gym.make(ENV_ID)
+    u = env.unwrapped
+    zero = np.zeros(4, np.float32)
+    try:
+        env.reset(seed=4)
+        hardness_4 = u.specimen_hardness
+        plain = [env.step(zero)[0]["ft_wrench"] for _ in range(5)]
+        env.reset(seed=4, options={"specimen_seed": 4})  # its own seed: the plain episode, bit for bit
+        assert u.specimen_hardness == hardness_4
+        for a, b in zip(plain, [env.step(zero)[0]["ft_wrench"] for _ in range(5)], strict=True):
+            np.testing.assert_array_equal(a, b)
+        env.reset(seed=9, options={"specimen_seed": 4})  # seed 4's specimen under seed 9's noise
+        assert u.specimen_hardness == hardness_4
+        noisy = [env.step(zero)[0]["ft_wrench"] for _ in range(5)]
+        env.reset(seed=9)
+        assert u.specimen_hardness != hardness_4
+        for a, b in zip(noisy, [env.step(zero)[0]["ft_wrench"] for _ in range(5)], strict=True):
+            np.testing.assert_array_equal(a, b)  # before contact the readings are noise only: seed 9's
+        for bad in (-1, 1.5, True, "3"):
+            with pytest.raises(ValueError, match="specimen_seed"):
+                env.reset(seed=0, options={"specimen_seed": bad})
+    finally:
+        env.close()
+
+
 def test_the_rollout_hands_a_controller_its_plan_and_matches_the_benchmark():
     from drillgym.controllers import make_controller
     from drillgym.controllers.rollout import run_episode as rollout

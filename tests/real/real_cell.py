@@ -30,9 +30,10 @@ def run_steps(
     seed: int = 0,
     max_steps: int | None = None,
     on_step: Callable[[int], None] | None = None,
+    options: dict[str, Any] | None = None,
 ) -> tuple[int, dict[str, Any], bool]:
     """Reset and step ``controller`` until the episode ends or ``max_steps``; returns (steps, info, ended)."""
-    obs, info = env.reset(seed=seed)
+    obs, info = env.reset(seed=seed, options=options)
     controller.set_plan(env.unwrapped.plan)
     start, steps = True, 0
     while max_steps is None or steps < max_steps:

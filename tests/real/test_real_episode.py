@@ -1,20 +1,22 @@
 """Whole episodes through drillgym/UR5BoneDrillReal-v1 against the emulator, with the real ur_rtde client,
-compared with the pure simulation of the same scenario and seed.
+compared with the pure simulation of the same scenario and specimen.
 
-Tolerances (measured over seeds 0-4 with li2023 on the paper scenario, see docs/deployment.md): the emulator
-runs the simulator's own physics, so without a controller the true deviation agrees within 0.5 % and the forces
-within 1 %. With a closed-loop compensator the runs differ in timing: the sim applies each action after exactly
-14 ms and samples on a fixed grid, the emulator after the real pipeline (servo thread 0-8 ms + controller cycle
-0-8 ms + physics update 0-10 ms) with jitter, so the compensator's 600 ms points see slightly different forces.
-Observed: true deviation and entry-hole offset within 3 %, peak lateral force 1-8 % lower (a single filtered
-maximum at the entry), stable lateral force within 4 %, thrust within 0.3 %, drilling time within 0.05 s,
-tracker deviation within 0.03 mm (0.05 mm tracker noise). Tolerances: 8 % on true deviation and hole offset,
-15 % on the peak lateral force, 8 % on the stable lateral force, 5 % on thrust, 0.2 s on drilling time,
-0.06 mm on the tracker.
+The emulator draws the specimen from the seed like the sim, but its sensor noise is its own draw, and a
+closed-loop compensator turns noise into a different entry: li2023's first compensation points amplify the
+force and TCP noise of the approach (KP = 4), so the entry skid depends on the noise draw. On seed 0's specimen
+the sim alone, under 12 noise draws, gives a maximum true deviation of 0.235-0.275 mm (SD 0.013 mm) and a stable
+lateral force of 0.195-0.217 N (SD 0.0065 N); the plain seed-0 run (0.2745 mm) is the largest of the 12. So one
+emulated run is compared with the sim's *distribution* on that specimen (``reset(options={"specimen_seed": 0})``
+over SIM_NOISE_DRAWS noise seeds): it must lie in the sims' 99.9 % prediction interval, or within the real
+pipeline's timing allowance (LI2023_TOL) of their mean, whichever is wider. The allowance: the sim applies each
+action after exactly 14 ms on a fixed grid, the emulator after the real pipeline (servo process 0-8 ms + controller
+cycle 0-8 ms + physics update 0-10 ms) with jitter; constant latencies from 4 to 22 ms move the sim's metrics by
+< 1 % (docs/deployment.md §7).
 A residual policy also sets the feed, and the shipped one's bursts of slow feed at the entry amplify the
 pipeline's timing: its entry (true deviation, peak force, drilling time) varies from run to run through the
-emulator far beyond anything the sim shows at any constant latency (see RESIDUAL_TOL). Its test compares only
-thrust and tracker deviation with the sim, and checks that the policy compensates and slows the feed as in sim.
+emulator far beyond what the sim shows under its own noise draws or any constant latency (see RESIDUAL_TOL). Its
+test compares only thrust and tracker deviation with the sim, and checks that the policy compensates and slows
+the feed as in sim.
 """
 
 import glob
@@ -25,6 +27,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from real_cell import CI_LIMITS, make_real_env, run_steps
+from scipy import stats
 
 from drillgym import envs  # noqa: F401
 from drillgym.controllers import make_controller
@@ -37,22 +40,20 @@ from drillgym.eval.logs.writer import schema_for
 pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefile)
 
 ROOT = Path(__file__).resolve().parents[2]
-LI2023_TOL = {  # metric: (relative, absolute); a metric agrees when within either
-    "lateral_force_max_n": (0.15, 0.0),
+LI2023_TOL = {  # metric: (relative, absolute) timing allowance around the sims' mean; the wider one counts
+    "lateral_force_max_n": (0.15, 0.0),  # a single filtered maximum at the entry
     "lateral_force_stable_n": (0.08, 0.0),
     "thrust_max_n": (0.05, 0.0),
     "drill_time_s": (0.0, 0.2),
-    "tracker_deviation_mean_mm": (0.0, 0.06),
+    "tracker_deviation_mean_mm": (0.0, 0.06),  # the tracker's noise is 0.05 mm
     "truth_deviation_mean_mm": (0.08, 0.0),
-    # the maximum is the entry skid, a short event; the tip is only lightly guided until the hole has a
-    # wall, so the real pipeline's 8 ms servo timing moves it: real / sim -4.7 % to -9.5 % on seeds 0-3, -16 % on
-    # seed 4. Seed 0 (this test) sits systematically low: 0.2436-0.2502 mm through the emulator in 9 runs, quiet
-    # and loaded, against the sim's 0.2745 mm (-8.9 % to -11.3 %), the same at the commit that set a 12 % bound;
-    # not the command latency (the sim gives 0.274-0.275 mm for 4-22 ms). With 12 % the test failed 1 of the last 10 quiet
-    # realtime runs on that offset alone; 15 % keeps 4 % of room. Cause not found (docs/deployment.md §7).
-    "truth_deviation_max_mm": (0.15, 0.0),
+    "truth_deviation_max_mm": (0.08, 0.0),
     "truth_hole_offset_mm": (0.08, 0.0),
 }
+SIM_NOISE_DRAWS = 10
+"""Sim runs on the emulated specimen, one per noise seed (0 .. n-1; seed 0 is the plain run): ~1 s each."""
+PREDICTION_LEVEL = 0.999
+"""Two-sided level of the prediction interval for one more draw (8 metrics: ~1 % false failures per run)."""
 RESIDUAL_TOL = {  # only what the pipeline's timing does not move (docs/deployment.md §7)
     "thrust_max_n": (0.2, 0.0),
     "tracker_deviation_mean_mm": (0.15, 0.06),
@@ -65,17 +66,35 @@ instead that the policy is at work through the real backend as in sim (it compen
 POLICIES = sorted(glob.glob(str(ROOT / "training" / "policies" / "*.zip")))
 
 
-def _sim_run(spec, seed):
+def _sim_run(spec, seed, specimen_seed=None):
     env = gym.make("drillgym/UR5BoneDrill-v1")
     try:
-        _, info, _ = run_steps(env, make_controller(spec), seed)
+        options = None if specimen_seed is None else {"specimen_seed": specimen_seed}
+        _, info, _ = run_steps(env, make_controller(spec), seed, options=options)
         u = env.unwrapped
         return info["metrics"], cell_metrics(u.recorder, u.scenario.entry_depth_m, u.scenario.depth_m)
     finally:
         env.close()
 
 
-def _real_vs_sim(start_emulator, tmp_path, spec, tolerances, seed=0):
+def _sim_metrics(spec, seed, specimen_seed=None):
+    truth, cell = _sim_run(spec, seed, specimen_seed)
+    return {**cell, **{f"truth_{k}": v for k, v in truth.items()}}
+
+
+def _within_sim_spread(real, spec, specimen_seed, tolerances):
+    """Each metric of one emulated run against the sims on its specimen under SIM_NOISE_DRAWS noise draws."""
+    sims = [_sim_metrics(spec, seed, specimen_seed) for seed in range(SIM_NOISE_DRAWS)]
+    n = len(sims)
+    t = stats.t.ppf(0.5 + PREDICTION_LEVEL / 2, n - 1)
+    for name, (rel, abs_) in tolerances.items():
+        values = np.array([sim[name] for sim in sims])
+        mean, sd = float(values.mean()), float(values.std(ddof=1))
+        half = max(t * sd * math.sqrt(1 + 1 / n), rel * abs(mean), abs_)
+        assert abs(real[name] - mean) <= half, (name, real[name], f"sims {mean:.4f} ± {half:.4f}", values.round(4))
+
+
+def _real_run(start_emulator, tmp_path, spec, seed=0):
     emu = start_emulator(seed=seed)
     env = make_real_env(emu, safety_limits=CI_LIMITS)
     controller = make_controller(spec)
@@ -90,11 +109,7 @@ def _real_vs_sim(start_emulator, tmp_path, spec, tolerances, seed=0):
     truth = emu.control({"cmd": "truth"})
     assert ended and info["failure"] is None, info
     assert info["missed_cycles"] <= 0.05 * info["servo_cycles"], info
-    sim_truth, sim_cell = _sim_run(spec, seed)
-    sim = {**sim_cell, **{f"truth_{k}": v for k, v in sim_truth.items()}}
     real = {**info["metrics"], **{f"truth_{k}": v for k, v in truth.items() if k != "ok"}}
-    for name, (rel, abs_) in tolerances.items():
-        assert abs(real[name] - sim[name]) <= max(rel * abs(sim[name]), abs_), (name, real[name], sim[name])
     assert math.isnan(info["metrics"]["deviation_mean_mm"]) and math.isnan(info["metrics"]["hole_offset_mm"])
     header, df = read_episode_log(log)
     assert header["source"] == "real" and header["env_id"] == "drillgym/UR5BoneDrillReal-v1"
@@ -102,11 +117,12 @@ def _real_vs_sim(start_emulator, tmp_path, spec, tolerances, seed=0):
     assert list(df.columns) == schema_for("real").names and not df.attrs["partial"]
     assert len(df) == n_rows and abs(len(df) - 5 * steps) <= 5
     assert np.all(np.diff(df.t_s) > 0) and df.phase.iloc[-1] == 3 and df.tracker_valid.all()
-    return real, sim
+    return real
 
 
 def test_li2023_drills_through_the_real_backend_like_in_sim(start_emulator, tmp_path):
-    _real_vs_sim(start_emulator, tmp_path, "li2023", LI2023_TOL)
+    real = _real_run(start_emulator, tmp_path, "li2023")
+    _within_sim_spread(real, "li2023", 0, LI2023_TOL)
 
 
 @pytest.mark.parametrize(
@@ -115,7 +131,10 @@ def test_li2023_drills_through_the_real_backend_like_in_sim(start_emulator, tmp_
 def test_residual_policy_drills_through_the_real_backend_like_in_sim(start_emulator, tmp_path, policy):
     if not Path(policy).is_file():
         pytest.skip(f"no trained residual policy yet ({policy})")
-    real, sim = _real_vs_sim(start_emulator, tmp_path, f"residual:{policy}", RESIDUAL_TOL)
+    real = _real_run(start_emulator, tmp_path, f"residual:{policy}")
+    sim = _sim_metrics(f"residual:{policy}", 0)
+    for name, (rel, abs_) in RESIDUAL_TOL.items():
+        assert abs(real[name] - sim[name]) <= max(rel * abs(sim[name]), abs_), (name, real[name], sim[name])
     none_truth, _ = _sim_run("none", 0)
     _, base_cell = _sim_run("li2023", 0)
     # it compensates: at most half the uncompensated deviation (0.70 mm in sim; 0.11-0.12 mm through the emulator)
