@@ -14,8 +14,10 @@ from drillgym.envs.real.config import SafetyLimits
 from drillgym.envs.real.emulator.process import EmulatorProcess
 
 REAL_ENV_ID = "drillgym/UR5BoneDrillReal-v1"
-CI_LIMITS = SafetyLimits(max_cycle_gap_s=0.5, rtde_stale_s=0.5, ft_stale_s=0.5)
-"""Timing limits for long episodes on a shared CI machine (the defaults are exercised by the fault tests)."""
+CI_LIMITS = SafetyLimits(max_cycle_gap_s=0.5, rtde_stale_s=0.5, ft_stale_s=0.5, tracker_stale_s=0.5)
+"""Timing limits for long episodes on a shared CI machine (the defaults are exercised by the fault tests): beside
+two busy processes the emulator's streams, at ordinary priority, can pause for more than the defaults' 0.1 s
+(the tracker's did in one loaded run, and the episode's tracker_valid dropped for a step)."""
 
 
 def make_real_env(emu: EmulatorProcess, **kwargs: Any) -> gym.Env:
