@@ -36,7 +36,9 @@ def test_a_complete_episode_is_not_flagged_as_truncated():
 
 def test_unknown_reset_options_are_rejected_naming_the_allowed_ones():
     env = gym.make(ENV_ID)
-    with pytest.raises(ValueError, match=r"unknown key\(s\) \['beta_deg'\].*\['effects', 'scenario'\]"):
+    with pytest.raises(
+        ValueError, match=r"unknown key\(s\) \['beta_deg'\].*\['effects', 'scenario', 'specimen_seed'\]"
+    ):
         env.reset(seed=0, options={"beta_deg": 10})
     env.reset(seed=0, options={"scenario": {"beta_deg": 10}})
     assert env.unwrapped.scenario.beta_deg == 10
