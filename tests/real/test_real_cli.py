@@ -4,6 +4,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from drillgym.envs.real.emulator.process import free_loopback_host, ports_free
 from drillgym.eval.cli import main
 from drillgym.eval.logs import read_episode_log
@@ -12,6 +14,7 @@ SHORT_PLAN = "feed_mm_s=3,depth_mm=3"
 """A 3 s hole (approach 1.4 s, feed 1.1 s, retract 0.6 s)."""
 
 
+@pytest.mark.realtime  # streams to the emulator in real time: run alone (see the Makefile)
 def test_run_drills_logs_and_prints_the_measurable_metrics(start_emulator, tmp_path, capsys):
     emu = start_emulator(scenario={"feed_mm_s": 3.0, "depth_mm": 3.0})
     argv = ["run", "--robot", emu.host, "--tracker", f"udp:{emu.host}", "--scenario", SHORT_PLAN, "--yes"]
@@ -28,6 +31,7 @@ def test_run_drills_logs_and_prints_the_measurable_metrics(start_emulator, tmp_p
     assert (tmp_path / "commands.jsonl").stat().st_size > 0
 
 
+@pytest.mark.realtime  # streams to the emulator in real time: run alone (see the Makefile)
 def test_run_seeds_each_emulated_specimen_as_the_sim_does(start_emulator, tmp_path, capsys):
     import gymnasium as gym
 
@@ -72,6 +76,7 @@ def test_emulate_serves_and_exits_by_itself(capsys):
     assert capsys.readouterr().out.startswith("READY ") and ports_free(host)
 
 
+@pytest.mark.realtime  # streams to the emulator in real time: run alone (see the Makefile)
 def test_bench_rtde_reports_missed_cycles_and_latency(capsys):
     assert main(["bench-rtde", "--seconds", "2", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)

@@ -39,6 +39,7 @@ def test_a_calibration_that_disagrees_with_the_sensor_or_other_units_is_refused(
         check_calibration(None, DeviceCalibration(NetFTCalibration(), "lbf", "lbf-in"))
 
 
+@pytest.mark.realtime  # streams to the emulator in real time: run alone (see the Makefile)
 def test_run_reads_the_emulated_sensors_calibration_and_refuses_a_wrong_one(start_emulator, tmp_path, capsys):
     emu = start_emulator(scenario={"feed_mm_s": 3.0, "depth_mm": 3.0}, extra_args=["--counts-per-force", "2000000"])
     assert read_calibration(emu.host).calibration.counts_per_force == 2_000_000.0
