@@ -14,7 +14,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,6 +24,7 @@ from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
 from drillgym.eval.diagnosis.context import DiagnosisData, split_episodes
 from drillgym.eval.diagnosis.episodes import EpisodeData
 from drillgym.eval.diagnosis.fit import FitResult
+from drillgym.eval.diagnosis.intervals import off_point_inside, parameter_intervals
 from drillgym.eval.diagnosis.pool import Runner
 from drillgym.eval.diagnosis.rank import (
     PAIR_TRY_RESIDUAL,
@@ -138,17 +139,15 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
                 out = _collect(runner.refits(data, models), len(refits), bar)
                 for (_, _, i), r in zip(refits, out, strict=True):
                     if not r.error and r.cal_objective <= pairs[i].cal_objective:
+                        r.samples = _merged_samples(pairs[i], r)
                         pairs[i] = r
                 scores = score_models(singles + pairs, before, null, opt.seed)
     timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
+    decision = _name(runner, data, significance, singles + pairs, before, null, opt.seed, bar)
+    verdict, chosen, location, guard, off_point = decision
+    scores = decision.scores
+    timings["polish_s"] = time.perf_counter() - t0 - sum(timings.values())
     bar.close()
-    best_single = next((s for s in scores if len(s.fit.names) == 1), None)
-    guard: dict[str, Any] | None = None
-    contradicted = False
-    if best_single is not None and nameable(best_single, baseline_score(before)):
-        contradicted = single_contradicted(best_single, before, null)
-        guard = {"effect": best_single.name, "contradicted": contradicted}
-    verdict, chosen, location = _verdict(significance, scores, before, data, null, contradicted)
     named = [] if chosen is None else list(chosen.fit.names)
     alts, seconds = [], []
     evidence: dict[str, Any] | None = None
@@ -171,6 +170,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
         "summary": _summary(verdict, chosen, location, alts, seconds, leftover),
         "leftover": leftover,
         "single_guard": guard,
+        "off_point_guard": off_point or None,
         "effects": [s.to_json() for s in scores],
         "alternatives": alts,
         "possible_second_effects": seconds,
@@ -193,6 +193,105 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
         "timing": {**timings, "workers": runner.workers, "candidates": len(opt.candidates), "pairs": len(pairs)},
     }
     return Diagnosis(result, data, scores)
+
+
+@dataclass
+class _Decision:
+    """The verdict and what it rests on (unpacks as ``verdict, chosen, location, guard, off_point``)."""
+
+    verdict: str
+    chosen: ModelScore | None
+    location: dict[str, Any] | None
+    guard: dict[str, Any] | None
+    off_point: list[str]
+    scores: list[ModelScore]
+
+    def __iter__(self) -> Iterator[Any]:
+        return iter((self.verdict, self.chosen, self.location, self.guard, self.off_point))
+
+
+def _name(
+    runner: Runner,
+    data: DiagnosisData,
+    significance: dict[str, Any],
+    fits: list[FitResult],
+    before: list[Any],
+    null: list[Any],
+    seed: int,
+    bar: tqdm,
+) -> _Decision:
+    """Score ``fits``, decide, refine the named model (:func:`_polish`), decide again, and bound its parameters.
+
+    The named model's parameters come from the best fit found anywhere in the search; every model gets
+    its parameters' 95 % intervals (:mod:`drillgym.eval.diagnosis.intervals`), and a named model with an
+    effect whose intervals all contain its off point is not named (``off_point``).
+    """
+    scores = score_models(fits, before, null, seed)
+    verdict, chosen, location, guard = _decide(significance, scores, before, data, null)
+    if chosen is not None:
+        bar.total += 1
+        bar.set_postfix_str("refining the named model")
+        fits = list(fits)
+        k = next(i for i, f in enumerate(fits) if f is chosen.fit)
+        fits[k] = _polish(runner, data, chosen.fit, fits, bar)
+        scores = score_models(fits, before, null, seed)
+        verdict, chosen, location, guard = _decide(significance, scores, before, data, null)
+    for s in scores:
+        s.intervals = parameter_intervals(s.fit.samples, seed)
+    off_point: list[str] = []
+    if chosen is not None:
+        off_point = off_point_inside(chosen.intervals, chosen.fit.names)
+        if off_point:  # not told apart from its absence: not named
+            chosen.named = False
+            chosen, verdict, location = None, "unexplained", _location(data)
+    return _Decision(verdict, chosen, location, guard, off_point, scores)
+
+
+def _decide(
+    significance: dict[str, Any], scores: list[ModelScore], before: list[Any], data: DiagnosisData, null: list[Any]
+) -> tuple[str, ModelScore | None, dict[str, Any] | None, dict[str, Any] | None]:
+    """Verdict, named model, location and the best single's before-contact guard (``single_guard``)."""
+    best_single = next((s for s in scores if len(s.fit.names) == 1), None)
+    guard: dict[str, Any] | None = None
+    contradicted = False
+    if best_single is not None and nameable(best_single, baseline_score(before)):
+        contradicted = single_contradicted(best_single, before, null)
+        guard = {"effect": best_single.name, "contradicted": contradicted}
+    verdict, chosen, location = _verdict(significance, scores, before, data, null, contradicted)
+    return verdict, chosen, location, guard
+
+
+def _polish(runner: Runner, data: DiagnosisData, fit: FitResult, fits: list[FitResult], bar: tqdm) -> FitResult:
+    """``fit`` refitted with every parameter free from the best of its own values and theirs in ``fits``.
+
+    A search that fitted the same effects inside a larger model (a pair's joint refit, say) may have found
+    better values for them than their own fit did; the compass search from the best start settles them.
+    The result keeps every evaluated point of both searches (for the parameters' intervals); the
+    refit replaces the fit only if its calibration gap is not higher.
+    """
+    names = fit.names
+    starts = [fit.params]
+    for f in fits:
+        if f is fit or f.error or not set(names) <= set(f.names):
+            continue
+        start = [f.params[f.names.index(n)] for n in names]
+        if start not in starts:
+            starts.append(start)
+    (r,) = _collect(runner.refits(data, [(names, starts)]), 1, bar)
+    better = r if not r.error and r.cal_objective <= fit.cal_objective else fit
+    better.samples = _merged_samples(fit, r)
+    return better
+
+
+def _merged_samples(a: FitResult, b: FitResult) -> list[Any]:
+    """The evaluated points of two fits of the same model on the same episodes, each point once."""
+    return list({spec: (spec, j, n) for spec, j, n in [*a.samples, *b.samples]}.values())
+
+
+def _location(data: DiagnosisData) -> dict[str, Any]:
+    """Where the gap lies when nothing is named: the cell holding the most excess gap."""
+    top = locate(data.baseline_terms, data.null_terms, top=1)[0]
+    return {"channel": top["channel"], "stage": top["stage"], "share": top["share"]}
 
 
 def _refit_jobs(
@@ -269,8 +368,7 @@ def _verdict(
             if chosen is None or chosen is best_single or p.score < chosen.score:
                 chosen = p
     if chosen is None:
-        top = locate(data.baseline_terms, data.null_terms, top=1)[0]
-        return "unexplained", None, {"channel": top["channel"], "stage": top["stage"], "share": top["share"]}
+        return "unexplained", None, _location(data)
     chosen.named = True
     return "explained", chosen, None
 

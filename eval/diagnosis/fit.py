@@ -53,6 +53,9 @@ class FitResult:
         evaluations: objective evaluations; replays: simulator replays run.
         wall_s: time the fit took (s).
         error: why the fit failed ("" if it did not).
+        samples: every point the search evaluated, with each calibration episode's gap terms there
+            (``(spec, J per episode, N per episode)``, in ``data.cal`` order; J is None where the replay
+            failed): what :mod:`drillgym.eval.diagnosis.intervals` bootstraps the parameters' intervals from.
     """
 
     names: tuple[str, ...]
@@ -64,6 +67,7 @@ class FitResult:
     replays: int = 0
     wall_s: float = 0.0
     error: str = ""
+    samples: list[tuple[Spec, np.ndarray | None, np.ndarray | None]] = field(default_factory=list, repr=False)
 
 
 class ParamBox:
@@ -126,20 +130,29 @@ class ParamBox:
 
 
 class _Objective:
-    """Mean calibration gap term of a unit-box point, memoised (a failed replay scores 1e12)."""
+    """Mean calibration gap term of a unit-box point, memoised (a failed replay scores 1e12).
+
+    The memo keeps each calibration episode's ``J`` and ``N`` too (:attr:`FitResult.samples`).
+    """
 
     def __init__(self, ev: Evaluator, box: ParamBox) -> None:
         self.ev, self.box = ev, box
         self.memo: dict[Spec, float] = {}
+        self.per_episode: dict[Spec, tuple[np.ndarray, np.ndarray] | None] = {}
         self.replays0 = ev.replays
 
     def __call__(self, u: np.ndarray) -> float:
         spec = self.box.spec(np.asarray(u, dtype=float))
         if spec not in self.memo:
             try:
-                self.memo[spec] = self.ev.mean_term(spec, self.ev.data.cal)
+                ts = self.ev.terms(spec, self.ev.data.cal)
             except (RuntimeError, ValueError, np.linalg.LinAlgError):
                 self.memo[spec] = 1e12  # the replay failed (e.g. IK out of reach): not a candidate
+                self.per_episode[spec] = None
+            else:
+                j_sum, n_sum = sum(t.j for t in ts), sum(t.n for t in ts)  # as Evaluator.mean_term
+                self.memo[spec] = j_sum / n_sum if n_sum > 0 else math.nan
+                self.per_episode[spec] = (np.array([t.j for t in ts], float), np.array([t.n for t in ts], float))
         return self.memo[spec]
 
     def finish(self, result: FitResult, u_best: np.ndarray) -> FitResult:
@@ -153,6 +166,7 @@ class _Objective:
     def account(self, result: FitResult, t0: float) -> FitResult:
         """Record the evaluations, replays and wall time spent."""
         result.evaluations = len(self.memo)
+        result.samples = [(spec, *(v if v is not None else (None, None))) for spec, v in self.per_episode.items()]
         result.replays = self.ev.replays - self.replays0
         result.wall_s = time.perf_counter() - t0
         return result

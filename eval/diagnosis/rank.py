@@ -85,6 +85,8 @@ class ModelScore:
     """Held-out gap after the model over the simulator's own level (1: nothing left but the sim's own scatter)."""
     p_best: float = 0.0
     named: bool = False
+    intervals: dict[str, dict[str, dict[str, Any] | None]] = field(default_factory=dict)
+    """95 % intervals of the parameters (:func:`drillgym.eval.diagnosis.intervals.parameter_intervals`)."""
     shrink_draws: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     score_draws: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
@@ -99,6 +101,7 @@ class ModelScore:
             "name": self.name,
             "effects": list(self.fit.names),
             "params": {n: p for n, p in zip(self.fit.names, self.fit.params, strict=True)},
+            "param_intervals": self.intervals,
             "n_params": self.fit.n_params,
             "heldout_gap_before": self.before,
             "heldout_gap_after": self.after,

@@ -76,6 +76,19 @@ def _pct(v: Any) -> str:
     return "–" if v is None or not math.isfinite(v) else f"{100 * v:.0f} %"
 
 
+def param_text(effect: dict[str, Any]) -> str:
+    """``"dl_m=-0.00058 [-0.0011, -0.00054]"``: each fitted parameter with its 95 % interval where it has one."""
+    intervals = effect.get("param_intervals") or {}
+    parts = []
+    for name, vals in effect["params"].items():
+        items = []
+        for p, v in vals.items():
+            ci = (intervals.get(name) or {}).get(p)
+            items.append(f"{p}={v:.3g}" + (f" [{ci['low']:.3g}, {ci['high']:.3g}]" if ci else ""))
+        parts.append(", ".join(items))
+    return "; ".join(parts)
+
+
 def why_not_named(effect: dict[str, Any], res: dict[str, Any]) -> str:
     """Why a model ranked above the named one (or any model, when none is named) was not named."""
     names = [e["name"] for e in res["effects"]]
@@ -85,6 +98,9 @@ def why_not_named(effect: dict[str, Any], res: dict[str, Any]) -> str:
     shrink, low = effect["shrink"], effect["ci_low"]
     if not (math.isfinite(shrink) and math.isfinite(low)) or shrink < NAME_SHRINK_MIN or low < NAME_CI_LOW_MIN:
         return f"no: below the bar (shrink ≥ {NAME_SHRINK_MIN:.0%}, CI low ≥ {NAME_CI_LOW_MIN:.0%})"
+    off = res.get("off_point_guard") or []
+    if named is None and off and effect["named"] is False and set(effect["effects"]) & set(off):
+        return "no: its parameters' intervals contain the off point (" + ", ".join(off) + ")"
     if named is None:
         return "no: " + str(res["verdict"])
     if set(named.split("+")) < set(effect["effects"]):
@@ -120,7 +136,7 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
         "|---|---|---|---|---|---|---|---|",
     ]
     for k, e in enumerate(res["effects"][:12], 1):
-        params = "; ".join(", ".join(f"{p}={v:.3g}" for p, v in vals.items()) for vals in e["params"].values())
+        params = param_text(e)
         lines.append(
             f"| {k} | {e['name']} | {params} | {e['heldout_gap_before']:.3g} | {e['heldout_gap_after']:.3g} | "
             f"{_pct(e['shrink'])} ({_pct(e['ci_low'])} to {_pct(e['ci_high'])}) | {e['p_best']:.2f} | "
@@ -168,7 +184,8 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
         "## Run",
         "",
         f"{t['total_s']:.0f} s on {t['workers']} worker(s): replays {t['baseline_s']:.0f} s, single fits "
-        f"{t['singles_s']:.0f} s, pairs {t['pairs_s']:.0f} s ({t['candidates']} candidates, {t['pairs']} pairs).",
+        f"{t['singles_s']:.0f} s, pairs {t['pairs_s']:.0f} s, refining the named model {t.get('polish_s', 0.0):.0f} s "
+        f"({t['candidates']} candidates, {t['pairs']} pairs).",
         "",
     ]
     return "\n".join(lines)

@@ -1,0 +1,66 @@
+"""Parameter intervals: a bootstrap over calibration episodes of the points a fit evaluated."""
+
+import numpy as np
+
+from drillgym.eval.diagnosis.context import make_spec
+from drillgym.eval.diagnosis.intervals import off_point_inside, parameter_intervals
+
+
+def _samples(optima: np.ndarray, grid: np.ndarray, param: str = "extra_latency_s", effect: str = "latency"):
+    """Episode k's misfit is (x - optima[k])² + 1 per block (10 blocks), evaluated at every grid point."""
+    n = np.full(len(optima), 10.0)
+    return [(make_spec((effect,), [{param: float(x)}]), 10.0 * ((x - optima) ** 2 + 1.0), n.copy()) for x in grid]
+
+
+def test_the_interval_of_a_mean_covers_what_a_bootstrap_of_the_episodes_optima_gives():
+    rng = np.random.default_rng(3)
+    optima = 0.1 + 0.02 * rng.standard_normal(8)  # each episode prefers its own latency
+    grid = np.linspace(0.0, 0.3, 3001)
+    ci = parameter_intervals(_samples(optima, grid))["latency"]["extra_latency_s"]
+    assert ci is not None
+    # The pooled fit of a resample is its mean optimum: the interval is the bootstrap of the mean.
+    means = [optima[rng.integers(0, 8, 8)].mean() for _ in range(4000)]
+    low, high = np.quantile(means, [0.025, 0.975])
+    assert abs(ci["low"] - low) < 0.003 and abs(ci["high"] - high) < 0.003
+    assert ci["low"] < optima.mean() < ci["high"] and not ci["contains_off"] and not ci["at_search_edge"]
+
+
+def test_an_effect_the_episodes_cannot_tell_from_off_has_the_off_point_inside():
+    optima = np.array([0.0, 0.05, -0.04, 0.01, 0.0, -0.02])  # scattered around "no latency"
+    grid = np.linspace(0.0, 0.3, 301)  # latency cannot go below 0: the search stops at the off point
+    intervals = parameter_intervals(_samples(optima, grid))
+    assert intervals["latency"]["extra_latency_s"]["contains_off"]
+    assert off_point_inside(intervals, ["latency"]) == ["latency"]
+
+
+def test_a_parameter_held_by_the_search_has_no_interval_and_is_not_judged():
+    n = np.full(4, 10.0)
+    samples = [
+        (
+            make_spec(("latency", "ft_drift"), [{"extra_latency_s": 0.1}, {"fx_rate_n_s": x}]),
+            10 * (1 + (x - 0.01) ** 2) * np.ones(4),
+            n,
+        )
+        for x in np.linspace(-0.05, 0.05, 11)
+    ]
+    intervals = parameter_intervals(samples)
+    assert intervals["latency"]["extra_latency_s"] is None
+    assert off_point_inside(intervals, ["latency"]) == []
+
+
+def test_failed_replays_are_left_out():
+    optima = np.full(6, 0.1)
+    samples = _samples(optima, np.linspace(0.0, 0.3, 31))
+    samples.append((make_spec(("latency",), [{"extra_latency_s": 0.2}]), None, None))
+    ci = parameter_intervals(samples)["latency"]["extra_latency_s"]
+    assert abs(ci["low"] - 0.1) < 1e-9 and abs(ci["high"] - 0.1) < 1e-9
+
+
+def test_an_interval_narrower_than_the_evaluated_spacing_is_found_between_the_points():
+    rng = np.random.default_rng(5)
+    optima = 0.1 + 0.002 * rng.standard_normal(8)
+    coarse = parameter_intervals(_samples(optima, np.linspace(0.0, 0.3, 31)))["latency"]["extra_latency_s"]
+    fine = parameter_intervals(_samples(optima, np.linspace(0.0, 0.3, 30001)))["latency"]["extra_latency_s"]
+    # 0.01 between evaluated points; a parabola through a quadratic misfit puts each resample at its exact fit
+    assert coarse["high"] - coarse["low"] > 0.001
+    assert abs(coarse["low"] - fine["low"]) < 2e-5 and abs(coarse["high"] - fine["high"]) < 2e-5
