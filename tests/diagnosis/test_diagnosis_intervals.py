@@ -64,3 +64,42 @@ def test_an_interval_narrower_than_the_evaluated_spacing_is_found_between_the_po
     # 0.01 between evaluated points; a parabola through a quadratic misfit puts each resample at its exact fit
     assert coarse["high"] - coarse["low"] > 0.001
     assert abs(coarse["low"] - fine["low"]) < 2e-5 and abs(coarse["high"] - fine["high"]) < 2e-5
+
+
+class _Runner:
+    """Answers one refit with a given result and records the starts it was asked to search from."""
+
+    def __init__(self, result):
+        self.result, self.asked = result, []
+
+    def refits(self, data, models):
+        self.asked.extend(models)
+        return iter([(0, self.result)])
+
+
+class _Bar:
+    def update(self, n=1):
+        pass
+
+
+def _fit(names, params, cal, samples=()):
+    from drillgym.eval.diagnosis.fit import FitResult
+
+    return FitResult(tuple(names), params, 1, cal_objective=cal, samples=list(samples))
+
+
+def test_the_named_model_is_refitted_from_its_values_in_the_other_fits_and_keeps_every_evaluated_point():
+    from drillgym.eval.diagnosis.diagnose import _polish
+
+    n = np.ones(2)
+    p = lambda v: make_spec(("latency",), [{"extra_latency_s": v}])  # noqa: E731
+    single = _fit(["latency"], [{"extra_latency_s": 0.08}], 2.0, [(p(0.08), 2 * n, n)])
+    pair = _fit(["ft_drift", "latency"], [{"fx_rate_n_s": 0.01}, {"extra_latency_s": 0.05}], 1.5)
+    refit = _fit(["latency"], [{"extra_latency_s": 0.051}], 1.2, [(p(0.051), 1.2 * n, n)])
+    runner = _Runner(refit)
+    out = _polish(runner, None, single, [single, pair], _Bar())
+    assert runner.asked == [(("latency",), [[{"extra_latency_s": 0.08}], [{"extra_latency_s": 0.05}]])]
+    assert out is refit and {s[0] for s in out.samples} == {p(0.08), p(0.051)}
+    worse = _fit(["latency"], [{"extra_latency_s": 0.2}], 3.0, [(p(0.2), 3 * n, n)])
+    kept = _polish(_Runner(worse), None, single, [single, pair], _Bar())
+    assert kept is single and len(kept.samples) == 2  # a worse refit does not replace the fit
