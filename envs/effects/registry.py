@@ -5,7 +5,7 @@ from __future__ import annotations
 from drillgym.envs.effects.base import Effect
 from drillgym.envs.effects.bone import DensityGradient, SkidFriction, ThermalSoftening
 from drillgym.envs.effects.joints import JointFriction, KinematicOffset
-from drillgym.envs.effects.sensor import FTDrift, ToolRunout
+from drillgym.envs.effects.sensor import FTDrift, FTGain, ToolRunout
 from drillgym.envs.effects.servo import ServoDeadband
 from drillgym.envs.effects.timing import Latency
 from drillgym.envs.effects.tool import ToolLength
@@ -24,6 +24,7 @@ EFFECTS: dict[str, type[Effect]] = {
         SkidFriction,
         ToolRunout,
         ServoDeadband,
+        FTGain,
     )
 }
 """The unmodelled effects of the library, by name (``build_effects``, ``make-reality``, cells)."""

@@ -1,6 +1,6 @@
 """Sensor-side candidate effects: they change what the F/T sensor reads, not the physics.
 
-Both act on the true wrench before the sensor's noise and resolution, and on a recorded trace
+They act on the true wrench before the sensor's noise and resolution, and on a recorded trace
 (:meth:`~drillgym.envs.effects.base.Effect.apply_to_trace`) for a fit that need not re-simulate.
 """
 
@@ -45,6 +45,40 @@ class FTDrift(Effect):
     def apply_to_trace(self, trace: TraceView) -> None:
         """Add the drift to the recorded forces."""
         trace.force_n += self._rates()[None, :] * trace.t_s[:, None]
+
+
+class FTGain(Effect):
+    """F/T gain error: a calibration that reads the lateral and the axial force too high or too low.
+
+    ``F_read = (1 + g_xy) F`` on the x and y axes and ``(1 + g_z) F`` on z (sensor frame); torques are
+    left alone (their rows of the calibration matrix are separate). A wrong calibration file, a sensor
+    recalibrated in another mounting, or a wrong counts-per-force setting scales whole rows; an ATI
+    calibration is good to ~1–2 % of full scale, a wrong file or unit by tens of per cent. Unlike a drift
+    it changes nothing before contact, where the tared force is zero.
+    """
+
+    name = "ft_gain"
+    summary = "F/T lateral and axial forces read with a wrong gain (calibration error)"
+    params = (
+        Param("fxy_gain", -0.5, 0.5, 0.0, "relative gain error of Fx and Fy (-)"),
+        Param("fz_gain", -0.5, 0.5, 0.0, "relative gain error of Fz (-)"),
+    )
+    channels = frozenset({"force"})
+    sensor_only = True
+
+    def _gains(self) -> np.ndarray:
+        v = self.values
+        return 1.0 + np.array([v["fxy_gain"], v["fxy_gain"], v["fz_gain"]])
+
+    def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Scale the force axes."""
+        out = np.array(wrenches, dtype=float)
+        out[:, :3] *= self._gains()[None, :]
+        return out
+
+    def apply_to_trace(self, trace: TraceView) -> None:
+        """Scale the recorded forces."""
+        trace.force_n *= self._gains()[None, :]
 
 
 RUNOUT_STIFFNESS_N_M = 5.0e3

@@ -34,6 +34,7 @@ SETTINGS = {
     "skid_friction": "skid_friction:mu=0.2",
     "tool_runout": "tool_runout:runout_m=3e-5",
     "servo_deadband": "servo_deadband:band_m=2e-4",
+    "ft_gain": "ft_gain:fxy_gain=0.2,fz_gain=-0.1",
 }
 
 

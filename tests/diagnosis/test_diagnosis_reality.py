@@ -25,7 +25,7 @@ SETTINGS = {
     "heat_softening": "heat_softening:softening_per_k=0.004",
     "entry_friction": "entry_friction:mu=0.3",
     "wobbly_runout": "wobbly_runout:runout_m=3e-5",
-    "ft_lateral_gain": "ft_lateral_gain:gain=0.2",
+    "ft_lateral_gain": "ft_lateral_gain:gain=0.2,crosstalk=0.01",
     "bone_void": "bone_void:length_m=0.001,depth_m=0.0015",
 }
 TOL = {"force": 1e-3, "torque": 1e-5, "tracker": 1e-6, "q": 1e-6, "tcp": 1e-6}

@@ -1,6 +1,6 @@
-"""Reality: F/T warm-up drift, a lateral F/T gain error and a wobbling runout.
+"""Reality: F/T warm-up drift, a lateral F/T calibration error and a wobbling runout.
 
-Forms unlike the candidates' linear drift and clean once-per-revolution force; the gain error has no candidate.
+Forms unlike the candidates' linear drift, per-axis gain and clean once-per-revolution force.
 """
 
 from __future__ import annotations
@@ -49,23 +49,28 @@ class FTWarmup(RealityEffect):
 
 
 class FTLateralGain(RealityEffect):
-    """A calibration error of the F/T's lateral axes: Fx and Fy read ``1 + gain`` times the true force.
+    """A calibration error of the F/T's lateral axes: a gain and a cross-talk from the axial force.
 
-    No candidate models it (outside the library). Unlike a drift it changes nothing before contact, where the
-    lateral force is zero: a drift named for it predicts a force there that the data do not show.
+    ``Fx_read = (1 + gain) Fx + crosstalk · Fz``, ``Fy_read = (1 + gain) Fy`` (a calibration matrix whose
+    x row is off, as after remounting the sensor). The candidate ``ft_gain`` scales whole axes and has no
+    cross-talk. Unlike a drift it changes nothing before contact, where the tared force is zero: a drift
+    named for it predicts a force there that the data do not show.
     """
 
     name = "ft_lateral_gain"
-    summary = "F/T lateral axes reading too high or low by a fixed gain (calibration error)"
-    explains = None
-    location = (("fx_n", "fy_n", "fx_hf_n", "fy_hf_n"), ("entry1", "entry2", "entry3", "stable"))
-    params = (Param("gain", -0.5, 0.5, 0.0, "relative gain error of Fx and Fy (-)"),)
+    summary = "F/T lateral axes reading with a wrong gain and some of the thrust (calibration error)"
+    explains = "ft_gain"
+    params = (
+        Param("gain", -0.5, 0.5, 0.0, "relative gain error of Fx and Fy (-)"),
+        Param("crosstalk", -0.05, 0.05, 0.0, "share of Fz read as Fx (-)"),
+    )
     channels = frozenset({"force"})
 
     def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-        """Scale the lateral forces."""
+        """Scale the lateral forces and add the cross-talk."""
         out = np.array(wrenches, dtype=float)
         out[:, :2] *= 1.0 + self.values["gain"]
+        out[:, 0] += self.values["crosstalk"] * np.asarray(wrenches, dtype=float)[:, 2]
         return out
 
 
