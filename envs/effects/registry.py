@@ -29,10 +29,13 @@ EFFECTS: dict[str, type[Effect]] = {
 }
 """The unmodelled effects of the library, by name (``build_effects``, ``make-reality``, cells)."""
 
-DIAGNOSIS_CANDIDATES: tuple[str, ...] = tuple(name for name in EFFECTS if name != "servo_deadband")
-"""The candidates ``drillgym diagnose`` and ``bench-diagnosis`` try by default. ``servo_deadband`` (added for
-``drillgym explain-paper``) is in the library but not yet a default candidate: the withheld-effect benchmark
-has not been run with it; ``diagnose --candidates`` can name it."""
+OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain")
+"""In the library, but tried only when asked for (``diagnose --candidates``). ``servo_deadband`` (added for
+``drillgym explain-paper``): the withheld-effect benchmark has not been run with it. ``ft_gain``: on the
+benchmark it named its own reality, but also served as a second effect patching a bone model's force level
+(``docs/diagnosis.md`` §6)."""
+DIAGNOSIS_CANDIDATES: tuple[str, ...] = tuple(name for name in EFFECTS if name not in OPT_IN_CANDIDATES)
+"""The candidates ``drillgym diagnose`` and ``bench-diagnosis`` try by default."""
 
 
 def parse_effect_spec(spec: str) -> list[tuple[str, dict[str, float]]]:

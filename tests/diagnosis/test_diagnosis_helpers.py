@@ -152,9 +152,9 @@ def test_gap_map_cells_print_noise_as_below_the_floor():
     )
 
 
-def test_the_diagnosis_tries_every_library_effect_but_the_unbenchmarked_deadband_by_default():
+def test_the_diagnosis_tries_every_library_effect_but_the_opt_in_ones_by_default():
     from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS
     from drillgym.eval.diagnosis.diagnose import DiagnoseOptions
 
-    assert set(DIAGNOSIS_CANDIDATES) == set(EFFECTS) - {"servo_deadband"}
+    assert set(DIAGNOSIS_CANDIDATES) == set(EFFECTS) - {"servo_deadband", "ft_gain"}
     assert DiagnoseOptions().candidates == DIAGNOSIS_CANDIDATES

@@ -78,7 +78,7 @@ def test_benchmark_cases_cover_the_acceptance():
     singles = [c for c in cases if c.kind == "single"]
     assert {c.truth[0] for c in singles} == {
         "ft_drift", "latency", "joint_friction", "kinematic_offset", "tool_length",
-        "density_gradient", "thermal_softening", "skid_friction", "tool_runout", "ft_gain",
+        "density_gradient", "thermal_softening", "skid_friction", "tool_runout",
     }  # fmt: skip
     assert all(sum(c.truth == s.truth for c in singles) >= 2 for s in singles)  # two magnitudes each
     assert any(c.kind == "pair" for c in cases) and any(c.kind == "clean" for c in cases)
@@ -137,3 +137,13 @@ def test_bench_diagnosis_refuses_unknown_case_names(tmp_path, capsys):
 
     assert main(["bench-diagnosis", "--only", "pair-1,pair-99", "--out", str(tmp_path), "--no-progress"]) == 2
     assert "pair-99" in capsys.readouterr().err and not (tmp_path / "bench.json").exists()
+
+
+def test_an_ft_gain_error_is_named_with_an_interval_holding_its_gain_when_ft_gain_is_a_candidate(tmp_path):
+    make_reality("ft_lateral_gain:gain=0.2", 12, 2, tmp_path / "logs")  # no cross-talk: the candidate's form
+    eps, _ = load_episodes(tmp_path / "logs")
+    res = diagnose(eps, DiagnoseOptions(workers=1, candidates=("ft_drift", "ft_gain"), progress=False))
+    assert res["named"] == ["ft_gain"] and res["off_point_guard"] is None
+    named = next(e for e in res["effects"] if e["named"])
+    ci = named["param_intervals"]["ft_gain"]["fxy_gain"]
+    assert ci["low"] <= 0.2 <= ci["high"] and ci["high"] - ci["low"] < 0.05 and not ci["contains_off"]

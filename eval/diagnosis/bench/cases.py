@@ -55,7 +55,6 @@ SINGLES: dict[str, tuple[str, str]] = {
     "heat_softening": ("heat_softening:softening_per_k=0.002", "heat_softening:softening_per_k=0.005"),
     "entry_friction": ("entry_friction:mu=0.2", "entry_friction:mu=0.6"),
     "wobbly_runout": ("wobbly_runout:runout_m=2e-5", "wobbly_runout:runout_m=4e-5"),
-    "ft_lateral_gain": ("ft_lateral_gain:gain=0.15,crosstalk=0.005", "ft_lateral_gain:gain=-0.3,crosstalk=0.01"),
 }
 """Reality effect -> (moderate, strong) spec."""
 

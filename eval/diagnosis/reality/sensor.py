@@ -52,14 +52,17 @@ class FTLateralGain(RealityEffect):
     """A calibration error of the F/T's lateral axes: a gain and a cross-talk from the axial force.
 
     ``Fx_read = (1 + gain) Fx + crosstalk · Fz``, ``Fy_read = (1 + gain) Fy`` (a calibration matrix whose
-    x row is off, as after remounting the sensor). The candidate ``ft_gain`` scales whole axes and has no
-    cross-talk. Unlike a drift it changes nothing before contact, where the tared force is zero: a drift
-    named for it predicts a force there that the data do not show.
+    x row is off, as after remounting the sensor). The candidate ``ft_gain`` (per-axis gains, no cross-talk)
+    models it, but it is not a default candidate (``docs/diagnosis.md`` §3), so for the default library this
+    effect is outside: it should come out unexplained, located at the lateral forces. Unlike a drift it
+    changes nothing before contact, where the tared force is zero: a drift named for it predicts a force
+    there that the data do not show.
     """
 
     name = "ft_lateral_gain"
     summary = "F/T lateral axes reading with a wrong gain and some of the thrust (calibration error)"
-    explains = "ft_gain"
+    explains = None
+    location = (("fx_n", "fy_n", "fx_hf_n", "fy_hf_n"), ("entry1", "entry2", "entry3", "stable"))
     params = (
         Param("gain", -0.5, 0.5, 0.0, "relative gain error of Fx and Fy (-)"),
         Param("crosstalk", -0.05, 0.05, 0.0, "share of Fz read as Fx (-)"),
