@@ -162,13 +162,6 @@ class Evaluator:
             out.append(gap_terms(d.real[i], f, d.blocks[i], d.nulls[i]))
         return out
 
-    def mean_term(self, spec: Spec, indices: Sequence[int]) -> float:
-        """Σ J / Σ N over the episodes (≈ 1 where the sim explains them)."""
-        ts = self.terms(spec, indices)
-        j = sum(t.j for t in ts)
-        n = sum(t.n for t in ts)
-        return j / n if n > 0 else float("nan")
-
 
 def split_episodes(episodes: list[EpisodeData], seed: int = 0) -> tuple[list[int], list[int]]:
     """Calibration and held-out halves, alternating within each controller (so both halves see each)."""

@@ -14,9 +14,9 @@ import math
 import os
 import sys
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from tqdm import tqdm
 
@@ -143,9 +143,9 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
                         pairs[i] = r
                 scores = score_models(singles + pairs, before, null, opt.seed)
     timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
-    decision = _name(runner, data, significance, singles + pairs, before, null, opt.seed, bar)
-    verdict, chosen, location, guard, off_point = decision
-    scores = decision.scores
+    verdict, chosen, location, guard, off_point, scores = _name(
+        runner, data, significance, singles + pairs, scores, before, null, opt.seed, bar
+    )
     timings["polish_s"] = time.perf_counter() - t0 - sum(timings.values())
     bar.close()
     named = [] if chosen is None else list(chosen.fit.names)
@@ -195,9 +195,8 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     return Diagnosis(result, data, scores)
 
 
-@dataclass
-class _Decision:
-    """The verdict and what it rests on (unpacks as ``verdict, chosen, location, guard, off_point``)."""
+class _Decision(NamedTuple):
+    """The verdict and what it rests on."""
 
     verdict: str
     chosen: ModelScore | None
@@ -206,27 +205,24 @@ class _Decision:
     off_point: list[str]
     scores: list[ModelScore]
 
-    def __iter__(self) -> Iterator[Any]:
-        return iter((self.verdict, self.chosen, self.location, self.guard, self.off_point))
-
 
 def _name(
     runner: Runner,
     data: DiagnosisData,
     significance: dict[str, Any],
     fits: list[FitResult],
+    scores: list[ModelScore],
     before: list[Any],
     null: list[Any],
     seed: int,
     bar: tqdm,
 ) -> _Decision:
-    """Score ``fits``, decide, refine the named model (:func:`_polish`), decide again, and bound its parameters.
+    """Decide on ``scores`` (of ``fits``), refine the named model (:func:`_polish`), decide again, and bound its parameters.
 
     The named model's parameters come from the best fit found anywhere in the search; every model gets
     its parameters' 95 % intervals (:mod:`drillgym.eval.diagnosis.intervals`), and a named model with an
     effect whose intervals all contain its off point is not named (``off_point``).
     """
-    scores = score_models(fits, before, null, seed)
     verdict, chosen, location, guard = _decide(significance, scores, before, data, null)
     if chosen is not None:
         bar.total += 1

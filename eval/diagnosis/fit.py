@@ -137,8 +137,7 @@ class _Objective:
 
     def __init__(self, ev: Evaluator, box: ParamBox) -> None:
         self.ev, self.box = ev, box
-        self.memo: dict[Spec, float] = {}
-        self.per_episode: dict[Spec, tuple[np.ndarray, np.ndarray] | None] = {}
+        self.memo: dict[Spec, tuple[float, np.ndarray | None, np.ndarray | None]] = {}
         self.replays0 = ev.replays
 
     def __call__(self, u: np.ndarray) -> float:
@@ -147,13 +146,11 @@ class _Objective:
             try:
                 ts = self.ev.terms(spec, self.ev.data.cal)
             except (RuntimeError, ValueError, np.linalg.LinAlgError):
-                self.memo[spec] = 1e12  # the replay failed (e.g. IK out of reach): not a candidate
-                self.per_episode[spec] = None
+                self.memo[spec] = (1e12, None, None)  # the replay failed (e.g. IK out of reach): not a candidate
             else:
-                j_sum, n_sum = sum(t.j for t in ts), sum(t.n for t in ts)  # as Evaluator.mean_term
-                self.memo[spec] = j_sum / n_sum if n_sum > 0 else math.nan
-                self.per_episode[spec] = (np.array([t.j for t in ts], float), np.array([t.n for t in ts], float))
-        return self.memo[spec]
+                j, n = np.array([t.j for t in ts], float), np.array([t.n for t in ts], float)
+                self.memo[spec] = (pooled(ts), j, n)
+        return self.memo[spec][0]
 
     def finish(self, result: FitResult, u_best: np.ndarray) -> FitResult:
         """Fill ``result`` with the fit at ``u_best``, its calibration gap and its held-out terms."""
@@ -166,7 +163,7 @@ class _Objective:
     def account(self, result: FitResult, t0: float) -> FitResult:
         """Record the evaluations, replays and wall time spent."""
         result.evaluations = len(self.memo)
-        result.samples = [(spec, *(v if v is not None else (None, None))) for spec, v in self.per_episode.items()]
+        result.samples = [(spec, j, n) for spec, (_, j, n) in self.memo.items()]
         result.replays = self.ev.replays - self.replays0
         result.wall_s = time.perf_counter() - t0
         return result

@@ -17,7 +17,6 @@ reality's form, so they are not independent.
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -46,12 +45,8 @@ def parameter_intervals(
     values = np.array([[v for _, vals in spec for _, v in vals] for spec, _, _ in points])  # (P, K)
     j = np.array([p[1] for p in points])  # (P, E)
     n = np.array([p[2] for p in points])
-    e = j.shape[1]
-    rng = np.random.default_rng(seed)
-    weights = np.zeros((BOOTSTRAP, e))
-    for b, idx in enumerate(rng.integers(0, e, size=(BOOTSTRAP, e))):
-        weights[b] = np.bincount(idx, minlength=e)
-    objective = (weights @ j.T) / (weights @ n.T)  # (B, P)
+    idx = np.random.default_rng(seed).integers(0, j.shape[1], size=(BOOTSTRAP, j.shape[1]))
+    objective = (j[:, idx].sum(axis=2) / n[:, idx].sum(axis=2)).T  # (B, P)
     best = np.argmin(objective, axis=1)
     chosen = _refined(values, objective, best)
     tail = (1.0 - LEVEL) / 2.0
@@ -130,7 +125,4 @@ def off_point_inside(intervals: dict[str, dict[str, dict[str, Any] | None]], nam
 
 
 def _off_value(effect: str, param: str) -> float:
-    for p in EFFECTS[effect].params:
-        if p.name == param:
-            return float(p.default)
-    return math.nan
+    return float(next(p.default for p in EFFECTS[effect].params if p.name == param))

@@ -99,7 +99,7 @@ def why_not_named(effect: dict[str, Any], res: dict[str, Any]) -> str:
     if not (math.isfinite(shrink) and math.isfinite(low)) or shrink < NAME_SHRINK_MIN or low < NAME_CI_LOW_MIN:
         return f"no: below the bar (shrink ≥ {NAME_SHRINK_MIN:.0%}, CI low ≥ {NAME_CI_LOW_MIN:.0%})"
     off = res.get("off_point_guard") or []
-    if named is None and off and effect["named"] is False and set(effect["effects"]) & set(off):
+    if named is None and set(effect["effects"]) & set(off):
         return "no: its parameters' intervals contain the off point (" + ", ".join(off) + ")"
     if named is None:
         return "no: " + str(res["verdict"])

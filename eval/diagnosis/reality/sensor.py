@@ -73,7 +73,7 @@ class FTLateralGain(RealityEffect):
         """Scale the lateral forces and add the cross-talk."""
         out = np.array(wrenches, dtype=float)
         out[:, :2] *= 1.0 + self.values["gain"]
-        out[:, 0] += self.values["crosstalk"] * np.asarray(wrenches, dtype=float)[:, 2]
+        out[:, 0] += self.values["crosstalk"] * out[:, 2]
         return out
 
 
