@@ -293,6 +293,10 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.pending: deque[tuple[float, np.ndarray, float]] = deque()
         self.prev_action = np.zeros(ACTION_DIM)
         self.peak_lateral_n = 0.0
+        self.step_deviation_m = 0.0
+        """Mean true tip deviation over the last agent step's samples (m)."""
+        self.step_lateral_n = 0.0
+        """Mean true lateral force over the last agent step's samples (N)."""
         self.recorder.clear()
         self.ft_samples = np.zeros((2, 6))
         self.ft_last = np.zeros(6)
@@ -320,8 +324,26 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Apply one correction + feed override for 50 ms (5 physics updates / F/T samples)."""
         a = checked_action(action, "env state unchanged")
+        terminated, truncated = self._advance(a, "step")
+        terms = self.reward.terms(self.step_deviation_m, self.step_lateral_n, a, self.prev_action, self.peak_lateral_n)
+        self.peak_lateral_n = max(self.peak_lateral_n, self.step_lateral_n)
+        self.step_terms = terms
+        self.prev_action = a
+        return self._observation(), float(sum(terms.values())), terminated, truncated, self._info()
+
+    def advance(self, action: np.ndarray) -> tuple[bool, bool]:
+        """:meth:`step`'s physics alone: ``(terminated, truncated)``, without observation, reward or info.
+
+        For open-loop replays that read the recorder and the cell afterwards (the diagnosis): the
+        physics, the recorded channels and the metrics are those of :meth:`step`; the reward's state
+        (previous action, peak force) is left as it is.
+        """
+        return self._advance(checked_action(action, "env state unchanged"), "advance")
+
+    def _advance(self, a: np.ndarray, caller: str) -> tuple[bool, bool]:
+        """One agent step of physics for a checked action ``a``; sets ``step_deviation_m`` and ``step_lateral_n``."""
         if self.path.phase == Phase.DONE or self.failure is not None:
-            raise RuntimeError("step() called after the episode ended; call reset()")
+            raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
         corr, scale = scale_action(a)
         fx = self.effects
         delay_s = self.scenario.latency_s if fx is None else fx.command_delay_s(self, self.scenario.latency_s)
@@ -358,19 +380,15 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.cell.end_step()
         self._sample_tracker()
         rec.tracker_deviation_m.extend([self.tracker_lateral_m] * SUBSTEPS_PER_STEP)
-        dev_mean = sum(deviations) / SUBSTEPS_PER_STEP
-        lat_mean = sum(math.hypot(f[0], f[1]) for _, _, f, *_ in samples) / SUBSTEPS_PER_STEP
-        terms = self.reward.terms(dev_mean, lat_mean, a, self.prev_action, self.peak_lateral_n)
-        self.peak_lateral_n = max(self.peak_lateral_n, lat_mean)
-        self.step_terms = terms
-        self.prev_action = a
+        self.step_deviation_m = sum(deviations) / SUBSTEPS_PER_STEP
+        self.step_lateral_n = sum(math.hypot(f[0], f[1]) for _, _, f, *_ in samples) / SUBSTEPS_PER_STEP
         terminated = self.path.phase == Phase.DONE or self.failure is not None
         self.steps += 1
         at_limit = self.t_s >= self.max_time_s or self.steps >= MAX_EPISODE_STEPS
         truncated = self.truncated = (not terminated) and at_limit
         if terminated or truncated:
             self.metrics = self.episode_metrics()
-        return self._observation(), float(sum(terms.values())), terminated, truncated, self._info()
+        return terminated, truncated
 
     # ------------------------------------------------------------------ helpers
     def _run_samples(

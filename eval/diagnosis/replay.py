@@ -109,7 +109,7 @@ class Replayer:
         tracker = np.full((n_steps, 3), np.nan)
         done = 0
         for i in range(n_steps):
-            _, _, terminated, truncated, _ = env.step(ep.actions[i])
+            terminated, truncated = env.advance(ep.actions[i])
             q[i] = env.cell.q_motor_rad
             tracker[i] = env.tracker_reading
             done = i + 1

@@ -93,3 +93,34 @@ def test_fast_step_is_bit_identical_to_the_original_step_with_each_effect(name):
         return [EFFECTS[name](**_mid_values(name))]
 
     assert _run_pair({}, 6, "li2023", None, effects) > 200
+
+
+@pytest.mark.parametrize("name", ["latency", "joint_friction", "ft_drift"])
+def test_advance_records_what_step_records(name):
+    """``advance`` (the replays' step without observation, reward and info) leaves the same recorder, cell and metrics."""
+    rng = np.random.default_rng(4)
+    actions = rng.uniform(-1.0, 1.0, (400, 4)).astype(np.float32)
+    envs_ = [gym.make(ENV_ID).unwrapped for _ in range(2)]
+    try:
+        for e in envs_:
+            e.reset(seed=3, options={"effects": [EFFECTS[name](**_mid_values(name))]})
+        stepper, advancer = envs_
+        for k, a in enumerate(actions):
+            _, _, term_s, trunc_s, _ = stepper.step(a)
+            assert (term_s, trunc_s) == advancer.advance(a)
+            assert first_difference(stepper.cell.q_motor_rad, advancer.cell.q_motor_rad) is None, f"step {k}"
+            assert first_difference(stepper.tracker_reading, advancer.tracker_reading) is None, f"step {k}"
+            if term_s or trunc_s:
+                break
+        assert k > 100
+        rec_s, rec_a = stepper.recorder.__dict__, advancer.recorder.__dict__
+        assert (
+            first_difference({k: np.asarray(v) for k, v in rec_s.items()}, {k: np.asarray(v) for k, v in rec_a.items()})
+            is None
+        )
+        assert stepper.metrics == advancer.metrics
+        with pytest.raises(RuntimeError, match="advance"):
+            advancer.advance(actions[0])
+    finally:
+        for e in envs_:
+            e.close()
