@@ -12,7 +12,6 @@ import functools
 import math
 
 import numpy as np
-from numpy.linalg import _umath_linalg
 
 from drillgym.envs.cell_params import R_BASE_TASK, CellParams
 from drillgym.envs.constants import PHYSICS_DT_S
@@ -22,12 +21,10 @@ from drillgym.envs.drilling.force_model import EngagementTable
 from drillgym.envs.drilling.geometry import DrillGeometry
 from drillgym.envs.drilling.hole import Hole
 from drillgym.envs.drilling.tool import CantileverTool
+from drillgym.envs.robot import ur5_kernel
 from drillgym.envs.robot.compliance import JointCompliance
 from drillgym.envs.robot.ur5 import FLANGE_FRAME, Q_HOME_RAD, TCP_FRAME, TRACKER_FRAME, UR5Kinematics
 from drillgym.envs.scenario import Scenario
-
-_solve1 = _umath_linalg.solve1
-"""The gufunc behind ``np.linalg.solve`` for a matrix and one right-hand side."""
 
 
 @functools.lru_cache(maxsize=64)
@@ -40,6 +37,12 @@ def _engagement_table(
 @functools.lru_cache(maxsize=16)
 def _kinematics(tcp_offset_m: float, marker: tuple[float, float, float]) -> UR5Kinematics:
     return UR5Kinematics(tcp_offset_m, marker)
+
+
+@functools.lru_cache(maxsize=16)
+def _chains(kin: UR5Kinematics) -> tuple[np.ndarray, np.ndarray]:
+    """The compiled kernels' chains (:meth:`ur5_kernel.Chain.packed`) to the TCP and to the tracker marker."""
+    return ur5_kernel.Chain.of(kin, TCP_FRAME).packed(), ur5_kernel.Chain.of(kin, TRACKER_FRAME).packed()
 
 
 HARDNESS_FACTOR_LIMITS = (0.5, 1.5)
@@ -83,6 +86,7 @@ class SimCell:
         )
         self.tcp_offset_m = p.sensor_to_chuck_m + scenario.stickout_m
         self.kin = _kinematics(self.tcp_offset_m, tuple(p.tracker_marker_flange_m))
+        self._tcp_chain, self._marker_chain = _chains(self.kin)
         self.joints = JointCompliance(np.asarray(p.stiffness_nm_rad, dtype=float))
         self.R_base_task = R_BASE_TASK
         self.entry_base_m = p.entry_point
@@ -161,10 +165,10 @@ class SimCell:
         self.solver.force_scale = factor
 
     def _update_compliance(self) -> None:
-        j = self.kin.jacobian(self.q_motor_rad, TCP_FRAME)
-        self.J_tcp = j
-        c_base = self.joints.translational_compliance_m_n(j)
-        self.C_robot = self.R_base_task.T @ c_base @ self.R_base_task
+        """``J_tcp`` and ``C_robot`` (task axes) at the motor angles (compiled: :mod:`~drillgym.envs.robot.ur5_kernel`)."""
+        self.J_tcp, self.C_robot = ur5_kernel.jacobian_and_compliance(
+            self.q_motor_rad, self.joints.stiffness_nm_rad, self.R_base_task, self._tcp_chain
+        )
         self.C_total = self.C_robot + self.C_tool
 
     def begin_step(self, chip_m: float, advance_per_update_m: float) -> None:
@@ -192,12 +196,15 @@ class SimCell:
         One Newton step of inverse kinematics from the previous angles per agent step (the target
         moves ≤ 0.5 mm per step, so the residual is < 1 nm).
         """
-        rigid = np.asarray(self.sample.rigid)
+        rigid = np.array(self.sample.rigid)
         if self.geometry_offset_task_m is not None:
             rigid = rigid - self.geometry_offset_task_m  # where the controller's model puts the tip
-        target = self.tip_pose_base(rigid)
-        err = self.kin.pose_error(self.q_motor_rad, target, TCP_FRAME)
-        self.q_motor_rad = self.q_motor_rad + solve6(self.J_tcp, err)
+        q = ur5_kernel.ik_step(
+            self.q_motor_rad, self.J_tcp, rigid, self.entry_base_m, self.R_base_task, self._tcp_chain
+        )
+        if not np.isfinite(q).all():
+            raise np.linalg.LinAlgError(f"singular TCP Jacobian at q = {self.q_motor_rad.tolist()} rad")
+        self.q_motor_rad = q
         self._update_compliance()
 
     @property
@@ -257,24 +264,22 @@ class SimCell:
     def marker_base_m(self, q_rad: np.ndarray | None = None) -> np.ndarray:
         """Tracker-marker position (base frame, m): the true one (deflected arm) or, given ``q_rad``, the model's."""
         if q_rad is None:
-            p = self.kin.position(self.q_actual_rad(), TRACKER_FRAME)
+            smp = self.sample
+            p = ur5_kernel.deflected_frame_position(
+                self.q_motor_rad,
+                self.J_tcp,
+                np.array(smp.force),
+                smp.torque_axis,
+                self.R_base_task,
+                self.joints.stiffness_nm_rad,
+                self._marker_chain,
+            )
             return p if self.marker_offset_base_m is None else p + self.marker_offset_base_m
         return self.kin.fk(q_rad, TRACKER_FRAME)[:3, 3]
 
     def flange_pose_base(self, q_rad: np.ndarray) -> np.ndarray:
         """``T_base_flange`` at ``q_rad``."""
         return self.kin.fk(q_rad, FLANGE_FRAME)
-
-
-def solve6(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``np.linalg.solve(a, b)`` for one square system: the same LAPACK call without the wrapper's overhead.
-
-    A singular ``a`` (non-finite result) goes through ``np.linalg.solve``, which raises ``LinAlgError``.
-    """
-    x = _solve1(a, b, signature="dd->d")
-    if not np.isfinite(x).all():
-        return np.linalg.solve(a, b)
-    return x
 
 
 @functools.lru_cache(maxsize=64)

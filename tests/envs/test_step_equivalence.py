@@ -1,7 +1,8 @@
-"""The fast env step against a frozen copy of the original one (tests/envs/reference_step.py), bit for bit.
+"""The fast env step against a frozen copy of the original one (tests/envs/reference_step.py), to rounding.
 
 Two envs with the same seed: one stepped by ``env.step``, its twin by ``reference_step``; every
-observation, reward, flag and info entry, and the recorded channels, must be identical, for zero and
+observation, reward, flag and info entry, and the recorded channels, must agree within ``TOLERANCE``
+(integers, flags and strings exactly), for zero and
 random actions, the classical controllers (a feed schedule too), other scenarios, a force-limit stop
 and every candidate effect of the diagnosis.
 """
@@ -9,7 +10,7 @@ and every candidate effect of the diagnosis.
 import gymnasium as gym
 import numpy as np
 import pytest
-from bitwise import first_difference
+from bitwise import first_difference, largest_difference
 from reference_step import reference_info, reference_observation, reference_step
 
 from drillgym import envs
@@ -17,6 +18,11 @@ from drillgym.controllers import make_controller
 from drillgym.envs.effects.registry import EFFECTS
 
 ENV_ID = envs.ENV_IDS[0]
+TOLERANCE = 1e-6
+"""Largest relative difference allowed, ``|a - b| / (max(|a|, |b|) + 1e-9)``: the compiled kinematics round
+differently from Pinocchio's (1e-16 per call); over an episode the records differ by 1e-12 to 1e-7."""
+WORST: list = []
+"""(difference, where, step) of every comparison, for reporting."""
 
 
 def _mid_values(name: str) -> dict[str, float]:
@@ -25,7 +31,7 @@ def _mid_values(name: str) -> dict[str, float]:
 
 
 def _run_pair(kwargs: dict, seed: int, policy: str | None, actions_seed: int | None, effects=None) -> int:
-    """Step both envs to the end; assert identical records; return the number of steps."""
+    """Step both envs to the end; assert records equal within ``TOLERANCE``; return the number of steps."""
     fast, ref = gym.make(ENV_ID, **kwargs), gym.make(ENV_ID, **kwargs)
     try:
         options = {"effects": effects()} if effects else None
@@ -33,7 +39,7 @@ def _run_pair(kwargs: dict, seed: int, policy: str | None, actions_seed: int | N
         options = {"effects": effects()} if effects else None
         obs_r, _ = ref.reset(seed=seed, options=options)
         u = ref.unwrapped
-        assert first_difference((obs_f, info_f), (reference_observation(u), reference_info(u))) is None
+        assert largest_difference((obs_f, info_f), (reference_observation(u), reference_info(u)))[0] <= TOLERANCE
         controllers = [make_controller(policy) for _ in range(2)] if policy else None
         if controllers:
             for c, e in zip(controllers, (fast, ref), strict=True):
@@ -50,16 +56,18 @@ def _run_pair(kwargs: dict, seed: int, policy: str | None, actions_seed: int | N
                 a_f = a_r = np.zeros(4, np.float32)
             out_f = fast.step(a_f)
             out_r = reference_step(u, a_r)
-            diff = first_difference(out_f, out_r)
-            assert diff is None, f"step {k}: {diff}"
+            worst, where = largest_difference(out_f, out_r)
+            WORST.append((worst, where, k))
+            assert worst <= TOLERANCE, f"step {k}: {where} differs by {worst:.2e}"
             obs_f, obs_r = out_f[0], out_r[0]
             if out_f[2] or out_f[3]:
                 break
         rec_f, rec_r = fast.unwrapped.recorder.__dict__, u.recorder.__dict__
-        assert (
-            first_difference({k: np.asarray(v) for k, v in rec_f.items()}, {k: np.asarray(v) for k, v in rec_r.items()})
-            is None
+        worst, where = largest_difference(
+            {k: np.asarray(v) for k, v in rec_f.items()}, {k: np.asarray(v) for k, v in rec_r.items()}
         )
+        WORST.append((worst, where, -1))
+        assert worst <= TOLERANCE, f"recorder: {where} differs by {worst:.2e}"
         return k + 1
     finally:
         fast.close()
@@ -79,7 +87,7 @@ def _run_pair(kwargs: dict, seed: int, policy: str | None, actions_seed: int | N
         ({"beta_deg": 0.0, "tracker_noise_mm": 0.0}, 2, "zhang2005", None),
     ],
 )
-def test_fast_step_is_bit_identical_to_the_original_step(kwargs, seed, policy, actions_seed):
+def test_fast_step_matches_the_original_step_to_rounding(kwargs, seed, policy, actions_seed):
     assert _run_pair(kwargs, seed, policy, actions_seed) > 100
 
 
@@ -88,7 +96,7 @@ def test_fast_step_stops_at_the_force_limit_like_the_original_step():
 
 
 @pytest.mark.parametrize("name", sorted(EFFECTS))
-def test_fast_step_is_bit_identical_to_the_original_step_with_each_effect(name):
+def test_fast_step_matches_the_original_step_to_rounding_with_each_effect(name):
     def effects():
         return [EFFECTS[name](**_mid_values(name))]
 
