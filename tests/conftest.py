@@ -13,6 +13,13 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import pytest
 
 from drillgym import envs  # noqa: F401  (registers the ids)
+from drillgym.envs.compiled import compile_kernels
+
+
+def pytest_configure(config):
+    """Fill numba's cache once, before the workers start, so that no test (a real-time one least) compiles."""
+    if not hasattr(config, "workerinput"):
+        compile_kernels()
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -1,4 +1,4 @@
-"""The fused tip balance (TipContactSolver.run) gives bit for bit what per-sample update gives."""
+"""The compiled tip balance (TipContactSolver.run) gives the same bits in blocks of any size as sample by sample."""
 
 import copy
 
@@ -18,7 +18,7 @@ def _targets(rng: np.random.Generator, start_z: float, n: int, lateral_m: float)
 
 @pytest.mark.parametrize("beta_deg", [0.0, 30.0, -20.0])
 @pytest.mark.parametrize("chunk", [1, 3, 5])
-def test_run_over_a_whole_hole_is_bit_identical_to_update_per_sample(beta_deg, chunk):
+def test_run_in_blocks_over_a_whole_hole_is_bit_identical_to_update_per_sample(beta_deg, chunk):
     rng = np.random.default_rng(int(beta_deg) + 100 * chunk)
     cell_a = SimCell(Scenario(beta_deg=beta_deg))
     cell_a.reset(np.array([0.0, 0.0, -0.3e-3]))

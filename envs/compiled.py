@@ -1,0 +1,35 @@
+"""Compile the cell's numba kernels ahead of use, into numba's on-disk cache.
+
+The kernels (:mod:`drillgym.envs.robot.ur5_kernel`, :mod:`drillgym.envs.drilling.contact_kernel`) are
+compiled on first call (about 10 s) and cached beside their sources (or in ``NUMBA_CACHE_DIR``); every
+later process loads them in milliseconds. ``make install`` runs this module once, so that no command,
+test or worker pays the compile (a process that streams to a robot must not stall 10 s on its first step).
+
+    python -m drillgym.envs.compiled
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+def compile_kernels() -> float:
+    """Run one short simulated step of every kernel (compiling or loading it); the seconds it took."""
+    t0 = time.perf_counter()
+    from drillgym.envs.cell import SimCell
+    from drillgym.envs.scenario import Scenario
+
+    cell = SimCell(Scenario())
+    cell.reset(np.array([0.0, 0.0, -0.05e-3]))
+    cell.begin_step(2e-6, 5e-6)
+    cell.run([(0.0, 0.0, -0.04e-3), (0.0, 0.0, -0.03e-3)])
+    cell.update((0.0, 0.0, -0.02e-3))
+    cell.end_step()
+    cell.marker_base_m()
+    return time.perf_counter() - t0
+
+
+if __name__ == "__main__":
+    print(f"drillgym: numba kernels ready ({compile_kernels():.1f} s)")

@@ -1,0 +1,209 @@
+"""The tip balance's per-sample loop, compiled (numba): :meth:`TipContactSolver.run`'s arithmetic.
+
+The physics is documented in :mod:`drillgym.envs.drilling.contact`; this module holds only its inner
+loop over consecutive F/T samples, on plain arrays, so that an agent step's five samples cost one call.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+STATE_SIZE = 8
+"""``state`` layout: rigid tip (3), true tip (3), deepest point cut ``bottom_z``, local depth ``d`` (m, task frame)."""
+ROW_SIZE = 13
+"""``rows`` layout: tip (3), rigid (3), force (3), torque about the axis, local depth, stage, cutting (0/1)."""
+
+
+@numba.njit(cache=True)
+def _stage(d: float, bounds: np.ndarray) -> int:  # pragma: no cover (compiled)
+    """:func:`drillgym.envs.drilling.force_model.stage_of`."""
+    if d <= bounds[0]:
+        return 0
+    if d <= bounds[1]:
+        return 1
+    if d < bounds[2]:
+        return 2
+    if d < bounds[3]:
+        return 3
+    return 4
+
+
+@numba.njit(cache=True)
+def _guided(c: np.ndarray, k: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover (compiled)
+    """Balance matrices with lateral cut stiffness ``k`` (N/m) on x and y: ``M = (I + C K)⁻¹``, ``S = M C``, ``M C K``."""
+    a = np.eye(3)
+    for i in range(3):
+        a[i, 0] += c[i, 0] * k
+        a[i, 1] += c[i, 1] * k
+    c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+    c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+    c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+    det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
+    m = np.empty((3, 3))
+    m[0, 0], m[1, 0], m[2, 0] = c00 / det, c01 / det, c02 / det
+    m[0, 1] = (a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]) / det
+    m[1, 1] = (a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]) / det
+    m[2, 1] = (a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]) / det
+    m[0, 2] = (a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]) / det
+    m[1, 2] = (a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]) / det
+    m[2, 2] = (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]) / det
+    s = np.empty((3, 3))
+    mck = np.zeros((3, 3))
+    for i in range(3):
+        for j in range(3):
+            s[i, j] = m[i, 0] * c[0, j] + m[i, 1] * c[1, j] + m[i, 2] * c[2, j]
+        mck[i, 0] = s[i, 0] * k
+        mck[i, 1] = s[i, 1] * k
+    return m, s, mck
+
+
+@numba.njit(cache=True)
+def run_samples(  # noqa: C901 (one loop, on purpose)
+    targets: np.ndarray,
+    servo_gain: float,
+    state: np.ndarray,
+    touching: bool,
+    j: int,
+    tan_beta: float,
+    bounds: np.ndarray,
+    grid: np.ndarray,
+    table: np.ndarray,
+    compliance: np.ndarray,
+    k_guided: float,
+    centre_xy: np.ndarray,
+    filled: np.ndarray,
+    hole_bins: np.ndarray,
+    bin_m: float,
+) -> tuple[np.ndarray, bool, int]:  # pragma: no cover (compiled)
+    """Solve the balance for consecutive servo targets; returns ``(rows, touching, j)``.
+
+    Args:
+        targets: (k, 3) servo targets (m, task frame).
+        servo_gain: share of the way to its target the servo moves per sample.
+        state: :data:`STATE_SIZE` floats, updated in place.
+        touching: whether the tip touched bone at the last sample.
+        j: the depth grid's bracket of the last root (a warm start).
+        tan_beta: the surface slope (with skid relief).
+        bounds: the stage bounds (m, :func:`~drillgym.envs.drilling.force_model.stage_bounds`).
+        grid: the force table's depths (n,) (m).
+        table: the force table's rows (n, 4): F_x, F_y, F_z (N), M_z (N·m), task axes.
+        compliance: arm + drill compliance (3x3, m/N, task axes).
+        k_guided: lateral cut stiffness (N/m) when the tip is inside the bone and touching.
+        centre_xy: the hole's centreline per bin (m, task xy), updated in place.
+        filled: the hole's cut bins, updated in place.
+        hole_bins: ``[deepest_bin, first_bin]`` of the hole, updated in place.
+        bin_m: the hole's bin length (m).
+    """
+    n = grid.shape[0]
+    rows = np.empty((targets.shape[0], ROW_SIZE))
+    eye = np.eye(3)
+    m1, s1, k1 = _guided(compliance, k_guided)
+    r0, r1, r2, p0, p1, p2, bottom, d = state
+    touch = bounds[0]
+    v_cur = -1
+    m = eye
+    s = compliance
+    mck = np.zeros((3, 3))
+    kx = 0.0
+    lam = 1.0
+    torque = 0.0
+    for row in range(targets.shape[0]):
+        r0 += servo_gain * (targets[row, 0] - r0)
+        r1 += servo_gain * (targets[row, 1] - r1)
+        r2 += servo_gain * (targets[row, 2] - r2)
+        v = 1 if touching and p2 + p0 * tan_beta > touch else 0
+        if v != v_cur:
+            v_cur = v
+            if v == 1:
+                m, s, mck, kx = m1, s1, k1, k_guided
+            else:
+                m, s, mck, kx = eye, compliance, np.zeros((3, 3)), 0.0
+        b0 = m[0, 0] * r0 + m[0, 1] * r1 + m[0, 2] * r2 + mck[0, 0] * p0 + mck[0, 1] * p1
+        b1 = m[1, 0] * r0 + m[1, 1] * r1 + m[1, 2] * r2 + mck[1, 0] * p0 + mck[1, 1] * p1
+        b2 = m[2, 0] * r0 + m[2, 1] * r1 + m[2, 2] * r2 + mck[2, 0] * p0 + mck[2, 1] * p1
+        # depth: the stable root of d = front + tanβ (b0 + s_x · F(d)) on the piecewise-linear table
+        front = max(bottom, p2)
+        rhs = front + tan_beta * b0
+        if tan_beta == 0.0:
+            d = rhs
+        else:
+            j = min(max(j, 1), n - 1)
+            for _ in range(4 * n):
+                q0 = s[0, 0] * table[j - 1, 0] + s[0, 1] * table[j - 1, 1] + s[0, 2] * table[j - 1, 2]
+                q1 = s[0, 0] * table[j, 0] + s[0, 1] * table[j, 1] + s[0, 2] * table[j, 2]
+                h0 = grid[j - 1] - tan_beta * q0 - rhs
+                h1 = grid[j] - tan_beta * q1 - rhs
+                if h0 > 0.0:
+                    if j == 1:
+                        d = rhs + tan_beta * (s[0, 0] * table[0, 0] + s[0, 1] * table[0, 1] + s[0, 2] * table[0, 2])
+                        break
+                    j -= 1
+                elif h1 < 0.0:
+                    if j == n - 1:
+                        last = n - 1
+                        d = rhs + tan_beta * (
+                            s[0, 0] * table[last, 0] + s[0, 1] * table[last, 1] + s[0, 2] * table[last, 2]
+                        )
+                        break
+                    j += 1
+                else:
+                    d = grid[j - 1] + (grid[j] - grid[j - 1]) * (-h0) / (h1 - h0) if h1 != h0 else grid[j - 1]
+                    break
+            else:
+                raise RuntimeError("tip balance: no stable root found")
+        # the table's row at d
+        if d <= grid[0]:
+            i, t = 1, 0.0
+        elif d >= grid[n - 1]:
+            i, t = n - 1, 1.0
+        else:
+            i = np.searchsorted(grid, d, side="right")
+            t = (d - grid[i - 1]) / (grid[i] - grid[i - 1])
+        a = i - 1
+        f0 = table[a, 0] + t * (table[i, 0] - table[a, 0])
+        f1 = table[a, 1] + t * (table[i, 1] - table[a, 1])
+        f2 = table[a, 2] + t * (table[i, 2] - table[a, 2])
+        tq = table[a, 3] + t * (table[i, 3] - table[a, 3])
+        touching = f0 != 0.0 or f1 != 0.0 or f2 != 0.0
+        sf0 = s[0, 0] * f0 + s[0, 1] * f1 + s[0, 2] * f2
+        sf1 = s[1, 0] * f0 + s[1, 1] * f1 + s[1, 2] * f2
+        sf2 = s[2, 0] * f0 + s[2, 1] * f1 + s[2, 2] * f2
+        full_z = b2 + sf2
+        if not touching or full_z >= bottom:
+            lam = 1.0
+        elif b2 > bottom:
+            lam = (b2 - bottom) / (b2 - full_z)
+        else:
+            lam = 0.0
+        q0 = b0 + lam * sf0
+        q1 = b1 + lam * sf1
+        q2 = b2 + lam * sf2
+        cutting = touching and lam >= 1.0 and q2 > bottom
+        if cutting:
+            bottom = q2
+            k = int(q2 / bin_m)
+            if k > hole_bins[0] and k >= 0:  # Hole.record
+                k = min(k, filled.shape[0] - 1)
+                lo = max(hole_bins[0] + 1, 0)
+                for b in range(lo, k + 1):
+                    centre_xy[b, 0] = q0
+                    centre_xy[b, 1] = q1
+                    filled[b] = True
+                if hole_bins[1] < 0:
+                    hole_bins[1] = lo
+                hole_bins[0] = k
+        torque = lam * tq
+        out = rows[row]
+        out[0], out[1], out[2] = q0, q1, q2
+        out[3], out[4], out[5] = r0, r1, r2
+        out[6] = lam * f0 + kx * (p0 - q0)
+        out[7] = lam * f1 + kx * (p1 - q1)
+        out[8] = lam * f2
+        out[9] = torque
+        out[10] = d
+        out[11] = _stage(d, bounds) if touching and lam > 0.0 else 0
+        out[12] = 1.0 if cutting else 0.0
+        p0, p1, p2 = q0, q1, q2
+    state[0], state[1], state[2], state[3], state[4], state[5], state[6], state[7] = r0, r1, r2, p0, p1, p2, bottom, d
+    return rows, touching, j
