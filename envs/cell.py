@@ -241,11 +241,11 @@ class SimCell:
         return (fx, fy, fz, -arm * fy, arm * fx, sample.torque_axis)
 
     def joint_deflection_rad(self) -> np.ndarray:
-        """δq = Kθ⁻¹ Jᵀ W of the current load (rad): what the encoders do not see."""
-        w = np.concatenate(
-            [self.R_base_task @ self.force, self.R_base_task @ np.array([0.0, 0.0, self.sample.torque_axis])]
+        """δq = Kθ⁻¹ Jᵀ W of the current load (rad): what the encoders do not see (:func:`ur5_kernel.joint_deflection`)."""
+        smp = self.sample
+        return ur5_kernel.joint_deflection(
+            self.J_tcp, np.array(smp.force), smp.torque_axis, self.R_base_task, self.joints.stiffness_nm_rad
         )
-        return self.joints.joint_deflection_rad(self.J_tcp, w)
 
     def q_actual_rad(self) -> np.ndarray:
         """Link-side joint angles: motor angles plus the elastic twist (rad)."""
@@ -264,16 +264,7 @@ class SimCell:
     def marker_base_m(self, q_rad: np.ndarray | None = None) -> np.ndarray:
         """Tracker-marker position (base frame, m): the true one (deflected arm) or, given ``q_rad``, the model's."""
         if q_rad is None:
-            smp = self.sample
-            p = ur5_kernel.deflected_frame_position(
-                self.q_motor_rad,
-                self.J_tcp,
-                np.array(smp.force),
-                smp.torque_axis,
-                self.R_base_task,
-                self.joints.stiffness_nm_rad,
-                self._marker_chain,
-            )
+            p = ur5_kernel.frame_pose(self.q_actual_rad(), self._marker_chain)[1]
             return p if self.marker_offset_base_m is None else p + self.marker_offset_base_m
         return self.kin.fk(q_rad, TRACKER_FRAME)[:3, 3]
 

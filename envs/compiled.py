@@ -25,7 +25,6 @@ def compile_kernels() -> float:
     cell.reset(np.array([0.0, 0.0, -0.05e-3]))
     cell.begin_step(2e-6, 5e-6)
     cell.run([(0.0, 0.0, -0.04e-3), (0.0, 0.0, -0.03e-3)])
-    cell.update((0.0, 0.0, -0.02e-3))
     cell.end_step()
     cell.marker_base_m()
     return time.perf_counter() - t0

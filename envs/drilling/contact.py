@@ -83,7 +83,6 @@ class TipContactSolver:
         self.wall_length_m = wall_length_m
         self.grid = np.ascontiguousarray(table.depth_m, dtype=float)
         self._bounds = stage_bounds(geometry, beta_rad)
-        self._bounds_arr = np.array(self._bounds)
         self._key: tuple[float, float] = (math.nan, math.nan)
         self.force_scale = 1.0
         """Per-specimen multiplier on every cutting force (bone variability), set before an episode."""
@@ -160,7 +159,6 @@ class TipContactSolver:
             return []
         hole = self.hole
         state = np.array([*self.rigid, *self.tip, self.bottom_z, self.depth_local])
-        bins = np.array([hole.deepest_bin, hole.first_bin])
         rows, touching, j = run_samples(
             np.array(targets, dtype=float),
             servo_gain,
@@ -168,17 +166,16 @@ class TipContactSolver:
             self.touching,
             self._j,
             self.tan_beta,
-            self._bounds_arr,
+            self._bounds,
             self.grid,
             self._rows,
             self._c,
             self._k_cut * self._g,
             hole.centre_xy_m,
             hole.filled,
-            bins,
+            hole.bins,
             hole.bin_m,
         )
-        hole.deepest_bin, hole.first_bin = int(bins[0]), int(bins[1])
         st = state.tolist()
         self.rigid, self.tip, self.bottom_z, self.depth_local = st[0:3], st[3:6], st[6], st[7]
         self.touching, self._j = touching, j

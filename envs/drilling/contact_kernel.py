@@ -9,24 +9,13 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from drillgym.envs.drilling.force_model import stage_of
+from drillgym.envs.drilling.hole import cut
+
 STATE_SIZE = 8
 """``state`` layout: rigid tip (3), true tip (3), deepest point cut ``bottom_z``, local depth ``d`` (m, task frame)."""
 ROW_SIZE = 13
 """``rows`` layout: tip (3), rigid (3), force (3), torque about the axis, local depth, stage, cutting (0/1)."""
-
-
-@numba.njit(cache=True)
-def _stage(d: float, bounds: np.ndarray) -> int:  # pragma: no cover (compiled)
-    """:func:`drillgym.envs.drilling.force_model.stage_of`."""
-    if d <= bounds[0]:
-        return 0
-    if d <= bounds[1]:
-        return 1
-    if d < bounds[2]:
-        return 2
-    if d < bounds[3]:
-        return 3
-    return 4
 
 
 @numba.njit(cache=True)
@@ -66,7 +55,7 @@ def run_samples(  # noqa: C901 (one loop, on purpose)
     touching: bool,
     j: int,
     tan_beta: float,
-    bounds: np.ndarray,
+    bounds: tuple[float, float, float, float],
     grid: np.ndarray,
     table: np.ndarray,
     compliance: np.ndarray,
@@ -92,20 +81,18 @@ def run_samples(  # noqa: C901 (one loop, on purpose)
         k_guided: lateral cut stiffness (N/m) when the tip is inside the bone and touching.
         centre_xy: the hole's centreline per bin (m, task xy), updated in place.
         filled: the hole's cut bins, updated in place.
-        hole_bins: ``[deepest_bin, first_bin]`` of the hole, updated in place.
+        hole_bins: the hole's ``[deepest_bin, first_bin]``, updated in place (:func:`~drillgym.envs.drilling.hole.cut`).
         bin_m: the hole's bin length (m).
     """
     n = grid.shape[0]
     rows = np.empty((targets.shape[0], ROW_SIZE))
     eye = np.eye(3)
+    zero = np.zeros((3, 3))
     m1, s1, k1 = _guided(compliance, k_guided)
     r0, r1, r2, p0, p1, p2, bottom, d = state
     touch = bounds[0]
     v_cur = -1
-    m = eye
-    s = compliance
-    mck = np.zeros((3, 3))
-    kx = 0.0
+    m, s, mck, kx = eye, compliance, zero, 0.0
     lam = 1.0
     torque = 0.0
     for row in range(targets.shape[0]):
@@ -118,7 +105,7 @@ def run_samples(  # noqa: C901 (one loop, on purpose)
             if v == 1:
                 m, s, mck, kx = m1, s1, k1, k_guided
             else:
-                m, s, mck, kx = eye, compliance, np.zeros((3, 3)), 0.0
+                m, s, mck, kx = eye, compliance, zero, 0.0
         b0 = m[0, 0] * r0 + m[0, 1] * r1 + m[0, 2] * r2 + mck[0, 0] * p0 + mck[0, 1] * p1
         b1 = m[1, 0] * r0 + m[1, 1] * r1 + m[1, 2] * r2 + mck[1, 0] * p0 + mck[1, 1] * p1
         b2 = m[2, 0] * r0 + m[2, 1] * r1 + m[2, 2] * r2 + mck[2, 0] * p0 + mck[2, 1] * p1
@@ -182,17 +169,7 @@ def run_samples(  # noqa: C901 (one loop, on purpose)
         cutting = touching and lam >= 1.0 and q2 > bottom
         if cutting:
             bottom = q2
-            k = int(q2 / bin_m)
-            if k > hole_bins[0] and k >= 0:  # Hole.record
-                k = min(k, filled.shape[0] - 1)
-                lo = max(hole_bins[0] + 1, 0)
-                for b in range(lo, k + 1):
-                    centre_xy[b, 0] = q0
-                    centre_xy[b, 1] = q1
-                    filled[b] = True
-                if hole_bins[1] < 0:
-                    hole_bins[1] = lo
-                hole_bins[0] = k
+            cut(centre_xy, filled, hole_bins, bin_m, q2, q0, q1)
         torque = lam * tq
         out = rows[row]
         out[0], out[1], out[2] = q0, q1, q2
@@ -202,7 +179,7 @@ def run_samples(  # noqa: C901 (one loop, on purpose)
         out[8] = lam * f2
         out[9] = torque
         out[10] = d
-        out[11] = _stage(d, bounds) if touching and lam > 0.0 else 0
+        out[11] = stage_of(d, bounds) if touching and lam > 0.0 else 0
         out[12] = 1.0 if cutting else 0.0
         p0, p1, p2 = q0, q1, q2
     state[0], state[1], state[2], state[3], state[4], state[5], state[6], state[7] = r0, r1, r2, p0, p1, p2, bottom, d

@@ -25,6 +25,7 @@ import bisect
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from drillgym.envs.drilling.bone import BonePreset
@@ -65,8 +66,9 @@ def stage_from_depth(depth_m: float, geometry: DrillGeometry, beta_rad: float) -
     return stage_of(depth_m, stage_bounds(geometry, beta_rad))
 
 
-def stage_of(depth_m: float, bounds: tuple[float, float, float, float]) -> int:
-    """Stage from precomputed :func:`stage_bounds` (fast path for the solver)."""
+@numba.njit(cache=True)
+def stage_of(depth_m: float, bounds: tuple[float, float, float, float]) -> int:  # pragma: no cover (compiled)
+    """Stage from precomputed :func:`stage_bounds` (compiled: the tip balance's kernel calls it per sample)."""
     touch, corner_in, half, full = bounds
     if depth_m <= touch:
         return 0

@@ -4,7 +4,30 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
+
+
+@numba.njit(cache=True)
+def cut(
+    centre_xy: np.ndarray, filled: np.ndarray, bins: np.ndarray, bin_m: float, depth_m: float, x: float, y: float
+) -> None:  # pragma: no cover (compiled)
+    """Cut a hole's arrays to ``depth_m`` with the centre ``(x, y)`` (m, task xy): :meth:`Hole.record`, in place.
+
+    ``bins`` is ``[deepest_bin, first_bin]``; nothing changes unless ``depth_m`` reaches a new bin.
+    """
+    k = int(depth_m / bin_m)
+    if k <= bins[0] or k < 0:
+        return
+    k = min(k, filled.shape[0] - 1)
+    lo = max(bins[0] + 1, 0)
+    for b in range(lo, k + 1):
+        centre_xy[b, 0] = x
+        centre_xy[b, 1] = y
+        filled[b] = True
+    if bins[1] < 0:
+        bins[1] = lo
+    bins[0] = k
 
 
 class Hole:
@@ -22,27 +45,27 @@ class Hole:
         n = math.ceil(max_depth_m / bin_m) + 2
         self.centre_xy_m = np.zeros((n, 2))
         self.filled = np.zeros(n, dtype=bool)
-        self.deepest_bin = -1
-        self.first_bin = -1
+        self.bins = np.array([-1, -1])
+        """``[deepest_bin, first_bin]``: the deepest and the first bin cut (-1: none)."""
+
+    @property
+    def deepest_bin(self) -> int:
+        """Index of the deepest bin cut (-1 before any cut)."""
+        return int(self.bins[0])
+
+    @property
+    def first_bin(self) -> int:
+        """Index of the first bin cut (-1 before any cut)."""
+        return int(self.bins[1])
 
     def reset(self) -> None:
         """Uncut bone."""
         self.filled[:] = False
-        self.deepest_bin = -1
-        self.first_bin = -1
+        self.bins[:] = -1
 
     def record(self, depth_m: float, tip_xy_m: np.ndarray) -> None:
-        """Cut the hole to ``depth_m`` (along the planned axis) with its centre at ``tip_xy_m``."""
-        k = int(depth_m / self.bin_m)
-        if k <= self.deepest_bin or k < 0:
-            return
-        k = min(k, self.filled.size - 1)
-        lo = max(self.deepest_bin + 1, 0)
-        self.centre_xy_m[lo : k + 1] = tip_xy_m
-        self.filled[lo : k + 1] = True
-        if self.first_bin < 0:
-            self.first_bin = lo
-        self.deepest_bin = k
+        """Cut the hole to ``depth_m`` (along the planned axis) with its centre at ``tip_xy_m`` (:func:`cut`)."""
+        cut(self.centre_xy_m, self.filled, self.bins, self.bin_m, depth_m, float(tip_xy_m[0]), float(tip_xy_m[1]))
 
     def centre_at(self, depth_m: float) -> np.ndarray | None:
         """Centreline (m, task xy) at ``depth_m``; the first cut point above it; None before any cut."""

@@ -84,14 +84,6 @@ def _mm(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no cover (compil
 
 
 @numba.njit(cache=True)
-def _mv(a: np.ndarray, v: np.ndarray) -> np.ndarray:  # pragma: no cover (compiled)
-    out = np.empty(3)
-    for i in range(3):
-        out[i] = a[i, 0] * v[0] + a[i, 1] * v[1] + a[i, 2] * v[2]
-    return out
-
-
-@numba.njit(cache=True)
 def _walk(q: np.ndarray, chain: np.ndarray):  # pragma: no cover (compiled)
     """Frame rotation and origin, joint axes and origins, all in ``base_link`` (``chain``: :meth:`Chain.packed`)."""
     n = int(chain[0])
@@ -251,20 +243,20 @@ def ik_step(q, jac, rigid_task, entry_base, r_task, chain):  # pragma: no cover
 
 
 @numba.njit(cache=True)
-def deflected_frame_position(q, jac, force_task, torque_axis, r_task, stiffness, chain):  # pragma: no cover
-    """Origin (m, base frame) of a frame on the arm deflected by a tip load (``δq = Kθ⁻¹ Jᵀ W``).
+def joint_deflection(jac, force_task, torque_axis, r_task, stiffness):  # pragma: no cover
+    """Joint twist ``δq = Kθ⁻¹ Jᵀ W`` (rad) under a tip load: what the encoders do not see.
 
     ``W`` is the force ``force_task`` (N) and the torque ``torque_axis`` (N·m) about the drill axis, both
-    given in task axes and turned to base axes by ``r_task``; ``jac`` is the TCP Jacobian at ``q``.
+    given in task axes and turned to base axes by ``r_task``; ``jac`` is the TCP Jacobian (6xn, base axes).
     """
     w = np.empty(6)
     for i in range(3):
         w[i] = r_task[i, 0] * force_task[0] + r_task[i, 1] * force_task[1] + r_task[i, 2] * force_task[2]
         w[3 + i] = r_task[i, 2] * torque_axis
-    qa = q.copy()
-    for j in range(q.shape[0]):
+    dq = np.empty(jac.shape[1])
+    for j in range(jac.shape[1]):
         s = 0.0
         for i in range(6):
             s += jac[i, j] * w[i]
-        qa[j] += s / stiffness[j]
-    return frame_pose(qa, chain)[1]
+        dq[j] = s / stiffness[j]
+    return dq

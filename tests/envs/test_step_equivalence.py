@@ -21,8 +21,6 @@ ENV_ID = envs.ENV_IDS[0]
 TOLERANCE = 1e-6
 """Largest relative difference allowed, ``|a - b| / (max(|a|, |b|) + 1e-9)``: the compiled kinematics round
 differently from Pinocchio's (1e-16 per call); over an episode the records differ by 1e-12 to 1e-7."""
-WORST: list = []
-"""(difference, where, step) of every comparison, for reporting."""
 
 
 def _mid_values(name: str) -> dict[str, float]:
@@ -57,7 +55,6 @@ def _run_pair(kwargs: dict, seed: int, policy: str | None, actions_seed: int | N
             out_f = fast.step(a_f)
             out_r = reference_step(u, a_r)
             worst, where = largest_difference(out_f, out_r)
-            WORST.append((worst, where, k))
             assert worst <= TOLERANCE, f"step {k}: {where} differs by {worst:.2e}"
             obs_f, obs_r = out_f[0], out_r[0]
             if out_f[2] or out_f[3]:
@@ -66,7 +63,6 @@ def _run_pair(kwargs: dict, seed: int, policy: str | None, actions_seed: int | N
         worst, where = largest_difference(
             {k: np.asarray(v) for k, v in rec_f.items()}, {k: np.asarray(v) for k, v in rec_r.items()}
         )
-        WORST.append((worst, where, -1))
         assert worst <= TOLERANCE, f"recorder: {where} differs by {worst:.2e}"
         return k + 1
     finally:

@@ -62,12 +62,13 @@ def test_ik_steps_converge_to_a_pose_and_compliance_is_j_k_inverse_jt():
 
 
 def test_deflected_marker_follows_the_joint_twist_of_the_tip_load():
-    chains = kernel.Chain.of(KIN, TCP_FRAME).packed(), kernel.Chain.of(KIN, TRACKER_FRAME).packed()
+    marker_chain = kernel.Chain.of(KIN, TRACKER_FRAME).packed()
     r_task = np.diag([1.0, -1.0, -1.0])
     q = Q_HOME_RAD.copy()
     jac = KIN.jacobian(q)
     force, torque = np.array([3.0, -2.0, 25.0]), 0.04
-    got = kernel.deflected_frame_position(q, jac, force, torque, r_task, KTHETA_LI2023_NM_RAD, chains[1])
+    dq_kernel = kernel.joint_deflection(jac, force, torque, r_task, KTHETA_LI2023_NM_RAD)
+    got = kernel.frame_pose(q + dq_kernel, marker_chain)[1]
     w = np.concatenate([r_task @ force, r_task @ np.array([0.0, 0.0, torque])])
     dq = JointCompliance(KTHETA_LI2023_NM_RAD).joint_deflection_rad(jac, w)
     np.testing.assert_allclose(got, KIN.fk(q + dq, TRACKER_FRAME)[:3, 3], rtol=0, atol=1e-12)
