@@ -40,7 +40,7 @@ def _kinematics(tcp_offset_m: float, marker: tuple[float, float, float]) -> UR5K
 
 
 @functools.lru_cache(maxsize=16)
-def _chains(kin: UR5Kinematics) -> tuple[np.ndarray, np.ndarray]:
+def chains_of(kin: UR5Kinematics) -> tuple[np.ndarray, np.ndarray]:
     """The compiled kernels' chains (:meth:`ur5_kernel.Chain.packed`) to the TCP and to the tracker marker."""
     return ur5_kernel.Chain.of(kin, TCP_FRAME).packed(), ur5_kernel.Chain.of(kin, TRACKER_FRAME).packed()
 
@@ -86,7 +86,7 @@ class SimCell:
         )
         self.tcp_offset_m = p.sensor_to_chuck_m + scenario.stickout_m
         self.kin = _kinematics(self.tcp_offset_m, tuple(p.tracker_marker_flange_m))
-        self._tcp_chain, self._marker_chain = _chains(self.kin)
+        self._tcp_chain, self._marker_chain = chains_of(self.kin)
         self.joints = JointCompliance(np.asarray(p.stiffness_nm_rad, dtype=float))
         self.R_base_task = R_BASE_TASK
         self.entry_base_m = p.entry_point

@@ -1,6 +1,7 @@
 """Compile the cell's numba kernels ahead of use, into numba's on-disk cache.
 
-The kernels (:mod:`drillgym.envs.robot.ur5_kernel`, :mod:`drillgym.envs.drilling.contact_kernel`) are
+The kernels (:mod:`drillgym.envs.robot.ur5_kernel`, :mod:`drillgym.envs.drilling.contact_kernel`,
+:mod:`drillgym.envs.step_kernel`) are
 compiled on first call (about 10 s) and cached beside their sources (or in ``NUMBA_CACHE_DIR``); every
 later process loads them in milliseconds. ``make install`` runs this module once, so that no command,
 test or worker pays the compile (a process that streams to a robot must not stall 10 s on its first step).
@@ -27,6 +28,12 @@ def compile_kernels() -> float:
     cell.run([(0.0, 0.0, -0.04e-3), (0.0, 0.0, -0.03e-3)])
     cell.end_step()
     cell.marker_base_m()
+    from drillgym.envs.drill_env import UR5BoneDrillEnv
+
+    env = UR5BoneDrillEnv()
+    env.reset(seed=0)
+    env.step(np.zeros(4, dtype=np.float32))
+    env.close()
     return time.perf_counter() - t0
 
 

@@ -25,6 +25,7 @@ from drillgym.envs.constants import (
 from drillgym.envs.drilling.bone import BonePreset
 from drillgym.envs.drilling.contact import SampleRow
 from drillgym.envs.effects.base import Effect, EffectStack
+from drillgym.envs.kernel_state import KernelState
 from drillgym.envs.metrics import EpisodeRecorder, episode_metrics
 from drillgym.envs.observation import OBS_SIZE, observation_space, pack_flat_observation
 from drillgym.envs.plan import DrillPlan
@@ -33,6 +34,7 @@ from drillgym.envs.reward import RewardWeights, checked_action
 from drillgym.envs.robot.ur5 import TRACKER_FRAME
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
+from drillgym.envs.step_kernel import TERMINATED, TRUNCATED
 from drillgym.envs.task import DrillPath, Phase
 
 RESET_OPTIONS = frozenset({"scenario", "effects", "specimen_seed"})
@@ -49,6 +51,7 @@ ENV_ARGUMENTS = (
     "reward_peak_force_weight",
     "render_width_px",
     "render_height_px",
+    "pybullet_world",
 )
 """The env's own keyword arguments, beside the scenario's (:class:`drillgym.envs.scenario.Scenario`)."""
 
@@ -184,7 +187,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     :class:`drillgym.envs.drilling.BonePreset` replacing the named ``bone``), the reward weights
     ``reward_deviation_weight`` (per mm), ``reward_force_weight`` (per N), ``reward_smooth_weight``,
     ``reward_peak_force_weight`` (per N of episode peak), ``render_mode`` (``"rgb_array"``) and the frame
-    size ``render_width_px``, ``render_height_px`` (320 × 240 by default). Invalid
+    size ``render_width_px``, ``render_height_px`` (320 × 240 by default), and ``pybullet_world`` (False: no
+    PyBullet client, so no rendering; the physics does not use it; :mod:`drillgym.envs.batched` builds its
+    episodes so). Invalid
     values raise ``ValueError`` naming the argument, its value and the allowed range. Unmodelled effects for
     the sim-to-real diagnosis (:mod:`drillgym.envs.effects`) are switched on with ``env.unwrapped.set_effects([...])``
     or ``reset(options={"effects": [...]})``; none are on by default.
@@ -200,6 +205,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": round(1.0 / CONTROL_DT_S)}  # noqa: RUF012
+    use_compiled_step = True
+    """Without unmodelled effects, step with the compiled kernel (:mod:`drillgym.envs.step_kernel`) from the next
+    ``reset``; False keeps the Python step (the same physics, equal to rounding: ``tests/envs/test_step_kernel.py``)."""
 
     def __init__(
         self,
@@ -212,6 +220,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         reward_peak_force_weight: float = 0.0,
         render_width_px: int = 320,
         render_height_px: int = 240,
+        pybullet_world: bool = True,
         **scenario_kwargs: Any,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -220,6 +229,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             if not isinstance(px, int) or not 16 <= px <= 4096:
                 raise ValueError(f"{name}={px!r} must be an integer number of pixels in [16, 4096]")
         self.render_size_px = (render_width_px, render_height_px)
+        if render_mode is not None and not pybullet_world:
+            raise ValueError(f"render_mode={render_mode!r} needs the PyBullet world; pybullet_world=False has none")
         _check_arguments(scenario_kwargs)
         self.scenario = Scenario.from_kwargs(**scenario_kwargs)
         self.render_mode = render_mode
@@ -231,7 +242,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = observation_space()  # type: ignore[assignment]
         self.recorder = EpisodeRecorder()
-        self.world: PyBulletWorld | None = PyBulletWorld(visual_meshes=render_mode is not None)
+        self.world: PyBulletWorld | None = (
+            PyBulletWorld(visual_meshes=render_mode is not None) if pybullet_world else None
+        )
         self.effects: EffectStack | None = None
         self._effects_attached = False
         self._build(self.scenario)
@@ -316,6 +329,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             self._effects_attached = self.effects is not None
             if self.effects is not None:
                 self.effects.attach(self)
+        self._kernel = KernelState(self) if self.effects is None and self.use_compiled_step else None
 
     def set_effects(self, effects: list[Effect] | tuple[Effect, ...] | None) -> None:
         """Switch unmodelled effects (:mod:`drillgym.envs.effects`) on from the next ``reset``; None or [] switches them off."""
@@ -345,6 +359,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if self.path.phase == Phase.DONE or self.failure is not None:
             raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
         corr, scale = scale_action(a)
+        if self._kernel is not None:
+            return self._advance_compiled(corr, scale)
         fx = self.effects
         delay_s = self.scenario.latency_s if fx is None else fx.command_delay_s(self, self.scenario.latency_s)
         self.pending.append((self.t_s + delay_s, corr, scale))  # unmodelled effects (envs.effects) may delay it
@@ -386,6 +402,28 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.steps += 1
         at_limit = self.t_s >= self.max_time_s or self.steps >= MAX_EPISODE_STEPS
         truncated = self.truncated = (not terminated) and at_limit
+        if terminated or truncated:
+            self.metrics = self.episode_metrics()
+        return terminated, truncated
+
+    def _advance_compiled(self, corr: np.ndarray, scale: float) -> tuple[bool, bool]:
+        """:meth:`_advance` without effects, in one compiled call (:mod:`drillgym.envs.step_kernel`)."""
+        assert self._kernel is not None
+        out = self._kernel.step(self, corr, scale)
+        rec = self.recorder
+        cols = out.T.tolist()
+        rec.t_s.extend(cols[0])
+        rec.phase.extend([int(x) for x in cols[1]])
+        rec.stage.extend([int(x) for x in cols[2]])
+        rec.depth_cmd_m.extend(cols[3])
+        rec.deviation_m.extend(cols[4])
+        rec.tip_task_m.extend(zip(cols[5], cols[6], cols[7], strict=True))
+        rec.ft_force_n.extend(out[:, 8:11])
+        rec.ft_torque_nm.extend(out[:, 11:14])
+        rec.tracker_deviation_m.extend(cols[14])
+        ist = self._kernel.ist
+        terminated, truncated = bool(ist[TERMINATED]), bool(ist[TRUNCATED])
+        self.truncated = truncated
         if terminated or truncated:
             self.metrics = self.episode_metrics()
         return terminated, truncated

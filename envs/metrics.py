@@ -101,6 +101,6 @@ def episode_metrics(
     out["lateral_force_stable_n"] = float(lateral[stable].mean()) if stable.any() else float("nan")
     out["drill_time_s"] = float(t[drill.stop - 1] - t[drill.start])
     out["thrust_max_n"] = float(np.abs(force[drill, 2]).max())
-    if rec.tracker_deviation_m:
+    if len(rec.tracker_deviation_m):
         out["tracker_deviation_mean_mm"] = float(np.asarray(rec.tracker_deviation_m)[drill].mean() * 1e3)
     return out

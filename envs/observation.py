@@ -53,7 +53,9 @@ def pack_observation(values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 def pack_flat_observation(flat: np.ndarray) -> dict[str, np.ndarray]:
     """:func:`pack_observation` of the entries already laid end to end (float64, :data:`OBS_BOUNDS` order).
 
-    Clips ``flat`` in place; the returned arrays are views of one new float32 array.
+    Clips ``flat`` in place; the returned arrays are views of one new float32 array. A batch of observations
+    (one row each) gives arrays with the same leading axis.
     """
-    out = np.clip(flat, _LO, _HI, out=flat).astype(np.float32)
-    return {k: out[a:b] for k, a, b in _SLICES}
+    np.maximum(flat, _LO, out=flat)  # np.clip(flat, _LO, _HI, out=flat), without its Python wrapper
+    out = np.minimum(flat, _HI, out=flat).astype(np.float32)
+    return {k: out[..., a:b] for k, a, b in _SLICES}

@@ -66,4 +66,4 @@ def checked_action(action: np.ndarray, consequence: str) -> np.ndarray:
         raise ValueError(f"action must have shape ({ACTION_DIM},), got {np.shape(action)}")
     if not np.isfinite(a).all():
         raise ValueError(f"action={a.tolist()} contains NaN or inf; rejected ({consequence})")
-    return np.clip(a, -1.0, 1.0)
+    return np.minimum(np.maximum(a, -1.0), 1.0)  # np.clip(a, -1, 1), without its Python wrapper

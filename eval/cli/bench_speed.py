@@ -5,19 +5,30 @@ from __future__ import annotations
 import argparse
 import json
 
-from drillgym.eval.perf.speed import controller_cycle_times, measure
+from drillgym.eval.perf.speed import batched_throughput, controller_cycle_times, measure
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI arguments."""
     parser.add_argument("--runs", type=int, default=7, help="timed runs (medians reported; default 7)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON (every figure)")
+    parser.add_argument(
+        "--batch-sizes",
+        default="1,16,64",
+        help="batched env sizes whose episodes per second are measured (comma-separated; '' skips; default 1,16,64)",
+    )
+    parser.add_argument(
+        "--batch-seconds", type=float, default=3.0, help="seconds per throughput measure (3 rounds; default 3)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym bench-speed``."""
     result = measure(args.runs)
     result["controllers"] = controller_cycle_times()
+    sizes = tuple(int(n) for n in args.batch_sizes.split(",") if n.strip())
+    if sizes:
+        result["batched"] = batched_throughput(sizes, args.batch_seconds)
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
@@ -48,6 +59,18 @@ def run(args: argparse.Namespace) -> int:
         f"  peak memory        {result['peak_rss_mib']:.0f} MiB RSS; "
         f"{result['episode_python_peak_mib']:.2f} MiB Python peak within an episode"
     )
+    if "batched" in result:
+        b = result["batched"]
+        print(
+            f"episodes per second on one core (median of {b['runs']} interleaved rounds; "
+            f"{b['steps_per_episode']:.0f} steps per episode, resets included)"
+        )
+        print(f"  single env         {b['single_env_episodes_per_s_median']:7.1f}")
+        for n, r in b["batched"].items():
+            print(
+                f"  batched, N = {n:4s}  {r['episodes_per_s_median']:7.1f}   "
+                f"{r['speedup_over_single_median']:.1f}x the single env"
+            )
     print("controller cycle time (one predict per 50 ms agent step; Li's budget: 50 ms)")
     for spec, t in result["controllers"].items():
         print(f"  {spec:10s} p50 {t['p50_us']:7.1f} µs   p99 {t['p99_us']:7.1f} µs   max {t['max_us']:7.1f} µs")

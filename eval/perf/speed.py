@@ -145,3 +145,74 @@ def controller_cycle_times(
         }
     env.close()
     return out
+
+
+def _single_env_steps_per_s(seconds: float) -> tuple[float, float]:
+    """Zero-action agent steps per second of one single env (whole episodes, resets included), and steps per episode."""
+    from drillgym.envs.drill_env import UR5BoneDrillEnv
+
+    env = UR5BoneDrillEnv(pybullet_world=False)
+    action = np.zeros(4, dtype=np.float32)
+    _episode(env, 0, action)
+    steps = episodes = 0
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        _, n, _ = _episode(env, episodes + 1, action)
+        steps += n
+        episodes += 1
+    dt = time.perf_counter() - t0
+    env.close()
+    return steps / dt, steps / episodes
+
+
+def _batched_steps_per_s(num_envs: int, seconds: float) -> float:
+    """Zero-action episode-steps per second of a :class:`~drillgym.envs.batched.BatchedDrillEnv` of ``num_envs``."""
+    from drillgym.envs.batched import BatchedDrillEnv
+
+    env = BatchedDrillEnv(num_envs)
+    env.reset(seed=0)
+    actions = np.zeros((num_envs, 4), dtype=np.float32)
+    for _ in range(20):
+        env.step(actions)
+    steps = 0
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        env.step(actions)
+        steps += 1
+    dt = time.perf_counter() - t0
+    env.close()
+    return steps * num_envs / dt
+
+
+def batched_throughput(sizes: tuple[int, ...] = (1, 16, 64), seconds: float = 3.0, runs: int = 3) -> dict[str, Any]:
+    """Episodes per second on one core: the single env and the batched env at each size, interleaved in one run.
+
+    Each of ``runs`` rounds times the single env, then each batch size, for ``seconds`` each (ended
+    episodes are reset inside the batch, so resets count); reported: the medians and each batch's
+    speed-up over the single env of its own round.
+    """
+    single: list[float] = []
+    per_size: dict[int, list[float]] = {n: [] for n in sizes}
+    ratio: dict[int, list[float]] = {n: [] for n in sizes}
+    steps_per_episode = 0.0
+    for _ in range(runs):
+        s, steps_per_episode = _single_env_steps_per_s(seconds)
+        single.append(s / steps_per_episode)
+        for n in sizes:
+            b = _batched_steps_per_s(n, seconds) / steps_per_episode
+            per_size[n].append(b)
+            ratio[n].append(b / single[-1])
+    return {
+        "steps_per_episode": steps_per_episode,
+        "single_env_episodes_per_s_median": statistics.median(single),
+        "batched": {
+            str(n): {
+                "episodes_per_s_median": statistics.median(per_size[n]),
+                "speedup_over_single_median": statistics.median(ratio[n]),
+                "speedup_runs": ratio[n],
+            }
+            for n in sizes
+        },
+        "seconds_per_measure": seconds,
+        "runs": runs,
+    }

@@ -19,7 +19,7 @@ def test_unknown_command_is_an_error_naming_it(capsys):
 
 
 def test_bench_speed_json_reports_a_real_time_factor(capsys):
-    assert main(["bench-speed", "--runs", "1", "--json"]) == 0
+    assert main(["bench-speed", "--runs", "1", "--json", "--batch-sizes", "1,4", "--batch-seconds", "0.3"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["real_time_factor_median"] > 0
     assert result["env_step_per_bare_pybullet_step_median"] > 0
@@ -27,6 +27,10 @@ def test_bench_speed_json_reports_a_real_time_factor(capsys):
     assert result["bare_pybullet_step_us_median"] > 0 and result["construct_s"] > 0
     assert result["episode_sim_s"] > 10
     assert result["peak_rss_mib"] > 0
+    batched = result["batched"]
+    assert batched["single_env_episodes_per_s_median"] > 0
+    assert set(batched["batched"]) == {"1", "4"}
+    assert all(b["episodes_per_s_median"] > 0 for b in batched["batched"].values())
 
 
 def test_demo_runs_the_reproduction_and_says_where_the_results_are(tmp_path, capsys):

@@ -1,0 +1,315 @@
+"""N drilling episodes stepped in lock-step: a native ``gymnasium.vector.VectorEnv``.
+
+Each episode is the single env's (:class:`~drillgym.envs.drill_env.UR5BoneDrillEnv`) without unmodelled
+effects: the same scenario, the same seeded specimen and sensor noise, the same physics, one compiled call
+(:func:`~drillgym.envs.step_kernel.advance_batch`) for all N per agent step, with the state on arrays whose
+first axis is the episode. Episode ``i`` of ``reset(seed=s)`` is the single env's ``reset(seed=s + i)``, and
+its records and metrics equal the single env's to rounding (``tests/envs/test_batched.py``).
+
+An episode that ends is reset in the same call (``autoreset_mode`` SAME_STEP): its last observation and
+info are in ``infos["final_obs"]`` and ``infos["final_info"]`` (with the episode's metrics), as Gymnasium's
+vector envs report them, and the next episode continues that slot's generator, as ``reset()`` without a
+seed continues the single env's.
+
+    env = BatchedDrillEnv(64)                       # the paper scenario; scenario arguments as for gym.make
+    obs, infos = env.reset(seed=0)                  # obs: dict of (64, k) float32 arrays
+    obs, reward, terminated, truncated, infos = env.step(actions)   # actions: (64, 4)
+
+Per step, ``infos`` holds ``t_s``, ``phase``, ``deviation_m`` (the true tip's, privileged) and
+``reward_terms`` as arrays; the single env's other privileged entries are in ``final_info`` at the end.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from drillgym.envs import step_kernel as sk
+from drillgym.envs.constants import (
+    ACTION_DIM,
+    CONTROL_DT_S,
+    FEED_OVERRIDE_LOG2_MAX,
+    MAX_CORRECTION_M,
+    MAX_EPISODE_STEPS,
+    PHYSICS_DT_S,
+    SUBSTEPS_PER_STEP,
+    TRACKER_RATE_HZ,
+)
+from drillgym.envs.drill_env import UR5BoneDrillEnv
+from drillgym.envs.kernel_state import NOISE_SIZE, KernelState
+from drillgym.envs.metrics import episode_metrics
+from drillgym.envs.observation import OBS_SIZE, observation_space, pack_flat_observation
+from drillgym.envs.task import Phase
+
+RECORD_NAMES = (
+    ("t_s", 0),
+    ("depth_cmd_m", 3),
+    ("deviation_m", 4),
+    ("tracker_deviation_m", 14),
+)
+"""Float recorder channels and their ``record`` column (:data:`~drillgym.envs.step_kernel.OUT_COLUMNS`)."""
+
+
+class _Record:
+    """One episode's recorded channels as arrays, the attributes :func:`episode_metrics` reads."""
+
+    def __init__(self, rows: np.ndarray) -> None:
+        for name, col in RECORD_NAMES:
+            setattr(self, name, rows[:, col])
+        self.phase: np.ndarray = rows[:, 1].astype(np.int64)
+        self.stage: np.ndarray = rows[:, 2].astype(np.int64)
+        self.ft_force_n = rows[:, 8:11]
+        self.ft_torque_nm = rows[:, 11:14]
+        self.tip_task_m = rows[:, 5:8]
+
+
+class BatchedDrillEnv(VectorEnv):
+    """``num_envs`` episodes of one scenario in lock-step (see the module docstring).
+
+    Args:
+        num_envs: episodes stepped together (>= 1).
+        **env_kwargs: the single env's arguments (scenario, ``cell_params``, ``bone_material``, reward
+            weights); rendering is not available.
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}  # noqa: RUF012
+
+    def __init__(self, num_envs: int, **env_kwargs: Any) -> None:
+        if not isinstance(num_envs, int) or num_envs < 1:
+            raise ValueError(f"num_envs={num_envs!r} must be an integer >= 1")
+        if env_kwargs.get("render_mode") is not None:
+            raise ValueError("BatchedDrillEnv does not render; use UR5BoneDrillEnv(render_mode='rgb_array')")
+        self.num_envs = num_envs
+        self.envs = [UR5BoneDrillEnv(pybullet_world=False, **env_kwargs) for _ in range(num_envs)]
+        first = self.envs[0]
+        self.scenario = first.scenario
+        self.reward_weights = first.reward
+        self.single_observation_space = observation_space()
+        self.single_action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        n, cells = num_envs, [e.cell for e in self.envs]
+        grid = max(c.solver.grid.shape[0] for c in cells)
+        bins = max(c.hole.filled.shape[0] for c in cells)
+        steps = min(MAX_EPISODE_STEPS, math.ceil(first.max_time_s / CONTROL_DT_S) + 2)
+        self.fs = np.zeros((n, sk.FLOAT_STATE_SIZE))
+        self.ist = np.zeros((n, sk.INT_STATE_SIZE), dtype=np.int64)
+        self.pend = np.zeros((n, sk.PENDING_ROWS, 5))
+        self.par = np.zeros((n, sk.PARAM_SIZE))
+        self.tab = np.zeros((n, sk.TABLE_ROWS, grid))
+        self.rows = np.zeros((n, grid, 4))
+        self.chains = np.stack([KernelState(e).chains for e in self.envs])
+        self.centre = np.zeros((n, bins, 2))
+        self.filled = np.zeros((n, bins), dtype=bool)
+        self.bins = np.full((n, 2), -1, dtype=np.int64)
+        self.command = np.zeros((n, 4))
+        self.noise = np.zeros((n, NOISE_SIZE))
+        self.record = np.zeros((n, steps * SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
+        self.recorded = np.zeros(n, dtype=np.int64)
+        self.prev_action = np.zeros((n, ACTION_DIM))
+        self.peak_lateral_n = np.zeros(n)
+        self._ready = False
+
+    # ------------------------------------------------------------------ episodes
+    def _reset_one(self, i: int, seed: int | None) -> None:
+        """Reset slot ``i`` (the single env's ``reset(seed=seed)``) and copy its state into the arrays."""
+        env = self.envs[i]
+        env.reset(seed=seed)
+        ks = env._kernel
+        assert ks is not None
+        ks.load(env)
+        self.fs[i], self.ist[i], self.pend[i] = ks.fs, ks.ist, ks.pend
+        self.par[i] = ks.par
+        self.tab[i] = 0.0
+        self.tab[i, :, : ks.tab.shape[1]] = ks.tab
+        hole = env.cell.hole
+        nb = hole.filled.shape[0]
+        self.centre[i, :nb], self.filled[i, :nb], self.bins[i] = hole.centre_xy_m, hole.filled, hole.bins
+        self.recorded[i] = 0
+        self.prev_action[i] = 0.0
+        self.peak_lateral_n[i] = 0.0
+
+    def reset(
+        self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Reset every episode: ``seed`` (int: episode ``i`` gets ``seed + i``; or one seed per episode)."""
+        if options:
+            raise ValueError(f"reset(options={options!r}): BatchedDrillEnv takes no options (one scenario, no effects)")
+        if seed is None or isinstance(seed, int):
+            seeds: list[int | None] = [None if seed is None else seed + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"{len(seeds)} seeds for {self.num_envs} episodes")
+        for i, s in enumerate(seeds):
+            self._reset_one(i, s)
+        self._ready = True
+        return self._observation(), {}
+
+    def step(
+        self, actions: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """One agent step of every episode (``actions``: (num_envs, 4) in [-1, 1]); ended episodes are reset."""
+        if not self._ready:
+            raise RuntimeError("step() before reset(); call reset() first")
+        a = self._checked(actions)
+        self.command[:, :3] = MAX_CORRECTION_M * a[:, :3]
+        self.command[:, 3] = 2.0 ** (FEED_OVERRIDE_LOG2_MAX * a[:, 3])
+        self._draw_noise()
+        active = np.ones(self.num_envs, dtype=bool)
+        sk.advance_batch(
+            active,
+            self.fs,
+            self.ist,
+            self.pend,
+            self.par,
+            self.tab,
+            self.rows,
+            self.chains,
+            self.centre,
+            self.filled,
+            self.bins,
+            self.command,
+            self.noise,
+            self.record,
+            self.recorded,
+        )
+        if self.ist[:, sk.SINGULAR].any():
+            i = int(np.argmax(self.ist[:, sk.SINGULAR]))
+            raise np.linalg.LinAlgError(
+                f"episode {i}: singular TCP Jacobian at q = {self.fs[i, sk.Q_MOTOR : sk.Q_MOTOR + 6]}"
+            )
+        terms = self._reward_terms(a)
+        reward = terms["deviation"] + terms["force"] + terms["smooth"] + terms["peak_force"]
+        terminated = self.ist[:, sk.TERMINATED] == 1
+        truncated = self.ist[:, sk.TRUNCATED] == 1
+        infos: dict[str, Any] = {
+            "t_s": self.fs[:, sk.T_S].copy(),
+            "phase": self.ist[:, sk.PHASE].copy(),
+            "deviation_m": np.hypot(self.fs[:, sk.SAMPLE], self.fs[:, sk.SAMPLE + 1]),
+            "reward_terms": terms,
+        }
+        obs = self._observation()
+        ended = np.flatnonzero(terminated | truncated)
+        if ended.size:
+            final_info: dict[str, Any] = {}
+            for i in ended.tolist():
+                final_info = self._add_info(final_info, self._final_info(i), i)
+            infos["final_obs"] = {k: v.copy() for k, v in obs.items()}
+            infos["_final_obs"] = terminated | truncated
+            infos["final_info"] = final_info
+            infos["_final_info"] = terminated | truncated
+            for i in ended.tolist():
+                self._reset_one(i, None)
+            fresh = self._observation()
+            for k in obs:
+                obs[k][ended] = fresh[k][ended]
+        return obs, reward, terminated, truncated, infos
+
+    def close(self, **kwargs: Any) -> None:
+        """Close every episode's env."""
+        for e in self.envs:
+            e.close()
+
+    # ------------------------------------------------------------------ helpers
+    def _checked(self, actions: np.ndarray) -> np.ndarray:
+        a = np.asarray(actions, dtype=float)
+        if a.shape != (self.num_envs, ACTION_DIM):
+            raise ValueError(f"actions must have shape ({self.num_envs}, {ACTION_DIM}), got {np.shape(actions)}")
+        bad = ~np.isfinite(a).all(axis=1)
+        if bad.any():
+            raise ValueError(
+                f"actions of episodes {np.flatnonzero(bad).tolist()} contain NaN or inf; rejected (state unchanged)"
+            )
+        return np.minimum(np.maximum(a, -1.0), 1.0)
+
+    def _draw_noise(self) -> None:
+        """Each episode's standard normals from its own generator, in the single env's order."""
+        t = self.fs[:, sk.T_S].copy()
+        for _ in range(SUBSTEPS_PER_STEP):
+            t = t + PHYSICS_DT_S
+        stamp = np.floor(t * TRACKER_RATE_HZ + 1e-9) / TRACKER_RATE_HZ
+        new_tracker = stamp != self.fs[:, sk.TRACKER_STAMP]
+        nf = 6 * SUBSTEPS_PER_STEP
+        for i, env in enumerate(self.envs):
+            rng = env.np_random
+            if env.ft.noise_n > 0:
+                rng.standard_normal(out=self.noise[i, :nf])
+            if env.tracker.noise_m > 0 and new_tracker[i]:
+                rng.standard_normal(out=self.noise[i, nf:])
+
+    def _reward_terms(self, a: np.ndarray) -> dict[str, np.ndarray]:
+        """The single env's reward terms (:class:`~drillgym.envs.reward.RewardWeights`), per episode."""
+        w = self.reward_weights
+        lateral = self.fs[:, sk.STEP_LATERAL]
+        terms = {
+            "deviation": -w.deviation * self.fs[:, sk.STEP_DEVIATION] * 1e3,
+            "force": -w.force * lateral,
+            "smooth": -w.smooth * np.add.reduce((a - self.prev_action) ** 2, axis=1),
+            "peak_force": -w.peak_force * np.maximum(lateral - self.peak_lateral_n, 0.0),
+        }
+        np.maximum(self.peak_lateral_n, lateral, out=self.peak_lateral_n)
+        self.prev_action = a
+        return terms
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        """The single env's observation (:meth:`UR5BoneDrillEnv._observation`) of every episode, batched."""
+        fs, par = self.fs, self.par
+        flat = np.empty((self.num_envs, OBS_SIZE))
+        flat[:, 0:6] = fs[:, sk.FT_LAST : sk.FT_LAST + 6]
+        flat[:, 6:12] = fs[:, sk.FT_MEAN : sk.FT_MEAN + 6]
+        flat[:, 12:18] = fs[:, sk.Q_MOTOR : sk.Q_MOTOR + 6]
+        s = fs[:, sk.PATH_S]
+        r = sk.R_BASE_TASK
+        for i in range(3):
+            nominal = par[:, sk.ENTRY_BASE + i] + par[:, r + 3 * i + 2] * s
+            flat[:, 18 + i] = fs[:, sk.RTDE_TCP + i] - nominal
+        tracking = (self.recorded > 0) & self.scenario.tracker
+        flat[:, 21:24] = np.where(tracking[:, None], fs[:, sk.TRACKER_ERROR : sk.TRACKER_ERROR + 3], 0.0)
+        flat[:, 24] = 1.0 if self.scenario.tracker else 0.0
+        flat[:, 25] = s
+        flat[:, 26:29] = 0.0
+        phase = np.minimum(self.ist[:, sk.PHASE], 2)
+        flat[np.arange(self.num_envs), 26 + phase] = 1.0
+        flat[:, 29:32] = fs[:, sk.CORRECTION : sk.CORRECTION + 3]
+        flat[:, 32] = fs[:, sk.FEED_SCALE]
+        return pack_flat_observation(flat)
+
+    def _final_info(self, i: int) -> dict[str, Any]:
+        """Episode ``i``'s last info: the single env's privileged entries and its metrics."""
+        fs, ist = self.fs[i], self.ist[i]
+        sample = fs[sk.SAMPLE : sk.SAMPLE + 13]
+        failure = "force_limit" if ist[sk.FAILURE] else None
+        return {
+            "t_s": float(fs[sk.T_S]),
+            "phase": int(ist[sk.PHASE]),
+            "stage": int(sample[11]),
+            "depth_cmd_m": float(fs[sk.PATH_S]),
+            "tip_pos_task_m": sample[0:3].copy(),
+            "deviation_m": math.hypot(sample[0], sample[1]),
+            "force_true_n": sample[6:9].copy(),
+            "failure": failure,
+            "specimen_hardness": float(self.par[i, sk.FORCE_SCALE]),
+            "metrics": self.episode_metrics(i),
+            "metrics_truncated": bool(ist[sk.TRUNCATED]),
+        }
+
+    def records(self, i: int) -> _Record:
+        """Episode ``i``'s recorded channels so far (arrays, one row per F/T sample)."""
+        return _Record(self.record[i, : self.recorded[i]])
+
+    def episode_metrics(self, i: int) -> dict[str, float]:
+        """Episode ``i``'s metrics so far (:func:`drillgym.envs.metrics.episode_metrics`)."""
+        sc = self.scenario
+        nb = int(self.par[i, sk.N_BINS])
+        deepest, first = int(self.bins[i, 0]), int(self.bins[i, 1])
+        offset = math.nan
+        if deepest >= 0:  # Hole.centre_at
+            k = min(max(int(sc.entry_depth_m / self.par[i, sk.BIN_M]), first), deepest, nb - 1)
+            offset = math.hypot(self.centre[i, k, 0], self.centre[i, k, 1])
+        return episode_metrics(self.records(i), sc.entry_depth_m, sc.depth_m, offset, feed_phase=int(Phase.FEED))  # type: ignore[arg-type]

@@ -1,0 +1,238 @@
+"""The compiled step's arrays (:mod:`drillgym.envs.step_kernel`) for the env's state, and back.
+
+The single env keeps its state in Python objects (the cell, the path, the tip balance, the queue of
+commands), which unmodelled effects and the rest of the project read and change. Without effects its
+step runs :func:`~drillgym.envs.step_kernel.advance`: :class:`KernelState` copies the state in
+(:meth:`~KernelState.load`), the kernel advances it, and :meth:`~KernelState.store` copies it back, so
+every reader sees what the Python step would have left. The batched env builds the same arrays for N
+episodes (:mod:`drillgym.envs.batched`) with :func:`episode_params`, :func:`table_rows` and :func:`chains_of`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from drillgym.envs import step_kernel as sk
+from drillgym.envs.cell import SimCell, chains_of
+from drillgym.envs.constants import PHYSICS_DT_S, SUBSTEPS_PER_STEP, TRACKER_RATE_HZ
+from drillgym.envs.drilling.contact import ContactSample
+from drillgym.envs.drilling.force_model import EngagementTable
+from drillgym.envs.sensors import latest_sample_time_s
+from drillgym.envs.task import Phase
+
+UR5BoneDrillEnv = Any
+"""The env whose state the arrays hold (:class:`drillgym.envs.drill_env.UR5BoneDrillEnv`; not imported: it imports this module)."""
+
+__all__ = ["KernelState", "chains_of", "episode_params", "table_rows"]
+
+NOISE_SIZE = 6 * SUBSTEPS_PER_STEP + 3
+"""Standard normals a step may read: the F/T's (5x6), then the tracker's (3)."""
+
+
+def table_rows(table: EngagementTable, columns: int | None = None) -> np.ndarray:
+    """The force table as :data:`~drillgym.envs.step_kernel.TABLE_ROWS` rows (zero-padded to ``columns``)."""
+    n = table.depth_m.shape[0]
+    tab = np.zeros((sk.TABLE_ROWS, n if columns is None else columns))
+    tab[0, :n] = table.depth_m
+    tab[1:5, :n] = table.edge.T
+    tab[5:9, :n] = table.per_chip.T
+    tab[9, :n] = table.engaged_fraction
+    return tab
+
+
+def episode_params(
+    cell: SimCell,
+    latency_s: float,
+    force_limit_n: float,
+    max_time_s: float,
+    marker_start_base_m: np.ndarray,
+    s_start_m: float,
+    ft_noise_std: np.ndarray,
+    tracker_noise_m: float,
+) -> np.ndarray:
+    """An episode's constant parameters (:data:`~drillgym.envs.step_kernel.PARAM_SIZE`) for the cell as it is now."""
+    sc, solver, geo = cell.scenario, cell.solver, cell.geometry
+    par = np.zeros(sk.PARAM_SIZE)
+    par[sk.LATENCY_S] = latency_s
+    par[sk.SERVO_GAIN] = cell.servo_gain
+    par[sk.TAN_BETA] = solver.tan_beta
+    par[sk.K_LAT] = solver.k_lat_n
+    par[sk.GUIDANCE_EXPONENT] = solver.guidance_exponent
+    par[sk.WALL_FLOOR] = solver.wall_floor
+    par[sk.WALL_LENGTH] = solver.wall_length_m
+    par[sk.FORCE_SCALE] = solver.force_scale
+    par[sk.TRACKER_NOISE] = tracker_noise_m
+    par[sk.FORCE_LIMIT] = force_limit_n
+    par[sk.SENSOR_ARM] = cell.sensor_arm_m
+    par[sk.DEPTH] = sc.depth_m
+    par[sk.FEED_M_S] = sc.feed_m_s
+    par[sk.MAX_TIME_S] = max_time_s
+    par[sk.N_LIPS] = geo.n_lips
+    par[sk.REV_PER_S] = sc.spindle_rpm / 60.0
+    par[sk.SIN_KAPPA] = math.sin(geo.kappa_rad)
+    par[sk.R_BASE_TASK : sk.R_BASE_TASK + 9] = cell.R_base_task.ravel()
+    par[sk.ENTRY_BASE : sk.ENTRY_BASE + 3] = cell.entry_base_m
+    par[sk.C_TOOL : sk.C_TOOL + 9] = cell.C_tool.ravel()
+    par[sk.STIFFNESS : sk.STIFFNESS + 6] = cell.joints.stiffness_nm_rad
+    par[sk.MARKER_START : sk.MARKER_START + 3] = marker_start_base_m
+    par[sk.S_START] = s_start_m
+    par[sk.BOUNDS : sk.BOUNDS + 4] = solver._bounds
+    par[sk.FT_STD : sk.FT_STD + 6] = ft_noise_std
+    par[sk.N_GRID] = solver.grid.shape[0]
+    par[sk.N_BINS] = cell.hole.filled.shape[0]
+    par[sk.BIN_M] = cell.hole.bin_m
+    return par
+
+
+def tracker_sample_is_new(t_s: float, stamp_s: float) -> bool:
+    """Whether the step starting at ``t_s`` ends with a new tracker sample (the last one was at ``stamp_s``)."""
+    for _ in range(SUBSTEPS_PER_STEP):
+        t_s = t_s + PHYSICS_DT_S  # the kernel's sum, term by term
+    return latest_sample_time_s(t_s, TRACKER_RATE_HZ) != stamp_s
+
+
+PHASES = tuple(Phase)
+"""The path phases by code."""
+
+
+class KernelState:
+    """The compiled step's arrays for one env's episode (built at ``reset``, without effects).
+
+    The arrays hold the episode's state from the first step on; after each step :meth:`store` writes it into
+    the env's Python objects, which the observation, the info and every other reader use. Nothing in the
+    project changes those objects between steps; code that does so by hand must set
+    ``UR5BoneDrillEnv.use_compiled_step = False`` (the Python step reads them afresh every step).
+    """
+
+    def __init__(self, env: UR5BoneDrillEnv) -> None:
+        cell = env.cell
+        self.par = episode_params(
+            cell,
+            env.scenario.latency_s,
+            env.scenario.force_limit_n,
+            env.max_time_s,
+            env.marker_start_base,
+            env.s_start_m,
+            env.ft._noise_std,
+            env.tracker.noise_m,
+        )
+        self.tab = table_rows(cell.table)
+        self.chains = np.stack(chains_of(cell.kin))
+        self.rows = np.empty((cell.solver.grid.shape[0], 4))
+        self.fs = np.zeros(sk.FLOAT_STATE_SIZE)
+        self.fs[sk.KEY_CHIP] = math.nan
+        self.ist = np.zeros(sk.INT_STATE_SIZE, dtype=np.int64)
+        self.pend = np.zeros((sk.PENDING_ROWS, 5))
+        self.noise = np.zeros(NOISE_SIZE)
+        self.command = np.zeros(4)
+        self.loaded = False
+
+    def step(self, env: UR5BoneDrillEnv, correction_base_m: np.ndarray, feed_scale: float) -> np.ndarray:
+        """Advance ``env`` by one agent step of ``command``; the step's sample rows (5, ``OUT_COLUMNS``)."""
+        if not self.loaded:
+            self.load(env)
+        t_apply = env.t_s + env.scenario.latency_s  # as the kernel queues it
+        cmd = self.command
+        cmd[:3] = correction_base_m
+        cmd[3] = feed_scale
+        rng = env.np_random
+        if env.ft.noise_n > 0:
+            self.noise[: 6 * SUBSTEPS_PER_STEP] = rng.standard_normal((SUBSTEPS_PER_STEP, 6)).ravel()
+        if env.tracker.noise_m > 0 and tracker_sample_is_new(env.t_s, env.tracker_stamp):
+            self.noise[6 * SUBSTEPS_PER_STEP :] = rng.standard_normal(3)
+        out = np.empty((SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
+        hole = env.cell.hole
+        sk.advance(
+            self.fs,
+            self.ist,
+            self.pend,
+            self.par,
+            self.tab,
+            self.rows,
+            self.chains,
+            hole.centre_xy_m,
+            hole.filled,
+            hole.bins,
+            cmd,
+            self.noise,
+            out,
+        )
+        if self.ist[sk.SINGULAR]:
+            raise np.linalg.LinAlgError(f"singular TCP Jacobian at q = {env.cell.q_motor_rad.tolist()} rad")
+        env.pending.append((t_apply, correction_base_m, feed_scale))
+        self.store(env)
+        return out
+
+    def load(self, env: UR5BoneDrillEnv) -> None:
+        """Copy the env's state into the arrays (at the episode's first step)."""
+        fs, ist, cell, solver = self.fs, self.ist, env.cell, env.cell.solver
+        fs[sk.T_S] = env.t_s
+        fs[sk.PATH_S] = env.path.s_m
+        fs[sk.FEED_SCALE] = env.feed_scale
+        fs[sk.CORRECTION : sk.CORRECTION + 3] = env.correction_base_m
+        fs[sk.SOLVER : sk.SOLVER + 8] = [*solver.rigid, *solver.tip, solver.bottom_z, solver.depth_local]
+        fs[sk.RTDE_TCP : sk.RTDE_TCP + 3] = env.rtde_tcp_base
+        fs[sk.TRACKER_STAMP] = env.tracker_stamp
+        fs[sk.TRACKER_READING : sk.TRACKER_READING + 3] = env.tracker_reading
+        fs[sk.Q_MOTOR : sk.Q_MOTOR + 6] = cell.q_motor_rad
+        fs[sk.JACOBIAN : sk.JACOBIAN + 36] = cell.J_tcp.ravel()
+        fs[sk.C_ROBOT : sk.C_ROBOT + 9] = cell.C_robot.ravel()
+        self.par[sk.FORCE_SCALE] = solver.force_scale
+        ist[sk.PHASE] = int(env.path.phase)
+        ist[sk.TOUCHING] = 1 if solver.touching else 0
+        ist[sk.BRACKET] = solver._j
+        ist[sk.FAILURE] = 0 if env.failure is None else 1
+        ist[sk.STEPS] = env.steps
+        ist[sk.PENDING] = len(env.pending)
+        for k, (t_apply, corr, scale) in enumerate(env.pending):
+            self.pend[k, 0] = t_apply
+            self.pend[k, 1:4] = corr
+            self.pend[k, 4] = scale
+        self.loaded = True
+
+    def store(self, env: UR5BoneDrillEnv) -> None:
+        """Copy the arrays back into the env's state (its queue has the step's command appended already)."""
+        fs, cell, solver = self.fs, env.cell, env.cell.solver
+        v = fs.tolist()
+        i = self.ist.tolist()
+        env.t_s = v[sk.T_S]
+        env.path.s_m = v[sk.PATH_S]
+        env.path.phase = PHASES[i[sk.PHASE]]
+        env.feed_scale = v[sk.FEED_SCALE]
+        pending = env.pending
+        for _ in range(len(pending) - i[sk.PENDING]):  # the commands applied: the last one is in effect
+            env.correction_base_m = pending.popleft()[1]
+        o = sk.SOLVER
+        solver.rigid, solver.tip = v[o : o + 3], v[o + 3 : o + 6]
+        solver.bottom_z, solver.depth_local = v[o + 6], v[o + 7]
+        solver.touching, solver._j = i[sk.TOUCHING] == 1, i[sk.BRACKET]
+        solver.force, solver.torque = v[sk.SOLVER_FORCE : sk.SOLVER_FORCE + 3], v[sk.SOLVER_FORCE + 3]
+        o = sk.SAMPLE
+        cell.sample = ContactSample(
+            (v[o], v[o + 1], v[o + 2]),
+            (v[o + 3], v[o + 4], v[o + 5]),
+            (v[o + 6], v[o + 7], v[o + 8]),
+            v[o + 9],
+            v[o + 10],
+            int(v[o + 11]),
+            v[o + 12] == 1.0,
+        )
+        env.rtde_tcp_base = fs[sk.RTDE_TCP : sk.RTDE_TCP + 3].copy()
+        env.ft_last = fs[sk.FT_LAST : sk.FT_LAST + 6].copy()
+        env.ft_mean = fs[sk.FT_MEAN : sk.FT_MEAN + 6].copy()
+        env.tracker_stamp = v[sk.TRACKER_STAMP]
+        env.tracker_reading = fs[sk.TRACKER_READING : sk.TRACKER_READING + 3].copy()
+        env.tracker_error_base = fs[sk.TRACKER_ERROR : sk.TRACKER_ERROR + 3].copy()
+        env.tracker_lateral_m = v[sk.TRACKER_LATERAL]
+        env.step_deviation_m = v[sk.STEP_DEVIATION]
+        env.step_lateral_n = v[sk.STEP_LATERAL]
+        cell.q_motor_rad = fs[sk.Q_MOTOR : sk.Q_MOTOR + 6].copy()
+        cell.J_tcp = fs[sk.JACOBIAN : sk.JACOBIAN + 36].copy().reshape(6, 6)
+        cell.C_robot = fs[sk.C_ROBOT : sk.C_ROBOT + 9].copy().reshape(3, 3)
+        cell.C_total = cell.C_robot + cell.C_tool
+        if i[sk.FAILURE] and env.failure is None:
+            env.failure = "force_limit"
+        env.steps = i[sk.STEPS]

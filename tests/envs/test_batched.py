@@ -1,0 +1,110 @@
+"""The batched env (``envs/batched.py``) against N single envs on the same seeds, and its API.
+
+Episode ``i`` of ``reset(seed=s)`` must be the single env's ``reset(seed=s + i)``: every observation,
+reward and flag within ``TOLERANCE`` each step, the same metrics at the end; an ended slot restarts as
+the single env's ``reset()`` without a seed does.
+"""
+
+import numpy as np
+import pytest
+from bitwise import largest_difference
+
+from drillgym.envs.batched import BatchedDrillEnv
+from drillgym.envs.drill_env import UR5BoneDrillEnv
+
+TOLERANCE = 1e-12
+"""Largest relative difference allowed (see ``test_step_kernel.py``: the compiled step's last-bit rounding)."""
+
+
+def _actions(seed: int, n: int, num_envs: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(-0.4, 0.4, (n, num_envs, 4)).astype(np.float32)
+    a[..., 3] = np.repeat(rng.uniform(-0.5, 0.5, (n // 5 + 1, num_envs)), 5, axis=0)[:n]
+    return a
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"beta_deg": -15.0, "feed_mm_s": 1.0, "latency_s": 0.1}])
+def test_each_batched_episode_is_the_single_envs_episode_of_its_seed(kwargs):
+    num_envs, seed = 3, 20
+    batch = BatchedDrillEnv(num_envs, **kwargs)
+    singles = [UR5BoneDrillEnv(pybullet_world=False, **kwargs) for _ in range(num_envs)]
+    actions = _actions(1, 2000, num_envs)
+    try:
+        obs_b, _ = batch.reset(seed=seed)
+        for i, env in enumerate(singles):
+            obs_s, _ = env.reset(seed=seed + i)
+            assert largest_difference({k: v[i] for k, v in obs_b.items()}, obs_s)[0] == 0.0
+        episodes = np.zeros(num_envs, dtype=int)
+        for step in range(2000):
+            obs_b, reward_b, term_b, trunc_b, infos = batch.step(actions[step])
+            for i, env in enumerate(singles):
+                obs_s, reward_s, term_s, trunc_s, info_s = env.step(actions[step, i])
+                assert (term_s, trunc_s) == (term_b[i], trunc_b[i]), f"step {step}, episode {i}"
+                assert abs(reward_s - reward_b[i]) <= TOLERANCE * (abs(reward_s) + 1e-9)
+                seen = {k: v[i] for k, v in (infos["final_obs"] if term_s or trunc_s else obs_b).items()}
+                worst, where = largest_difference(seen, obs_s)
+                assert worst <= TOLERANCE, f"step {step}, episode {i}: {where} differs by {worst:.2e}"
+                if term_s or trunc_s:
+                    metrics_b = {k: v[i] for k, v in infos["final_info"]["metrics"].items() if not k.startswith("_")}
+                    worst, where = largest_difference(metrics_b, info_s["metrics"])
+                    assert worst <= TOLERANCE, f"episode {i} metrics: {where} differs by {worst:.2e}"
+                    episodes[i] += 1
+                    obs_s, _ = env.reset()  # what the batch's slot restarts as
+                    worst, _ = largest_difference({k: v[i] for k, v in obs_b.items()}, obs_s)
+                    assert worst <= TOLERANCE
+            if (episodes >= 2).all():
+                break
+        assert (episodes >= 2).all()
+    finally:
+        batch.close()
+        for env in singles:
+            env.close()
+
+
+def test_reset_takes_one_seed_per_episode():
+    batch = BatchedDrillEnv(2)
+    single = UR5BoneDrillEnv(pybullet_world=False)
+    try:
+        batch.reset(seed=[7, 3])
+        single.reset(seed=3)
+        assert batch.par[1, 7] == single.cell.specimen_hardness  # FORCE_SCALE: the specimen of seed 3
+        with pytest.raises(ValueError, match="2 episodes"):
+            batch.reset(seed=[1, 2, 3])
+    finally:
+        batch.close()
+        single.close()
+
+
+def test_observations_are_in_the_batched_observation_space():
+    batch = BatchedDrillEnv(4)
+    try:
+        obs, _ = batch.reset(seed=0)
+        assert batch.observation_space.contains(obs)
+        for _ in range(60):
+            obs, *_ = batch.step(batch.action_space.sample())
+        assert batch.observation_space.contains(obs)
+    finally:
+        batch.close()
+
+
+def test_bad_actions_and_arguments_are_rejected_with_the_state_unchanged():
+    with pytest.raises(ValueError, match="num_envs"):
+        BatchedDrillEnv(0)
+    batch = BatchedDrillEnv(2)
+    try:
+        with pytest.raises(RuntimeError, match="reset"):
+            batch.step(np.zeros((2, 4)))
+        batch.reset(seed=0)
+        before = (batch.fs.copy(), batch.ist.copy(), batch.record.copy())
+        bad = np.zeros((2, 4))
+        bad[1, 2] = np.nan
+        with pytest.raises(ValueError, match=r"episodes \[1\]"):
+            batch.step(bad)
+        with pytest.raises(ValueError, match="shape"):
+            batch.step(np.zeros((3, 4)))
+        after = (batch.fs, batch.ist, batch.record)
+        assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip(before, after, strict=True))
+        with pytest.raises(ValueError, match="options"):
+            batch.reset(options={"effects": []})
+    finally:
+        batch.close()
