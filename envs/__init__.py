@@ -1,7 +1,8 @@
 """drillgym environments: the simulated UR5 bone-drilling cell (and, later, the real one).
 
 ``gym.make("drillgym/UR5BoneDrill-v1", **scenario)`` builds the simulated cell; ``ENV_IDS`` lists every
-registered id.
+registered id. ``gym.make_vec(SIM_ENV_ID, num_envs=N, vectorization_mode="vector_entry_point", **scenario)``
+builds N episodes stepped in lock-step (:class:`drillgym.envs.batched.BatchedDrillEnv`).
 """
 
 from gymnasium.envs.registration import register, registry
@@ -20,6 +21,7 @@ if ENV_IDS[0] not in registry:
     register(
         id=ENV_IDS[0],
         entry_point="drillgym.envs.drill_env:UR5BoneDrillEnv",
+        vector_entry_point="drillgym.envs.batched:BatchedDrillEnv",
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 

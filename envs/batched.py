@@ -73,15 +73,21 @@ class BatchedDrillEnv(VectorEnv):
 
     Args:
         num_envs: episodes stepped together (>= 1).
+        max_episode_steps: truncate an episode after this many agent steps (default and upper bound: the
+            registration's 4000, which the env applies itself); ``gym.make_vec`` passes the registration's.
         **env_kwargs: the single env's arguments (scenario, ``cell_params``, ``bone_material``, reward
             weights); rendering is not available.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}  # noqa: RUF012
 
-    def __init__(self, num_envs: int, **env_kwargs: Any) -> None:
+    def __init__(self, num_envs: int, max_episode_steps: int | None = None, **env_kwargs: Any) -> None:
         if not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs={num_envs!r} must be an integer >= 1")
+        limit = MAX_EPISODE_STEPS if max_episode_steps is None else max_episode_steps
+        if not isinstance(limit, int) or not 1 <= limit <= MAX_EPISODE_STEPS:
+            raise ValueError(f"max_episode_steps={max_episode_steps!r} must be an integer in [1, {MAX_EPISODE_STEPS}]")
+        self.max_episode_steps = limit
         if env_kwargs.get("render_mode") is not None:
             raise ValueError("BatchedDrillEnv does not render; use UR5BoneDrillEnv(render_mode='rgb_array')")
         self.num_envs = num_envs
@@ -188,6 +194,9 @@ class BatchedDrillEnv(VectorEnv):
         reward = terms["deviation"] + terms["force"] + terms["smooth"] + terms["peak_force"]
         terminated = self.ist[:, sk.TERMINATED] == 1
         truncated = self.ist[:, sk.TRUNCATED] == 1
+        if self.max_episode_steps < MAX_EPISODE_STEPS:
+            truncated |= ~terminated & (self.ist[:, sk.STEPS] >= self.max_episode_steps)
+            self.ist[truncated, sk.TRUNCATED] = 1
         infos: dict[str, Any] = {
             "t_s": self.fs[:, sk.T_S].copy(),
             "phase": self.ist[:, sk.PHASE].copy(),

@@ -34,6 +34,12 @@ def compile_kernels() -> float:
     env.reset(seed=0)
     env.step(np.zeros(4, dtype=np.float32))
     env.close()
+    from drillgym.envs.batched import BatchedDrillEnv
+
+    batch = BatchedDrillEnv(1)
+    batch.reset(seed=0)
+    batch.step(np.zeros((1, 4), dtype=np.float32))
+    batch.close()
     return time.perf_counter() - t0
 
 

@@ -329,7 +329,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             self._effects_attached = self.effects is not None
             if self.effects is not None:
                 self.effects.attach(self)
-        self._kernel = KernelState(self) if self.effects is None and self.use_compiled_step else None
+        compiled = self.effects is None or self.effects.compiled
+        self._kernel = KernelState(self) if compiled and self.use_compiled_step else None
 
     def set_effects(self, effects: list[Effect] | tuple[Effect, ...] | None) -> None:
         """Switch unmodelled effects (:mod:`drillgym.envs.effects`) on from the next ``reset``; None or [] switches them off."""
@@ -359,7 +360,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if self.path.phase == Phase.DONE or self.failure is not None:
             raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
         corr, scale = scale_action(a)
-        if self._kernel is not None:
+        if self._kernel is not None:  # no effects, or only those the kernel reads at reset
             return self._advance_compiled(corr, scale)
         fx = self.effects
         delay_s = self.scenario.latency_s if fx is None else fx.command_delay_s(self, self.scenario.latency_s)

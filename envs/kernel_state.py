@@ -32,14 +32,15 @@ NOISE_SIZE = 6 * SUBSTEPS_PER_STEP + 3
 """Standard normals a step may read: the F/T's (5x6), then the tracker's (3)."""
 
 
-def table_rows(table: EngagementTable, columns: int | None = None) -> np.ndarray:
-    """The force table as :data:`~drillgym.envs.step_kernel.TABLE_ROWS` rows (zero-padded to ``columns``)."""
+def table_rows(table: EngagementTable, depth_profile: np.ndarray | None = None) -> np.ndarray:
+    """The force table as :data:`~drillgym.envs.step_kernel.TABLE_ROWS` rows, with the depth profile's factors."""
     n = table.depth_m.shape[0]
-    tab = np.zeros((sk.TABLE_ROWS, n if columns is None else columns))
+    tab = np.zeros((sk.TABLE_ROWS, n))
     tab[0, :n] = table.depth_m
     tab[1:5, :n] = table.edge.T
     tab[5:9, :n] = table.per_chip.T
     tab[9, :n] = table.engaged_fraction
+    tab[10, :n] = 1.0 if depth_profile is None else depth_profile
     return tab
 
 
@@ -109,6 +110,10 @@ class KernelState:
 
     def __init__(self, env: UR5BoneDrillEnv) -> None:
         cell = env.cell
+        if cell.geometry_offset_task_m is not None or cell.marker_offset_base_m is not None:
+            raise ValueError("the compiled step has no geometry or marker offset; step this env in Python")
+        if cell.solver.guidance_hook is not None:
+            raise ValueError("the compiled step has no guidance hook; step this env in Python")
         self.par = episode_params(
             cell,
             env.scenario.latency_s,
@@ -119,7 +124,7 @@ class KernelState:
             env.ft._noise_std,
             env.tracker.noise_m,
         )
-        self.tab = table_rows(cell.table)
+        self.tab = table_rows(cell.table, cell.solver.depth_profile)
         self.chains = np.stack(chains_of(cell.kin))
         self.rows = np.empty((cell.solver.grid.shape[0], 4))
         self.fs = np.zeros(sk.FLOAT_STATE_SIZE)

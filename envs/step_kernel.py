@@ -1,7 +1,7 @@
 """One agent step of the simulated cell, compiled (numba): the env's physics on plain arrays.
 
 :meth:`UR5BoneDrillEnv.advance <drillgym.envs.drill_env.UR5BoneDrillEnv.advance>` without unmodelled
-effects, in one call: the command queue (latency), the nominal path, the tip balance of the five F/T
+effects (or with only those that change the force table's depth profile), in one call: the command queue (latency), the nominal path, the tip balance of the five F/T
 samples (:func:`~drillgym.envs.drilling.contact_kernel.run_samples`), the F/T readings, the RTDE TCP,
 the arm's inverse kinematics and compliance, and the tracker. The single env calls :func:`advance`
 for its own state; the batched env (:mod:`drillgym.envs.batched`) calls :func:`advance_batch` for N
@@ -13,7 +13,7 @@ noise, then the tracker's when its sample is new), so a seeded episode reads the
 
 Layouts (index constants below): ``fs`` the float state, ``ist`` the integer state, ``pend`` the command
 queue (rows ``t_apply_s, correction_base_m (3), feed_scale``), ``par`` the episode's constant
-parameters, ``tab`` the force table (rows ``depth_m, edge (4), per_chip (4), engaged_fraction``, :data:`TABLE_ROWS`),
+parameters, ``tab`` the force table (rows ``depth_m, edge (4), per_chip (4), engaged_fraction, profile``, :data:`TABLE_ROWS`),
 ``out`` the step's five sample rows for the recorder (:data:`OUT_COLUMNS`).
 """
 
@@ -148,8 +148,9 @@ N_BINS = 59
 BIN_M = 60
 PARAM_SIZE = 61
 
-TABLE_ROWS = 10
-"""``tab`` rows (one column per grid depth): depth (m), edge forces (4), per-chip forces (4), engaged fraction."""
+TABLE_ROWS = 11
+"""``tab`` rows (one column per grid depth): depth (m), edge forces (4), per-chip forces (4), engaged fraction,
+the depth profile's factor on the forces (1 without one; :meth:`TipContactSolver.set_depth_profile`)."""
 OUT_COLUMNS = 16
 """``out`` columns: t_s, phase, stage, depth_cmd_m, deviation_m, tip_task_m (3), F/T force (3), F/T torque (3),
 tracker deviation (m), cutting (0/1)."""
@@ -218,7 +219,7 @@ def _prepare(
         fs[KEY_CHIP], fs[KEY_SCALE] = chip, scale
         for i in range(n):
             for c in range(4):
-                rows[i, c] = scale * (tab[1 + c, i] + chip * tab[5 + c, i])
+                rows[i, c] = scale * (tab[1 + c, i] + chip * tab[5 + c, i]) * tab[10, i]
     d = fs[SOLVER + 7]
     share = np.interp(d, tab[0, :n], tab[9, :n])
     g = share ** par[GUIDANCE_EXPONENT]

@@ -119,6 +119,9 @@ class Effect:
     channels_before_contact: ClassVar[frozenset[str]] = frozenset()
     """The groups it changes before the drill touches the bone (most effects act only through the cut)."""
     sensor_only: ClassVar[bool] = False
+    compiled: ClassVar[bool] = False
+    """True if the effect only changes what the compiled step reads at ``reset`` (the depth profile of the
+    cutting forces): an env with only such effects steps with :mod:`drillgym.envs.step_kernel`."""
     servo_offset_task_m: np.ndarray | None = None
 
     def __init__(self, **values: float) -> None:
@@ -172,6 +175,10 @@ class Effect:
         return None
 
 
+_STEP_HOOKS = ("command_delay_s", "begin_step", "delay_target", "sensor_wrenches")
+"""The hooks the env calls during a step (the compiled step calls none)."""
+
+
 def _overrides(effect: Effect, method: str) -> bool:
     return getattr(type(effect), method) is not getattr(Effect, method)
 
@@ -191,6 +198,8 @@ class EffectStack:
         self.target_hook: Callable[[float, tuple[float, float, float]], tuple[float, float, float]] | None = (
             self._delay_target if self._target else None
         )
+        self.compiled = all(type(e).compiled and not any(_overrides(e, h) for h in _STEP_HOOKS) for e in self.effects)
+        """Whether the compiled step can run these effects (each :attr:`Effect.compiled`, none with a step hook)."""
 
     def attach(self, env: EffectHost) -> None:
         """Attach every effect (the cell has just been cleared)."""

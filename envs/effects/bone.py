@@ -28,6 +28,7 @@ class DensityGradient(Effect):
         Param("gradient_per_m", -150.0, 150.0, 0.0, "hardness change per metre of depth (1/m; 100 = 10 %/mm)"),
     )
     channels = frozenset({"force", "torque", "tracker"})
+    compiled = True
 
     def attach(self, env: EffectHost) -> None:
         """Multiply the force table by the profile."""

@@ -108,3 +108,21 @@ def test_bad_actions_and_arguments_are_rejected_with_the_state_unchanged():
             batch.reset(options={"effects": []})
     finally:
         batch.close()
+
+
+def test_make_vec_builds_the_batched_env_and_truncates_at_its_step_limit():
+    import gymnasium as gym
+
+    from drillgym.envs import SIM_ENV_ID
+
+    batch = gym.make_vec(SIM_ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", max_episode_steps=30)
+    try:
+        assert isinstance(batch, BatchedDrillEnv)
+        batch.reset(seed=0)
+        for step in range(30):
+            _, _, terminated, truncated, infos = batch.step(np.zeros((2, 4)))
+            assert not terminated.any()
+            assert truncated.all() == (step == 29)
+        assert infos["final_info"]["metrics_truncated"].all()
+    finally:
+        batch.close()

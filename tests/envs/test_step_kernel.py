@@ -26,10 +26,11 @@ def _pair(kwargs: dict) -> tuple[gym.Env, gym.Env]:
     return compiled, python
 
 
-def _run(kwargs: dict, seed: int, actions: np.ndarray | None) -> int:
+def _run(kwargs: dict, seed: int, actions: np.ndarray | None, effects=None) -> int:
     compiled, python = _pair(kwargs)
     try:
-        out_c, out_p = compiled.reset(seed=seed), python.reset(seed=seed)
+        out_c = compiled.reset(seed=seed, options={"effects": effects() if effects else []})
+        out_p = python.reset(seed=seed, options={"effects": effects() if effects else []})
         assert compiled.unwrapped._kernel is not None
         assert python.unwrapped._kernel is None
         for step in range(4000):
@@ -81,11 +82,23 @@ def test_compiled_step_stops_at_the_force_limit_like_the_python_step():
     assert _run({"force_limit_n": 4.0}, 0, None) < 200
 
 
-def test_compiled_step_is_used_only_without_effects():
+def test_compiled_step_matches_the_python_step_with_a_density_gradient():
+    def effects():
+        return [EFFECTS["density_gradient"](offset=0.2, gradient_per_m=-60.0)]
+
+    assert _run({}, 7, _random_actions(8), effects) > 100
+
+
+def test_compiled_step_is_used_only_without_step_hooks():
     env = gym.make(ENV_ID)
     try:
         env.reset(seed=0, options={"effects": [EFFECTS["latency"](extra_latency_s=0.02)]})
         assert env.unwrapped._kernel is None
+        gradient = EFFECTS["density_gradient"](offset=0.1)
+        env.reset(seed=0, options={"effects": [gradient, EFFECTS["kinematic_offset"](dx_base_m=1e-4)]})
+        assert env.unwrapped._kernel is None
+        env.reset(seed=0, options={"effects": [gradient]})
+        assert env.unwrapped._kernel is not None
         env.reset(seed=0, options={"effects": []})
         assert env.unwrapped._kernel is not None
     finally:
