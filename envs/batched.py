@@ -22,6 +22,7 @@ Per step, ``infos`` holds ``t_s``, ``phase``, ``deviation_m`` (the true tip's, p
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -30,42 +31,15 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from drillgym.envs import step_kernel as sk
-from drillgym.envs.constants import (
-    ACTION_DIM,
-    CONTROL_DT_S,
-    FEED_OVERRIDE_LOG2_MAX,
-    MAX_CORRECTION_M,
-    MAX_EPISODE_STEPS,
-    PHYSICS_DT_S,
-    SUBSTEPS_PER_STEP,
-    TRACKER_RATE_HZ,
-)
+from drillgym.envs.cell import chains_of
+from drillgym.envs.constants import ACTION_DIM, CONTROL_DT_S, MAX_EPISODE_STEPS, SUBSTEPS_PER_STEP, scale_action
 from drillgym.envs.drill_env import UR5BoneDrillEnv
-from drillgym.envs.kernel_state import NOISE_SIZE, KernelState
+from drillgym.envs.drilling.hole import centre_at
+from drillgym.envs.kernel_state import NOISE_SIZE, draw_noise, record_channels, tracker_sample_is_new
 from drillgym.envs.metrics import episode_metrics
-from drillgym.envs.observation import OBS_SIZE, observation_space, pack_flat_observation
+from drillgym.envs.observation import observation_of, observation_space
+from drillgym.envs.reward import checked_action
 from drillgym.envs.task import Phase
-
-RECORD_NAMES = (
-    ("t_s", 0),
-    ("depth_cmd_m", 3),
-    ("deviation_m", 4),
-    ("tracker_deviation_m", 14),
-)
-"""Float recorder channels and their ``record`` column (:data:`~drillgym.envs.step_kernel.OUT_COLUMNS`)."""
-
-
-class _Record:
-    """One episode's recorded channels as arrays, the attributes :func:`episode_metrics` reads."""
-
-    def __init__(self, rows: np.ndarray) -> None:
-        for name, col in RECORD_NAMES:
-            setattr(self, name, rows[:, col])
-        self.phase: np.ndarray = rows[:, 1].astype(np.int64)
-        self.stage: np.ndarray = rows[:, 2].astype(np.int64)
-        self.ft_force_n = rows[:, 8:11]
-        self.ft_torque_nm = rows[:, 11:14]
-        self.tip_task_m = rows[:, 5:8]
 
 
 class BatchedDrillEnv(VectorEnv):
@@ -103,16 +77,19 @@ class BatchedDrillEnv(VectorEnv):
         grid = max(c.solver.grid.shape[0] for c in cells)
         bins = max(c.hole.filled.shape[0] for c in cells)
         steps = min(MAX_EPISODE_STEPS, math.ceil(first.max_time_s / CONTROL_DT_S) + 2)
-        self.fs = np.zeros((n, sk.FLOAT_STATE_SIZE))
-        self.ist = np.zeros((n, sk.INT_STATE_SIZE), dtype=np.int64)
-        self.pend = np.zeros((n, sk.PENDING_ROWS, 5))
-        self.par = np.zeros((n, sk.PARAM_SIZE))
-        self.tab = np.zeros((n, sk.TABLE_ROWS, grid))
-        self.rows = np.zeros((n, grid, 4))
-        self.chains = np.stack([KernelState(e).chains for e in self.envs])
-        self.centre = np.zeros((n, bins, 2))
-        self.filled = np.zeros((n, bins), dtype=bool)
-        self.bins = np.full((n, 2), -1, dtype=np.int64)
+        self.arrays = sk.KernelArrays(
+            fs=np.zeros((n, sk.FLOAT_STATE_SIZE)),
+            ist=np.zeros((n, sk.INT_STATE_SIZE), dtype=np.int64),
+            pend=np.zeros((n, sk.PENDING_ROWS, 5)),
+            par=np.zeros((n, sk.PARAM_SIZE)),
+            tab=np.zeros((n, sk.TABLE_ROWS, grid)),
+            rows=np.zeros((n, grid, 4)),
+            chains=np.stack([np.stack(chains_of(c.kin)) for c in cells]),
+            centre=np.zeros((n, bins, 2)),
+            filled=np.zeros((n, bins), dtype=bool),
+            bins=np.full((n, 2), -1, dtype=np.int64),
+        )
+        self.fs, self.ist, self.par = self.arrays.fs, self.arrays.ist, self.arrays.par
         self.command = np.zeros((n, 4))
         self.noise = np.zeros((n, NOISE_SIZE))
         self.record = np.zeros((n, steps * SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
@@ -129,13 +106,14 @@ class BatchedDrillEnv(VectorEnv):
         ks = env._kernel
         assert ks is not None
         ks.load(env)
-        self.fs[i], self.ist[i], self.pend[i] = ks.fs, ks.ist, ks.pend
-        self.par[i] = ks.par
-        self.tab[i] = 0.0
-        self.tab[i, :, : ks.tab.shape[1]] = ks.tab
-        hole = env.cell.hole
-        nb = hole.filled.shape[0]
-        self.centre[i, :nb], self.filled[i, :nb], self.bins[i] = hole.centre_xy_m, hole.filled, hole.bins
+        arrays = self.arrays
+        for name in ("fs", "ist", "pend", "par"):
+            getattr(arrays, name)[i] = getattr(ks.arrays, name)
+        for name in ("tab", "centre", "filled"):  # padded to the batch's largest
+            row = getattr(arrays, name)[i]
+            row[...] = 0
+            row[tuple(slice(0, m) for m in getattr(ks.arrays, name).shape)] = getattr(ks.arrays, name)
+        arrays.bins[i] = ks.arrays.bins
         self.recorded[i] = 0
         self.prev_action[i] = 0.0
         self.peak_lateral_n[i] = 0.0
@@ -163,34 +141,24 @@ class BatchedDrillEnv(VectorEnv):
         """One agent step of every episode (``actions``: (num_envs, 4) in [-1, 1]); ended episodes are reset."""
         if not self._ready:
             raise RuntimeError("step() before reset(); call reset() first")
-        a = self._checked(actions)
-        self.command[:, :3] = MAX_CORRECTION_M * a[:, :3]
-        self.command[:, 3] = 2.0 ** (FEED_OVERRIDE_LOG2_MAX * a[:, 3])
-        self._draw_noise()
-        active = np.ones(self.num_envs, dtype=bool)
-        sk.advance_batch(
-            active,
-            self.fs,
-            self.ist,
-            self.pend,
-            self.par,
-            self.tab,
-            self.rows,
-            self.chains,
-            self.centre,
-            self.filled,
-            self.bins,
-            self.command,
-            self.noise,
-            self.record,
-            self.recorded,
-        )
+        a = checked_action(actions, "state unchanged", self.num_envs)
+        correction, feed_scale = scale_action(a)
+        self.command[:, :3], self.command[:, 3] = correction, feed_scale
+        new_tracker = tracker_sample_is_new(self.fs[:, sk.T_S], self.fs[:, sk.TRACKER_STAMP])
+        for i, env in enumerate(self.envs):
+            draw_noise(env.np_random, self.noise[i], self.par[i], new_tracker[i])
+        sk.advance_batch(*self.arrays, self.command, self.noise, self.record, self.recorded)
         if self.ist[:, sk.SINGULAR].any():
             i = int(np.argmax(self.ist[:, sk.SINGULAR]))
             raise np.linalg.LinAlgError(
                 f"episode {i}: singular TCP Jacobian at q = {self.fs[i, sk.Q_MOTOR : sk.Q_MOTOR + 6]}"
             )
-        terms = self._reward_terms(a)
+        lateral = self.fs[:, sk.STEP_LATERAL]
+        terms = self.reward_weights.terms(
+            self.fs[:, sk.STEP_DEVIATION], lateral, a, self.prev_action, self.peak_lateral_n
+        )
+        np.maximum(self.peak_lateral_n, lateral, out=self.peak_lateral_n)
+        self.prev_action = a
         reward = terms["deviation"] + terms["force"] + terms["smooth"] + terms["peak_force"]
         terminated = self.ist[:, sk.TERMINATED] == 1
         truncated = self.ist[:, sk.TRUNCATED] == 1
@@ -226,68 +194,26 @@ class BatchedDrillEnv(VectorEnv):
             e.close()
 
     # ------------------------------------------------------------------ helpers
-    def _checked(self, actions: np.ndarray) -> np.ndarray:
-        a = np.asarray(actions, dtype=float)
-        if a.shape != (self.num_envs, ACTION_DIM):
-            raise ValueError(f"actions must have shape ({self.num_envs}, {ACTION_DIM}), got {np.shape(actions)}")
-        bad = ~np.isfinite(a).all(axis=1)
-        if bad.any():
-            raise ValueError(
-                f"actions of episodes {np.flatnonzero(bad).tolist()} contain NaN or inf; rejected (state unchanged)"
-            )
-        return np.minimum(np.maximum(a, -1.0), 1.0)
-
-    def _draw_noise(self) -> None:
-        """Each episode's standard normals from its own generator, in the single env's order."""
-        t = self.fs[:, sk.T_S].copy()
-        for _ in range(SUBSTEPS_PER_STEP):
-            t = t + PHYSICS_DT_S
-        stamp = np.floor(t * TRACKER_RATE_HZ + 1e-9) / TRACKER_RATE_HZ
-        new_tracker = stamp != self.fs[:, sk.TRACKER_STAMP]
-        nf = 6 * SUBSTEPS_PER_STEP
-        for i, env in enumerate(self.envs):
-            rng = env.np_random
-            if env.ft.noise_n > 0:
-                rng.standard_normal(out=self.noise[i, :nf])
-            if env.tracker.noise_m > 0 and new_tracker[i]:
-                rng.standard_normal(out=self.noise[i, nf:])
-
-    def _reward_terms(self, a: np.ndarray) -> dict[str, np.ndarray]:
-        """The single env's reward terms (:class:`~drillgym.envs.reward.RewardWeights`), per episode."""
-        w = self.reward_weights
-        lateral = self.fs[:, sk.STEP_LATERAL]
-        terms = {
-            "deviation": -w.deviation * self.fs[:, sk.STEP_DEVIATION] * 1e3,
-            "force": -w.force * lateral,
-            "smooth": -w.smooth * np.add.reduce((a - self.prev_action) ** 2, axis=1),
-            "peak_force": -w.peak_force * np.maximum(lateral - self.peak_lateral_n, 0.0),
-        }
-        np.maximum(self.peak_lateral_n, lateral, out=self.peak_lateral_n)
-        self.prev_action = a
-        return terms
-
     def _observation(self) -> dict[str, np.ndarray]:
         """The single env's observation (:meth:`UR5BoneDrillEnv._observation`) of every episode, batched."""
         fs, par = self.fs, self.par
-        flat = np.empty((self.num_envs, OBS_SIZE))
-        flat[:, 0:6] = fs[:, sk.FT_LAST : sk.FT_LAST + 6]
-        flat[:, 6:12] = fs[:, sk.FT_MEAN : sk.FT_MEAN + 6]
-        flat[:, 12:18] = fs[:, sk.Q_MOTOR : sk.Q_MOTOR + 6]
         s = fs[:, sk.PATH_S]
-        r = sk.R_BASE_TASK
-        for i in range(3):
-            nominal = par[:, sk.ENTRY_BASE + i] + par[:, r + 3 * i + 2] * s
-            flat[:, 18 + i] = fs[:, sk.RTDE_TCP + i] - nominal
+        r, e = sk.R_BASE_TASK, sk.ENTRY_BASE
+        nominal = par[:, e : e + 3] + par[:, [r + 2, r + 5, r + 8]] * s[:, None]  # entry + R_base_task · (0, 0, s)
         tracking = (self.recorded > 0) & self.scenario.tracker
-        flat[:, 21:24] = np.where(tracking[:, None], fs[:, sk.TRACKER_ERROR : sk.TRACKER_ERROR + 3], 0.0)
-        flat[:, 24] = 1.0 if self.scenario.tracker else 0.0
-        flat[:, 25] = s
-        flat[:, 26:29] = 0.0
-        phase = np.minimum(self.ist[:, sk.PHASE], 2)
-        flat[np.arange(self.num_envs), 26 + phase] = 1.0
-        flat[:, 29:32] = fs[:, sk.CORRECTION : sk.CORRECTION + 3]
-        flat[:, 32] = fs[:, sk.FEED_SCALE]
-        return pack_flat_observation(flat)
+        return observation_of(
+            fs[:, sk.FT_LAST : sk.FT_LAST + 6],
+            fs[:, sk.FT_MEAN : sk.FT_MEAN + 6],
+            fs[:, sk.Q_MOTOR : sk.Q_MOTOR + 6],
+            fs[:, sk.RTDE_TCP : sk.RTDE_TCP + 3] - nominal,
+            np.where(tracking[:, None], fs[:, sk.TRACKER_ERROR : sk.TRACKER_ERROR + 3], 0.0),
+            1.0 if self.scenario.tracker else 0.0,
+            s,
+            self.ist[:, sk.PHASE],
+            fs[:, sk.CORRECTION : sk.CORRECTION + 3],
+            fs[:, sk.FEED_SCALE],
+            self.num_envs,
+        )
 
     def _final_info(self, i: int) -> dict[str, Any]:
         """Episode ``i``'s last info: the single env's privileged entries and its metrics."""
@@ -308,17 +234,13 @@ class BatchedDrillEnv(VectorEnv):
             "metrics_truncated": bool(ist[sk.TRUNCATED]),
         }
 
-    def records(self, i: int) -> _Record:
-        """Episode ``i``'s recorded channels so far (arrays, one row per F/T sample)."""
-        return _Record(self.record[i, : self.recorded[i]])
+    def records(self, i: int) -> SimpleNamespace:
+        """Episode ``i``'s recorded channels so far: the recorder's (arrays, one row per F/T sample)."""
+        return SimpleNamespace(**record_channels(self.record[i, : self.recorded[i]]))
 
     def episode_metrics(self, i: int) -> dict[str, float]:
         """Episode ``i``'s metrics so far (:func:`drillgym.envs.metrics.episode_metrics`)."""
         sc = self.scenario
-        nb = int(self.par[i, sk.N_BINS])
-        deepest, first = int(self.bins[i, 0]), int(self.bins[i, 1])
-        offset = math.nan
-        if deepest >= 0:  # Hole.centre_at
-            k = min(max(int(sc.entry_depth_m / self.par[i, sk.BIN_M]), first), deepest, nb - 1)
-            offset = math.hypot(self.centre[i, k, 0], self.centre[i, k, 1])
+        centre = centre_at(self.arrays.centre[i], self.arrays.bins[i], self.par[i, sk.BIN_M], sc.entry_depth_m)
+        offset = math.hypot(centre[0], centre[1]) if centre is not None else math.nan
         return episode_metrics(self.records(i), sc.entry_depth_m, sc.depth_m, offset, feed_phase=int(Phase.FEED))  # type: ignore[arg-type]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 CONTROL_DT_S = 0.05
@@ -43,11 +45,15 @@ MAX_EPISODE_STEPS = 4000
 """Registration time limit in agent steps (200 s of simulated time)."""
 
 
-def scale_action(action: np.ndarray) -> tuple[np.ndarray, float]:
-    """Map a clipped action in [-1, 1]^4 to (tip correction in the base frame (m), feed scale (-))."""
-    correction_base_m = MAX_CORRECTION_M * np.asarray(action[:3], dtype=float)
-    feed_scale = float(2.0 ** (FEED_OVERRIDE_LOG2_MAX * float(action[3])))
-    return correction_base_m, feed_scale
+def scale_action(action: np.ndarray) -> tuple[np.ndarray, Any]:
+    """Map a clipped action in [-1, 1]^4 to (tip correction in the base frame (m), feed scale (-)).
+
+    One action gives a (3,) correction and a float; a batch (N, 4) gives (N, 3) corrections and (N,) scales.
+    """
+    a = np.asarray(action, dtype=float)
+    if a.ndim == 1:  # a float's power, as cheap as it gets in the single env's step
+        return MAX_CORRECTION_M * a[:3], float(2.0 ** (FEED_OVERRIDE_LOG2_MAX * float(a[3])))
+    return MAX_CORRECTION_M * a[:, :3], 2.0 ** (FEED_OVERRIDE_LOG2_MAX * a[:, 3])
 
 
 def unscale_action(correction_base_m: np.ndarray, feed_scale: float = 1.0) -> np.ndarray:

@@ -25,9 +25,9 @@ from drillgym.envs.constants import (
 from drillgym.envs.drilling.bone import BonePreset
 from drillgym.envs.drilling.contact import SampleRow
 from drillgym.envs.effects.base import Effect, EffectStack
-from drillgym.envs.kernel_state import KernelState
+from drillgym.envs.kernel_state import KernelState, record_channels
 from drillgym.envs.metrics import EpisodeRecorder, episode_metrics
-from drillgym.envs.observation import OBS_SIZE, observation_space, pack_flat_observation
+from drillgym.envs.observation import observation_of, observation_space
 from drillgym.envs.plan import DrillPlan
 from drillgym.envs.pybullet_world import PyBulletWorld
 from drillgym.envs.reward import RewardWeights, checked_action
@@ -206,7 +206,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": round(1.0 / CONTROL_DT_S)}  # noqa: RUF012
     use_compiled_step = True
-    """Without unmodelled effects, step with the compiled kernel (:mod:`drillgym.envs.step_kernel`) from the next
+    """Without unmodelled effects (or with only :attr:`Effect.compiled` ones), step with the compiled kernel (:mod:`drillgym.envs.step_kernel`) from the next
     ``reset``; False keeps the Python step (the same physics, equal to rounding: ``tests/envs/test_step_kernel.py``)."""
 
     def __init__(
@@ -410,18 +410,13 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def _advance_compiled(self, corr: np.ndarray, scale: float) -> tuple[bool, bool]:
         """:meth:`_advance` without effects, in one compiled call (:mod:`drillgym.envs.step_kernel`)."""
         assert self._kernel is not None
-        out = self._kernel.step(self, corr, scale)
+        out = record_channels(self._kernel.step(self, corr, scale))
         rec = self.recorder
-        cols = out.T.tolist()
-        rec.t_s.extend(cols[0])
-        rec.phase.extend([int(x) for x in cols[1]])
-        rec.stage.extend([int(x) for x in cols[2]])
-        rec.depth_cmd_m.extend(cols[3])
-        rec.deviation_m.extend(cols[4])
-        rec.tip_task_m.extend(zip(cols[5], cols[6], cols[7], strict=True))
-        rec.ft_force_n.extend(out[:, 8:11])
-        rec.ft_torque_nm.extend(out[:, 11:14])
-        rec.tracker_deviation_m.extend(cols[14])
+        for name in ("t_s", "phase", "stage", "depth_cmd_m", "deviation_m", "tracker_deviation_m"):
+            getattr(rec, name).extend(out[name].tolist())
+        rec.tip_task_m.extend(map(tuple, out["tip_task_m"].tolist()))
+        rec.ft_force_n.extend(out["ft_force_n"])
+        rec.ft_torque_nm.extend(out["ft_torque_nm"])
         ist = self._kernel.ist
         terminated, truncated = bool(ist[TERMINATED]), bool(ist[TRUNCATED])
         self.truncated = truncated
@@ -518,22 +513,19 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return self.cell.entry_base_m + self.cell.R_base_task @ np.array([0.0, 0.0, self.path.s_m])
 
     def _observation(self) -> dict[str, np.ndarray]:
-        flat = np.empty(OBS_SIZE)  # the entries of OBS_BOUNDS end to end
-        flat[0:6] = self.ft_last
-        flat[6:12] = self.ft_mean
-        flat[12:18] = self.cell.q_motor_rad
-        flat[18:21] = self.rtde_tcp_base - self._nominal_tcp_base()
-        if self.recorder.t_s and self.scenario.tracker:
-            flat[21:24] = self.tracker_error_base
-        else:
-            flat[21:24] = 0.0
-        flat[24] = 1.0 if self.scenario.tracker else 0.0
-        flat[25] = self.path.s_m
-        flat[26:29] = 0.0
-        flat[26 + min(int(self.path.phase), 2)] = 1.0
-        flat[29:32] = self.correction_base_m
-        flat[32] = self.feed_scale
-        return pack_flat_observation(flat)
+        tracking = bool(self.recorder.t_s) and self.scenario.tracker
+        return observation_of(
+            self.ft_last,
+            self.ft_mean,
+            self.cell.q_motor_rad,
+            self.rtde_tcp_base - self._nominal_tcp_base(),
+            self.tracker_error_base if tracking else 0.0,
+            1.0 if self.scenario.tracker else 0.0,
+            self.path.s_m,
+            int(self.path.phase),
+            self.correction_base_m,
+            self.feed_scale,
+        )
 
     def _info(self) -> dict[str, Any]:
         smp = self.cell.sample

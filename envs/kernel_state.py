@@ -5,7 +5,8 @@ commands), which unmodelled effects and the rest of the project read and change.
 step runs :func:`~drillgym.envs.step_kernel.advance`: :class:`KernelState` copies the state in
 (:meth:`~KernelState.load`), the kernel advances it, and :meth:`~KernelState.store` copies it back, so
 every reader sees what the Python step would have left. The batched env builds the same arrays for N
-episodes (:mod:`drillgym.envs.batched`) with :func:`episode_params`, :func:`table_rows` and :func:`chains_of`.
+episodes (:mod:`drillgym.envs.batched`) from each episode's :class:`KernelState`, and shares :func:`draw_noise`
+and :func:`record_channels` with it.
 """
 
 from __future__ import annotations
@@ -20,13 +21,11 @@ from drillgym.envs.cell import SimCell, chains_of
 from drillgym.envs.constants import PHYSICS_DT_S, SUBSTEPS_PER_STEP, TRACKER_RATE_HZ
 from drillgym.envs.drilling.contact import ContactSample
 from drillgym.envs.drilling.force_model import EngagementTable
-from drillgym.envs.sensors import latest_sample_time_s
 from drillgym.envs.task import Phase
 
 UR5BoneDrillEnv = Any
 """The env whose state the arrays hold (:class:`drillgym.envs.drill_env.UR5BoneDrillEnv`; not imported: it imports this module)."""
 
-__all__ = ["KernelState", "chains_of", "episode_params", "table_rows"]
 
 NOISE_SIZE = 6 * SUBSTEPS_PER_STEP + 3
 """Standard normals a step may read: the F/T's (5x6), then the tracker's (3)."""
@@ -88,11 +87,42 @@ def episode_params(
     return par
 
 
-def tracker_sample_is_new(t_s: float, stamp_s: float) -> bool:
-    """Whether the step starting at ``t_s`` ends with a new tracker sample (the last one was at ``stamp_s``)."""
+def tracker_sample_is_new(t_s: Any, stamp_s: Any) -> Any:
+    """Whether the step starting at ``t_s`` ends with a new tracker sample (the last one was at ``stamp_s``).
+
+    Floats or arrays of them (one per episode); the end time is the kernel's sum, term by term.
+    """
     for _ in range(SUBSTEPS_PER_STEP):
-        t_s = t_s + PHYSICS_DT_S  # the kernel's sum, term by term
-    return latest_sample_time_s(t_s, TRACKER_RATE_HZ) != stamp_s
+        t_s = t_s + PHYSICS_DT_S
+    return np.floor(t_s * TRACKER_RATE_HZ + 1e-9) / TRACKER_RATE_HZ != stamp_s  # sensors.latest_sample_time_s
+
+
+def draw_noise(rng: np.random.Generator, noise: np.ndarray, par: np.ndarray, tracker_new: bool) -> None:
+    """The step's standard normals into ``noise`` from the episode's generator, in the Python step's order.
+
+    The F/T's (5x6) if it is noisy, then the tracker's (3) if it is noisy and its sample is new (``par``:
+    the episode's parameters).
+    """
+    nf = 6 * SUBSTEPS_PER_STEP
+    if par[sk.FT_STD] > 0:
+        rng.standard_normal(out=noise[:nf])
+    if par[sk.TRACKER_NOISE] > 0 and tracker_new:
+        rng.standard_normal(out=noise[nf:])
+
+
+def record_channels(rows: np.ndarray) -> dict[str, np.ndarray]:
+    """The recorder's channels (:class:`~drillgym.envs.metrics.EpisodeRecorder`) in sample rows of the kernel's ``out``."""
+    return {
+        "t_s": rows[:, sk.OUT_T_S],
+        "phase": rows[:, sk.OUT_PHASE].astype(np.int64),
+        "stage": rows[:, sk.OUT_STAGE].astype(np.int64),
+        "depth_cmd_m": rows[:, sk.OUT_DEPTH_CMD],
+        "deviation_m": rows[:, sk.OUT_DEVIATION],
+        "tip_task_m": rows[:, sk.OUT_TIP : sk.OUT_TIP + 3],
+        "ft_force_n": rows[:, sk.OUT_FORCE : sk.OUT_FORCE + 3],
+        "ft_torque_nm": rows[:, sk.OUT_TORQUE : sk.OUT_TORQUE + 3],
+        "tracker_deviation_m": rows[:, sk.OUT_TRACKER_DEVIATION],
+    }
 
 
 PHASES = tuple(Phase)
@@ -114,23 +144,31 @@ class KernelState:
             raise ValueError("the compiled step has no geometry or marker offset; step this env in Python")
         if cell.solver.guidance_hook is not None:
             raise ValueError("the compiled step has no guidance hook; step this env in Python")
-        self.par = episode_params(
-            cell,
-            env.scenario.latency_s,
-            env.scenario.force_limit_n,
-            env.max_time_s,
-            env.marker_start_base,
-            env.s_start_m,
-            env.ft._noise_std,
-            env.tracker.noise_m,
+        hole = cell.hole
+        fs = np.zeros(sk.FLOAT_STATE_SIZE)
+        fs[sk.KEY_CHIP] = math.nan
+        self.arrays = sk.KernelArrays(
+            fs=fs,
+            ist=np.zeros(sk.INT_STATE_SIZE, dtype=np.int64),
+            pend=np.zeros((sk.PENDING_ROWS, 5)),
+            par=episode_params(
+                cell,
+                env.scenario.latency_s,
+                env.scenario.force_limit_n,
+                env.max_time_s,
+                env.marker_start_base,
+                env.s_start_m,
+                env.ft._noise_std,
+                env.tracker.noise_m,
+            ),
+            tab=table_rows(cell.table, cell.solver.depth_profile),
+            rows=np.empty((cell.solver.grid.shape[0], 4)),
+            chains=np.stack(chains_of(cell.kin)),
+            centre=hole.centre_xy_m,
+            filled=hole.filled,
+            bins=hole.bins,
         )
-        self.tab = table_rows(cell.table, cell.solver.depth_profile)
-        self.chains = np.stack(chains_of(cell.kin))
-        self.rows = np.empty((cell.solver.grid.shape[0], 4))
-        self.fs = np.zeros(sk.FLOAT_STATE_SIZE)
-        self.fs[sk.KEY_CHIP] = math.nan
-        self.ist = np.zeros(sk.INT_STATE_SIZE, dtype=np.int64)
-        self.pend = np.zeros((sk.PENDING_ROWS, 5))
+        self.fs, self.ist, self.pend, self.par = fs, self.arrays.ist, self.arrays.pend, self.arrays.par
         self.noise = np.zeros(NOISE_SIZE)
         self.command = np.zeros(4)
         self.loaded = False
@@ -143,28 +181,9 @@ class KernelState:
         cmd = self.command
         cmd[:3] = correction_base_m
         cmd[3] = feed_scale
-        rng = env.np_random
-        if env.ft.noise_n > 0:
-            self.noise[: 6 * SUBSTEPS_PER_STEP] = rng.standard_normal((SUBSTEPS_PER_STEP, 6)).ravel()
-        if env.tracker.noise_m > 0 and tracker_sample_is_new(env.t_s, env.tracker_stamp):
-            self.noise[6 * SUBSTEPS_PER_STEP :] = rng.standard_normal(3)
+        draw_noise(env.np_random, self.noise, self.par, tracker_sample_is_new(env.t_s, env.tracker_stamp))
         out = np.empty((SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
-        hole = env.cell.hole
-        sk.advance(
-            self.fs,
-            self.ist,
-            self.pend,
-            self.par,
-            self.tab,
-            self.rows,
-            self.chains,
-            hole.centre_xy_m,
-            hole.filled,
-            hole.bins,
-            cmd,
-            self.noise,
-            out,
-        )
+        sk.advance(*self.arrays, cmd, self.noise, out)
         if self.ist[sk.SINGULAR]:
             raise np.linalg.LinAlgError(f"singular TCP Jacobian at q = {env.cell.q_motor_rad.tolist()} rad")
         env.pending.append((t_apply, correction_base_m, feed_scale))
@@ -214,8 +233,8 @@ class KernelState:
         solver.rigid, solver.tip = v[o : o + 3], v[o + 3 : o + 6]
         solver.bottom_z, solver.depth_local = v[o + 6], v[o + 7]
         solver.touching, solver._j = i[sk.TOUCHING] == 1, i[sk.BRACKET]
-        solver.force, solver.torque = v[sk.SOLVER_FORCE : sk.SOLVER_FORCE + 3], v[sk.SOLVER_FORCE + 3]
         o = sk.SAMPLE
+        solver.force, solver.torque = v[o + 6 : o + 9], v[o + 9]
         cell.sample = ContactSample(
             (v[o], v[o + 1], v[o + 2]),
             (v[o + 3], v[o + 4], v[o + 5]),

@@ -50,6 +50,42 @@ def pack_observation(values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return pack_flat_observation(np.concatenate([np.ravel(values[k]) for k in _KEYS]))
 
 
+def observation_of(
+    ft_wrench: np.ndarray,
+    ft_wrench_mean: np.ndarray,
+    q_rad: np.ndarray,
+    tcp_error_base_m: np.ndarray,
+    tracker_error_base_m: np.ndarray | float,
+    tracker_valid: float,
+    path_depth_m: float | np.ndarray,
+    phase: int | np.ndarray,
+    correction_base_m: np.ndarray,
+    feed_scale: float | np.ndarray,
+    num_envs: int | None = None,
+) -> dict[str, np.ndarray]:
+    """The packed observation from its entries (:data:`OBS_BOUNDS`; ``phase`` the path phase's code, one-hot here).
+
+    One episode (``num_envs`` None): floats and (k,) arrays. A batch of ``num_envs``: ``path_depth_m``, ``phase``
+    and ``feed_scale`` of shape (N,), the others (N, k) (or broadcastable); every returned array has N rows.
+    """
+    flat = np.empty(OBS_SIZE if num_envs is None else (num_envs, OBS_SIZE))  # OBS_BOUNDS' entries end to end
+    flat[..., 0:6] = ft_wrench
+    flat[..., 6:12] = ft_wrench_mean
+    flat[..., 12:18] = q_rad
+    flat[..., 18:21] = tcp_error_base_m
+    flat[..., 21:24] = tracker_error_base_m
+    flat[..., 24] = tracker_valid
+    flat[..., 25] = path_depth_m
+    flat[..., 26:29] = 0.0  # one-hot: approach, feed, retract (or done)
+    if num_envs is None:
+        flat[26 + min(int(phase), 2)] = 1.0
+    else:
+        flat[np.arange(num_envs), 26 + np.minimum(phase, 2)] = 1.0
+    flat[..., 29:32] = correction_base_m
+    flat[..., 32] = feed_scale
+    return pack_flat_observation(flat)
+
+
 def pack_flat_observation(flat: np.ndarray) -> dict[str, np.ndarray]:
     """:func:`pack_observation` of the entries already laid end to end (float64, :data:`OBS_BOUNDS` order).
 

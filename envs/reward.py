@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -43,27 +44,41 @@ class RewardWeights:
             object.__setattr__(self, name, float(value))
 
     def terms(
-        self, deviation_m: float, lateral_force_n: float, action: np.ndarray, prev_action: np.ndarray, peak_n: float
-    ) -> dict[str, float]:
-        """The step's reward terms (``info["reward_terms"]``); ``peak_n`` is the running peak before this step (N)."""
+        self, deviation_m: Any, lateral_force_n: Any, action: np.ndarray, prev_action: np.ndarray, peak_n: Any
+    ) -> dict[str, Any]:
+        """The step's reward terms (``info["reward_terms"]``); ``peak_n`` is the running peak before this step (N).
+
+        Floats for one episode; for a batch (``action`` of shape (N, 4), the others of shape (N,)), arrays
+        with one entry per episode.
+        """
+        if action.ndim == 1:
+            change = float(np.add.reduce((action - prev_action) ** 2))  # np.sum's reduction
+            rise = max(lateral_force_n - peak_n, 0.0)
+        else:
+            change = np.add.reduce((action - prev_action) ** 2, axis=1)
+            rise = np.maximum(lateral_force_n - peak_n, 0.0)
         return {
             "deviation": -self.deviation * deviation_m * 1e3,
             "force": -self.force * lateral_force_n,
-            "smooth": -self.smooth * float(np.add.reduce((action - prev_action) ** 2)),  # np.sum's reduction
-            "peak_force": -self.peak_force * max(lateral_force_n - peak_n, 0.0),
+            "smooth": -self.smooth * change,
+            "peak_force": -self.peak_force * rise,
         }
 
 
-def checked_action(action: np.ndarray, consequence: str) -> np.ndarray:
+def checked_action(action: np.ndarray, consequence: str, num_envs: int | None = None) -> np.ndarray:
     """``action`` as a float array clipped to [-1, 1]; ``ValueError`` naming ``consequence`` if its shape or values are bad.
 
     Args:
-        action: the agent's action (:data:`drillgym.envs.constants.ACTION_DIM` entries).
+        action: the agent's action (:data:`drillgym.envs.constants.ACTION_DIM` entries), or one per episode of a
+            batch of ``num_envs`` (shape (num_envs, ACTION_DIM)).
         consequence: what the env did about a bad action, e.g. ``"env state unchanged"`` or ``"nothing sent"``.
+        num_envs: None for one action; the batch size otherwise (the error then names the bad episodes).
     """
     a = np.asarray(action, dtype=float)
-    if a.shape != (ACTION_DIM,):
-        raise ValueError(f"action must have shape ({ACTION_DIM},), got {np.shape(action)}")
+    shape = (ACTION_DIM,) if num_envs is None else (num_envs, ACTION_DIM)
+    if a.shape != shape:
+        raise ValueError(f"action must have shape {shape}, got {np.shape(action)}")
     if not np.isfinite(a).all():
-        raise ValueError(f"action={a.tolist()} contains NaN or inf; rejected ({consequence})")
+        where = "" if num_envs is None else f" in episodes {np.flatnonzero(~np.isfinite(a).all(axis=1)).tolist()}"
+        raise ValueError(f"action={a.tolist()} contains NaN or inf{where}; rejected ({consequence})")
     return np.minimum(np.maximum(a, -1.0), 1.0)  # np.clip(a, -1, 1), without its Python wrapper

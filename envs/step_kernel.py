@@ -1,8 +1,8 @@
 """One agent step of the simulated cell, compiled (numba): the env's physics on plain arrays.
 
 :meth:`UR5BoneDrillEnv.advance <drillgym.envs.drill_env.UR5BoneDrillEnv.advance>` without unmodelled
-effects (or with only those that change the force table's depth profile), in one call: the command queue (latency), the nominal path, the tip balance of the five F/T
-samples (:func:`~drillgym.envs.drilling.contact_kernel.run_samples`), the F/T readings, the RTDE TCP,
+effects (or with only those that change the force table's depth profile), in one call: the command queue
+(latency), the nominal path, the tip balance of the five F/T samples (:func:`~drillgym.envs.drilling.contact_kernel.run_samples`), the F/T readings, the RTDE TCP,
 the arm's inverse kinematics and compliance, and the tracker. The single env calls :func:`advance`
 for its own state; the batched env (:mod:`drillgym.envs.batched`) calls :func:`advance_batch` for N
 episodes at once. The physics is documented where the Python objects hold it (:mod:`drillgym.envs.cell`,
@@ -11,15 +11,18 @@ episodes at once. The physics is documented where the Python objects hold it (:m
 The randomness is drawn outside, by the episode's own generator, in the order the env draws it (the F/T
 noise, then the tracker's when its sample is new), so a seeded episode reads the same noise either way.
 
-Layouts (index constants below): ``fs`` the float state, ``ist`` the integer state, ``pend`` the command
-queue (rows ``t_apply_s, correction_base_m (3), feed_scale``), ``par`` the episode's constant
-parameters, ``tab`` the force table (rows ``depth_m, edge (4), per_chip (4), engaged_fraction, profile``, :data:`TABLE_ROWS`),
-``out`` the step's five sample rows for the recorder (:data:`OUT_COLUMNS`).
+An episode's arrays travel together as :class:`KernelArrays` (index constants below): ``fs`` the float
+state, ``ist`` the integer state, ``pend`` the command queue (rows ``t_apply_s, correction_base_m (3),
+feed_scale``), ``par`` the episode's constant parameters, ``tab`` the force table (:data:`TABLE_ROWS`),
+``rows`` the cutting forces for the chip in effect, ``chains`` the TCP's and the tracker marker's packed
+chains, and the hole (``centre``, ``filled``, ``bins``). ``out`` takes the step's five sample rows for the
+recorder (:data:`OUT_COLUMNS`).
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -81,9 +84,7 @@ C_ROBOT = 83
 """Arm compliance at the TCP (9, row-major 3x3, m/N, task axes)."""
 SAMPLE = 92
 """The latest sample's row (13, :data:`~drillgym.envs.drilling.contact_kernel.ROW_SIZE`)."""
-SOLVER_FORCE = 105
-"""Tip-balance force of the latest sample (3, N, task axes) and its torque about the axis (N·m)."""
-FLOAT_STATE_SIZE = 109
+FLOAT_STATE_SIZE = 105
 
 # ---------------------------------------------------------------- integer state ``ist``
 PHASE = 0
@@ -151,9 +152,34 @@ PARAM_SIZE = 61
 TABLE_ROWS = 11
 """``tab`` rows (one column per grid depth): depth (m), edge forces (4), per-chip forces (4), engaged fraction,
 the depth profile's factor on the forces (1 without one; :meth:`TipContactSolver.set_depth_profile`)."""
+OUT_T_S, OUT_PHASE, OUT_STAGE, OUT_DEPTH_CMD, OUT_DEVIATION = 0, 1, 2, 3, 4
+"""``out`` columns: the sample's time (s), path phase, stage, commanded depth (m), true tip deviation (m)."""
+OUT_TIP = 5
+"""True tip position (3, m, task frame)."""
+OUT_FORCE = 8
+"""F/T force reading (3, N, sensor frame); the torque reading (3, N·m) follows."""
+OUT_TORQUE = 11
+OUT_TRACKER_DEVIATION = 14
+"""Lateral tracker error (m)."""
+OUT_CUTTING = 15
+"""1 if the drill cut at the sample."""
 OUT_COLUMNS = 16
-"""``out`` columns: t_s, phase, stage, depth_cmd_m, deviation_m, tip_task_m (3), F/T force (3), F/T torque (3),
-tracker deviation (m), cutting (0/1)."""
+
+
+class KernelArrays(NamedTuple):
+    """One episode's arrays (or N episodes', each with the episode as first axis), in the kernels' argument order."""
+
+    fs: np.ndarray
+    ist: np.ndarray
+    pend: np.ndarray
+    par: np.ndarray
+    tab: np.ndarray
+    rows: np.ndarray
+    chains: np.ndarray
+    centre: np.ndarray
+    filled: np.ndarray
+    bins: np.ndarray
+
 
 APPROACH, FEED, RETRACT, DONE = 0, 1, 2, 3
 
@@ -309,11 +335,13 @@ def advance(  # noqa: C901 (one step, in the env's order)
     noise: np.ndarray,
     out: np.ndarray,
 ) -> None:  # pragma: no cover (compiled)
-    """One agent step of physics for ``command`` (correction base m (3), feed scale), in place.
+    """One agent step of an episode's arrays (:class:`KernelArrays`, in order) for ``command``, in place.
 
-    ``noise``: standard normals, the F/T's (5x6, row-major) then the tracker's (3, read when its sample is
-    new); ``chains``: the TCP's and the tracker marker's packed chains (2, L). Sets ``ist[TERMINATED]``,
-    ``ist[TRUNCATED]`` and, on a singular Jacobian, ``ist[SINGULAR]`` (the state is then not advanced further).
+    ``command``: the correction (3, m, base frame) and the feed scale; ``noise``: standard normals, the F/T's
+    (5x6, row-major) then the tracker's (3, read when its sample is new). Sets ``ist[TERMINATED]``,
+    ``ist[TRUNCATED]`` and, on a singular Jacobian, ``ist[SINGULAR]`` (the state is then not advanced
+    further). Called as ``advance(*arrays, command, noise, out)``: numba types a tuple of arrays far more
+    slowly than the arrays themselves.
     """
     # queue the command; it applies after the latency
     npend = ist[PENDING]
@@ -356,16 +384,14 @@ def advance(  # noqa: C901 (one step, in the env's order)
         if t_s <= rtde_time < t_next:
             rtde_k = k
         targets[k, 0], targets[k, 1], targets[k, 2] = cx, cy, cz + s
-        out[k, 0] = t_next
-        out[k, 1] = phase
-        out[k, 3] = s
+        out[k, OUT_T_S] = t_next
+        out[k, OUT_PHASE] = phase
+        out[k, OUT_DEPTH_CMD] = s
         t_s = t_next
     if n > done:
         smp[done:n] = _solve(fs, ist, par, tab, frows, k_guided, c_total, targets[done:n], hole_c, hole_f, bins)
     fs[T_S] = t_s
     fs[SAMPLE : SAMPLE + 13] = smp[n - 1]
-    fs[SOLVER_FORCE : SOLVER_FORCE + 3] = smp[n - 1, 6:9]
-    fs[SOLVER_FORCE + 3] = smp[n - 1, 9]
     o = R_BASE_TASK
     if rtde_k >= 0:  # the RTDE sample saw the servo-held tip before sample rtde_k
         src = smp[rtde_k - 1] if rtde_k > 0 else smp[n - 1]
@@ -385,15 +411,16 @@ def advance(  # noqa: C901 (one step, in the env's order)
         for c in range(6):
             v = w[c] + par[FT_STD + c] * noise[6 * k + c] if par[FT_STD] > 0.0 else w[c]
             v = np.rint(v / FT_RESOLUTION[c]) * FT_RESOLUTION[c]
-            out[k, 8 + c] = v
+            out[k, OUT_FORCE + c] = v  # the force, then the torque (OUT_TORQUE)
             mean[c] = v if k == 0 else mean[c] + v
-        if math.sqrt(out[k, 8] ** 2 + out[k, 9] ** 2 + out[k, 10] ** 2) > par[FORCE_LIMIT]:
+        f = OUT_FORCE
+        if math.sqrt(out[k, f] ** 2 + out[k, f + 1] ** 2 + out[k, f + 2] ** 2) > par[FORCE_LIMIT]:
             over = True
         dev = math.hypot(smp[k, 0], smp[k, 1])
-        out[k, 2] = smp[k, 11]
-        out[k, 4] = dev
-        out[k, 5], out[k, 6], out[k, 7] = smp[k, 0], smp[k, 1], smp[k, 2]
-        out[k, 15] = smp[k, 12]
+        out[k, OUT_STAGE] = smp[k, 11]
+        out[k, OUT_DEVIATION] = dev
+        out[k, OUT_TIP : OUT_TIP + 3] = smp[k, 0:3]
+        out[k, OUT_CUTTING] = smp[k, 12]
         dev_sum += dev
         lat_sum += math.hypot(f0, f1)
     if over:
@@ -404,7 +431,7 @@ def advance(  # noqa: C901 (one step, in the env's order)
                 par[o + 3 * i] * smp[n - 1, 3] + par[o + 3 * i + 1] * smp[n - 1, 4] + par[o + 3 * i + 2] * smp[n - 1, 5]
             )
     for c in range(6):
-        fs[FT_LAST + c] = out[n - 1, 8 + c]
+        fs[FT_LAST + c] = out[n - 1, OUT_FORCE + c]
         fs[FT_MEAN + c] = mean[c] / n
     # the arm follows the servo target: one Newton step of IK, then J and the compliance at the new angles
     r_task = par[o : o + 9].reshape((3, 3))
@@ -433,14 +460,14 @@ def advance(  # noqa: C901 (one step, in the env's order)
             fs[TRACKER_READING + i] = noisy
     along = fs[PATH_S] - par[S_START]
     for i in range(3):
-        planned = par[MARKER_START + i] + (par[o + 3 * i] * 0.0 + par[o + 3 * i + 1] * 0.0 + par[o + 3 * i + 2] * along)
+        planned = par[MARKER_START + i] + par[o + 3 * i + 2] * along  # + R_base_task · (0, 0, along)
         fs[TRACKER_ERROR + i] = fs[TRACKER_READING + i] - planned
     e0, e1, e2 = fs[TRACKER_ERROR], fs[TRACKER_ERROR + 1], fs[TRACKER_ERROR + 2]
     lat0 = par[o] * e0 + par[o + 3] * e1 + par[o + 6] * e2
     lat1 = par[o + 1] * e0 + par[o + 4] * e1 + par[o + 7] * e2
     fs[TRACKER_LATERAL] = math.hypot(lat0, lat1)
     for k in range(n):
-        out[k, 14] = fs[TRACKER_LATERAL]
+        out[k, OUT_TRACKER_DEVIATION] = fs[TRACKER_LATERAL]
     fs[STEP_DEVIATION] = dev_sum / n
     fs[STEP_LATERAL] = lat_sum / n
     terminated = ist[PHASE] == DONE or ist[FAILURE] == 1
@@ -452,7 +479,6 @@ def advance(  # noqa: C901 (one step, in the env's order)
 
 @numba.njit(cache=True)
 def advance_batch(
-    active: np.ndarray,
     fs: np.ndarray,
     ist: np.ndarray,
     pend: np.ndarray,
@@ -468,29 +494,16 @@ def advance_batch(
     record: np.ndarray,
     recorded: np.ndarray,
 ) -> None:  # pragma: no cover (compiled)
-    """:func:`advance` for each episode ``i`` with ``active[i]``; every array has the episode as first axis.
+    """:func:`advance` for every episode of N episodes' arrays (each with the episode as first axis).
 
     The step's rows go to ``record[i]`` from row ``recorded[i]`` on, which advances by five (the caller
     sizes ``record`` for the longest episode).
     """
     n = SUBSTEPS_PER_STEP
-    for i in range(active.shape[0]):
-        if active[i]:
-            k = recorded[i]
-            out = record[i, k : k + n]
-            advance(
-                fs[i],
-                ist[i],
-                pend[i],
-                par[i],
-                tab[i],
-                rows[i],
-                chains[i],
-                centre[i],
-                filled[i],
-                bins[i],
-                command[i],
-                noise[i],
-                out,
-            )
-            recorded[i] = k + n
+    for i in range(fs.shape[0]):
+        k = recorded[i]
+        advance(
+            fs[i], ist[i], pend[i], par[i], tab[i], rows[i], chains[i], centre[i], filled[i], bins[i],
+            command[i], noise[i], record[i, k : k + n],
+        )  # fmt: skip
+        recorded[i] = k + n

@@ -30,6 +30,18 @@ def cut(
     bins[0] = k
 
 
+def centre_at(centre_xy: np.ndarray, bins: np.ndarray, bin_m: float, depth_m: float) -> np.ndarray | None:
+    """A hole's centreline (m, task xy) at ``depth_m``, the first cut point above it; None before any cut.
+
+    The arrays are :class:`Hole`'s (``bins``: ``[deepest_bin, first_bin]``), or a batched env's episode's.
+    """
+    deepest, first = int(bins[0]), int(bins[1])
+    if deepest < 0:
+        return None
+    k = min(max(int(depth_m / bin_m), first), deepest)
+    return centre_xy[k]
+
+
 class Hole:
     """Centreline of the hole cut so far, sampled along the planned axis.
 
@@ -69,11 +81,7 @@ class Hole:
 
     def centre_at(self, depth_m: float) -> np.ndarray | None:
         """Centreline (m, task xy) at ``depth_m``; the first cut point above it; None before any cut."""
-        if self.deepest_bin < 0:
-            return None
-        k = int(depth_m / self.bin_m)
-        k = min(max(k, self.first_bin), self.deepest_bin)
-        return self.centre_xy_m[k]
+        return centre_at(self.centre_xy_m, self.bins, self.bin_m, depth_m)
 
     def centre_below(self, depth_m: float) -> np.ndarray | None:
         """Centreline (m, task xy) at ``depth_m`` if the hole reaches that deep past its first cut, else None."""
