@@ -340,8 +340,8 @@ def advance(  # noqa: C901 (one step, in the env's order)
     ``command``: the correction (3, m, base frame) and the feed scale; ``noise``: standard normals, the F/T's
     (5x6, row-major) then the tracker's (3, read when its sample is new). Sets ``ist[TERMINATED]``,
     ``ist[TRUNCATED]`` and, on a singular Jacobian, ``ist[SINGULAR]`` (the state is then not advanced
-    further). Called as ``advance(*arrays, command, noise, out)``: numba types a tuple of arrays far more
-    slowly than the arrays themselves.
+    further). Called as ``advance(*arrays, command, noise, out)``: handing numba the ten arrays one by one
+    costs 0.7 µs per call, the :class:`KernelArrays` tuple itself 1.6 µs (a trivial kernel of each form).
     """
     # queue the command; it applies after the latency
     npend = ist[PENDING]
