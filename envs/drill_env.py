@@ -360,7 +360,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if self.path.phase == Phase.DONE or self.failure is not None:
             raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
         corr, scale = scale_action(a)
-        if self._kernel is not None:  # no effects, or only those the kernel reads at reset
+        if self._kernel is not None:  # no effects, or only compiled ones (Effect.compiled)
             return self._advance_compiled(corr, scale)
         fx = self.effects
         delay_s = self.scenario.latency_s if fx is None else fx.command_delay_s(self, self.scenario.latency_s)

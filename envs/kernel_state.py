@@ -1,8 +1,9 @@
 """The compiled step's arrays (:mod:`drillgym.envs.step_kernel`) for the env's state, and back.
 
 The single env keeps its state in Python objects (the cell, the path, the tip balance, the queue of
-commands), which unmodelled effects and the rest of the project read and change. Without effects its
-step runs :func:`~drillgym.envs.step_kernel.advance`: :class:`KernelState` copies the state in
+commands), which unmodelled effects and the rest of the project read and change. Without effects, or
+with only compiled ones (:attr:`Effect.compiled <drillgym.envs.effects.base.Effect.compiled>`; their
+parameters go into the episode's ``par``, :data:`STEP_EFFECTS` for those with a step hook), its step runs :func:`~drillgym.envs.step_kernel.advance`: :class:`KernelState` copies the state in
 (:meth:`~KernelState.load`), the kernel advances it, and :meth:`~KernelState.store` copies it back, so
 every reader sees what the Python step would have left. The batched env builds the same arrays for N
 episodes (:mod:`drillgym.envs.batched`) from each episode's :class:`KernelState`, and shares :func:`draw_noise`
@@ -12,6 +13,7 @@ and :func:`record_channels` with it.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -21,6 +23,9 @@ from drillgym.envs.cell import SimCell, chains_of
 from drillgym.envs.constants import PHYSICS_DT_S, SUBSTEPS_PER_STEP, TRACKER_RATE_HZ
 from drillgym.envs.drilling.contact import ContactSample
 from drillgym.envs.drilling.force_model import EngagementTable
+from drillgym.envs.effects.base import Effect
+from drillgym.envs.effects.bone import ThermalSoftening
+from drillgym.envs.effects.joints import JointFriction
 from drillgym.envs.task import Phase
 
 UR5BoneDrillEnv = Any
@@ -84,7 +89,35 @@ def episode_params(
     par[sk.N_GRID] = solver.grid.shape[0]
     par[sk.N_BINS] = cell.hole.filled.shape[0]
     par[sk.BIN_M] = cell.hole.bin_m
+    par[sk.OMEGA] = 2.0 * math.pi * sc.spindle_rpm / 60.0
+    if cell.geometry_offset_task_m is not None:
+        par[sk.GEOMETRY_OFFSET : sk.GEOMETRY_OFFSET + 3] = cell.geometry_offset_task_m
+        par[sk.GEOMETRY_ON] = par[sk.TARGET_OFFSET_ON] = 1.0
+    if cell.marker_offset_base_m is not None:
+        par[sk.MARKER_OFFSET : sk.MARKER_OFFSET + 3] = cell.marker_offset_base_m
+        par[sk.MARKER_ON] = 1.0
+    par[sk.ENTRY_GUIDANCE] = solver.entry_guidance
     return par
+
+
+def _thermal_softening(effect: Effect, cell: SimCell, par: np.ndarray) -> None:
+    par[sk.SOFTENING] = effect.values["softening"]
+    par[sk.SOFTENING_WORK_J] = effect.values["work_j"]
+
+
+def _joint_friction(effect: Effect, cell: SimCell, par: np.ndarray) -> None:
+    c, tv = effect.values["coulomb_rad"], effect.values["viscous_s"]
+    par[sk.FRICTION_COULOMB], par[sk.FRICTION_VISCOUS] = c, tv
+    if c != 0.0 or tv != 0.0:
+        par[sk.FRICTION_ON] = par[sk.TARGET_OFFSET_ON] = 1.0
+
+
+STEP_EFFECTS: dict[str, Callable[[Effect, SimCell, np.ndarray], None]] = {
+    ThermalSoftening.name: _thermal_softening,
+    JointFriction.name: _joint_friction,
+}
+"""The effects with a step hook the compiled step runs, by name: each writes its parameters into ``par``
+(the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._target_offset``)."""
 
 
 def tracker_sample_is_new(t_s: Any, stamp_s: Any) -> Any:
@@ -130,7 +163,7 @@ PHASES = tuple(Phase)
 
 
 class KernelState:
-    """The compiled step's arrays for one env's episode (built at ``reset``, without effects).
+    """The compiled step's arrays for one env's episode (built at ``reset``, without effects or with compiled ones).
 
     The arrays hold the episode's state from the first step on; after each step :meth:`store` writes it into
     the env's Python objects, which the observation, the info and every other reader use. Nothing in the
@@ -140,8 +173,6 @@ class KernelState:
 
     def __init__(self, env: UR5BoneDrillEnv) -> None:
         cell = env.cell
-        if cell.geometry_offset_task_m is not None or cell.marker_offset_base_m is not None:
-            raise ValueError("the compiled step has no geometry or marker offset; step this env in Python")
         if cell.solver.guidance_hook is not None:
             raise ValueError("the compiled step has no guidance hook; step this env in Python")
         hole = cell.hole
@@ -169,6 +200,13 @@ class KernelState:
             bins=hole.bins,
         )
         self.fs, self.ist, self.pend, self.par = fs, self.arrays.ist, self.arrays.pend, self.arrays.par
+        self.effects = [] if env.effects is None else env.effects.effects
+        for e in self.effects:
+            if not type(e).__dict__.get("compiled", False):
+                raise ValueError(f"the compiled step does not run {e!r}; step this env in Python")
+            hook = STEP_EFFECTS.get(type(e).name)
+            if hook is not None:
+                hook(e, cell, self.par)
         self.noise = np.zeros(NOISE_SIZE)
         self.command = np.zeros(4)
         self.loaded = False
@@ -205,6 +243,14 @@ class KernelState:
         fs[sk.JACOBIAN : sk.JACOBIAN + 36] = cell.J_tcp.ravel()
         fs[sk.C_ROBOT : sk.C_ROBOT + 9] = cell.C_robot.ravel()
         self.par[sk.FORCE_SCALE] = solver.force_scale
+        fs[sk.THERMAL_SCALE] = solver.force_scale
+        smp = cell.sample
+        o = sk.SAMPLE
+        fs[o : o + 10] = [*smp.tip, *smp.rigid, *smp.force, smp.torque_axis]
+        fs[o + 10 : o + 13] = smp.depth_local, smp.stage, 1.0 if smp.cutting else 0.0
+        for e in self.effects:
+            if isinstance(e, ThermalSoftening):
+                fs[sk.WORK_J] = e.work_j
         ist[sk.PHASE] = int(env.path.phase)
         ist[sk.TOUCHING] = 1 if solver.touching else 0
         ist[sk.BRACKET] = solver._j
@@ -257,6 +303,11 @@ class KernelState:
         cell.J_tcp = fs[sk.JACOBIAN : sk.JACOBIAN + 36].copy().reshape(6, 6)
         cell.C_robot = fs[sk.C_ROBOT : sk.C_ROBOT + 9].copy().reshape(3, 3)
         cell.C_total = cell.C_robot + cell.C_tool
+        if self.par[sk.SOFTENING] > 0.0:
+            solver.force_scale = v[sk.THERMAL_SCALE]
+            for e in self.effects:
+                if isinstance(e, ThermalSoftening):
+                    e.work_j = v[sk.WORK_J]
         if i[sk.FAILURE] and env.failure is None:
             env.failure = "force_limit"
         env.steps = i[sk.STEPS]

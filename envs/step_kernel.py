@@ -1,7 +1,9 @@
 """One agent step of the simulated cell, compiled (numba): the env's physics on plain arrays.
 
 :meth:`UR5BoneDrillEnv.advance <drillgym.envs.drill_env.UR5BoneDrillEnv.advance>` without unmodelled
-effects (or with only those that change the force table's depth profile), in one call: the command queue
+effects or with the compiled ones (:attr:`Effect.compiled <drillgym.envs.effects.base.Effect.compiled>`: a
+depth profile of the forces, the tool's length, a kinematic offset, skid friction, thermal softening, joint
+friction), in one call: the command queue
 (latency), the nominal path, the tip balance of the five F/T samples (:func:`~drillgym.envs.drilling.contact_kernel.run_samples`), the F/T readings, the RTDE TCP,
 the arm's inverse kinematics and compliance, and the tracker. The single env calls :func:`advance`
 for its own state; the batched env (:mod:`drillgym.envs.batched`) calls :func:`advance_batch` for N
@@ -41,6 +43,8 @@ from drillgym.envs.constants import (
     TRACKER_RATE_HZ,
 )
 from drillgym.envs.drilling.contact_kernel import run_samples
+from drillgym.envs.effects.bone import MIN_HARDNESS
+from drillgym.envs.effects.joints import SIGN_SMOOTHING_RAD_S
 from drillgym.envs.robot.ur5_kernel import frame_pose, ik_step, jacobian_and_compliance, joint_deflection
 
 # ---------------------------------------------------------------- float state ``fs``
@@ -84,7 +88,14 @@ C_ROBOT = 83
 """Arm compliance at the TCP (9, row-major 3x3, m/N, task axes)."""
 SAMPLE = 92
 """The latest sample's row (13, :data:`~drillgym.envs.drilling.contact_kernel.ROW_SIZE`)."""
-FLOAT_STATE_SIZE = 105
+TARGET_OFFSET = 105
+"""This step's shift of the servo target (3, m, task frame): the tool's geometry offset plus the joint
+friction's servo lag (used where ``par[TARGET_OFFSET_ON]``)."""
+WORK_J = 108
+"""Cutting work done so far (J; thermal softening)."""
+THERMAL_SCALE = 109
+"""The specimen's force scale after thermal softening (used where ``par[SOFTENING] > 0``)."""
+FLOAT_STATE_SIZE = 110
 
 # ---------------------------------------------------------------- integer state ``ist``
 PHASE = 0
@@ -147,7 +158,32 @@ N_GRID = 58
 N_BINS = 59
 """Bins of the hole in use."""
 BIN_M = 60
-PARAM_SIZE = 61
+GEOMETRY_OFFSET = 61
+"""Where the physical tool sits away from the controller's model (3, m, task frame;
+:attr:`SimCell.geometry_offset_task_m <drillgym.envs.cell.SimCell.geometry_offset_task_m>`)."""
+MARKER_OFFSET = 64
+"""The same for the tracker marker (3, m, base frame)."""
+GEOMETRY_ON = 67
+"""1 if the cell has a geometry offset."""
+MARKER_ON = 68
+"""1 if the cell has a marker offset."""
+TARGET_OFFSET_ON = 69
+"""1 if the servo target is shifted (a geometry offset or joint friction)."""
+ENTRY_GUIDANCE = 70
+"""Extra side guidance while the lips enter (share of full guidance at first touch; skid friction)."""
+SOFTENING = 71
+"""Thermal softening: asymptotic fractional loss of hardness (0: off)."""
+SOFTENING_WORK_J = 72
+"""Thermal softening: cutting work for 63 % of the loss (J)."""
+OMEGA = 73
+"""Spindle speed (rad/s)."""
+FRICTION_COULOMB = 74
+"""Joint friction: Coulomb position error per moving joint (rad; 0 with the viscous term: off)."""
+FRICTION_VISCOUS = 75
+"""Joint friction: viscous position error per joint speed (s)."""
+FRICTION_ON = 76
+"""1 if the joint friction is on."""
+PARAM_SIZE = 77
 
 TABLE_ROWS = 11
 """``tab`` rows (one column per grid depth): depth (m), edge forces (4), per-chip forces (4), engaged fraction,
@@ -240,7 +276,7 @@ def _prepare(
     """``cell.begin_step``: the force rows for the chip in effect and the guided lateral stiffness (N/m)."""
     n = int(par[N_GRID])
     chip = par[FEED_M_S] * fs[FEED_SCALE] / (par[N_LIPS] * par[REV_PER_S]) * par[SIN_KAPPA]
-    scale = par[FORCE_SCALE]
+    scale = fs[THERMAL_SCALE] if par[SOFTENING] > 0.0 else par[FORCE_SCALE]
     if chip != fs[KEY_CHIP] or scale != fs[KEY_SCALE]:
         fs[KEY_CHIP], fs[KEY_SCALE] = chip, scale
         for i in range(n):
@@ -253,6 +289,8 @@ def _prepare(
     if floor < 1.0:
         wall = min(max((d - par[BOUNDS + 3]) / par[WALL_LENGTH], 0.0), 1.0)
         g = g * (floor + (1.0 - floor) * wall)
+    if par[ENTRY_GUIDANCE] != 0.0 and share < 1.0:
+        g = g + par[ENTRY_GUIDANCE] * (1.0 - share)
     k_cut = par[K_LAT] / max(_advance_m(fs, ist, pend, par), 1e-7)
     return rows[:n], k_cut * g
 
@@ -262,11 +300,55 @@ def _servo_xyz(fs: np.ndarray, par: np.ndarray) -> tuple[float, float, float]:  
     """The correction in effect in the task frame (m): ``R_base_taskᵀ · correction_base``."""
     o = R_BASE_TASK
     c0, c1, c2 = fs[CORRECTION], fs[CORRECTION + 1], fs[CORRECTION + 2]
-    return (
-        par[o] * c0 + par[o + 3] * c1 + par[o + 6] * c2,
-        par[o + 1] * c0 + par[o + 4] * c1 + par[o + 7] * c2,
-        par[o + 2] * c0 + par[o + 5] * c1 + par[o + 8] * c2,
-    )
+    x = par[o] * c0 + par[o + 3] * c1 + par[o + 6] * c2
+    y = par[o + 1] * c0 + par[o + 4] * c1 + par[o + 7] * c2
+    z = par[o + 2] * c0 + par[o + 5] * c1 + par[o + 8] * c2
+    if par[TARGET_OFFSET_ON] == 1.0:
+        return x + fs[TARGET_OFFSET], y + fs[TARGET_OFFSET + 1], z + fs[TARGET_OFFSET + 2]
+    return x, y, z
+
+
+@numba.njit(cache=True)
+def _soften(fs: np.ndarray, ist: np.ndarray, par: np.ndarray) -> None:  # pragma: no cover (compiled)
+    """Thermal softening's step start: the last step's cutting work added, the force scale it leaves.
+
+    :class:`~drillgym.envs.effects.bone.ThermalSoftening`'s ``begin_step``.
+    """
+    o = SAMPLE
+    speed = _speed_m_s(ist[PHASE], par[FEED_M_S], fs[FEED_SCALE])
+    power_w = abs(fs[o + 9]) * par[OMEGA] + abs(fs[o + 8]) * max(speed, 0.0)
+    fs[WORK_J] += power_w * CONTROL_DT_S
+    factor = 1.0 - par[SOFTENING] * (1.0 - math.exp(-fs[WORK_J] / par[SOFTENING_WORK_J]))
+    fs[THERMAL_SCALE] = par[FORCE_SCALE] * max(factor, MIN_HARDNESS)
+
+
+@numba.njit(cache=True)
+def _target_offset(fs: np.ndarray, ist: np.ndarray, pend: np.ndarray, par: np.ndarray) -> None:  # pragma: no cover
+    """The step's servo-target shift (task frame, m): the geometry offset plus the joint friction's lag.
+
+    The lag is :class:`~drillgym.envs.effects.joints.JointFriction`'s ``begin_step``, from the commanded tip
+    velocity (the newest command is queued).
+    """
+    o = R_BASE_TASK
+    r = par[o : o + 9].reshape((3, 3))
+    if par[FRICTION_ON] == 1.0:
+        v = np.zeros(3)
+        v[2] = _speed_m_s(ist[PHASE], par[FEED_M_S], fs[FEED_SCALE])
+        last = ist[PENDING] - 1
+        d = np.empty(3)
+        for i in range(3):
+            d[i] = pend[last, 1 + i] - fs[CORRECTION + i]
+        v += (r.T @ d) / CONTROL_DT_S
+        twist = np.zeros(6)
+        twist[:3] = r @ v
+        jac = fs[JACOBIAN : JACOBIAN + 36].reshape((6, 6))
+        qd = np.linalg.solve(jac, twist)
+        dq = -(par[FRICTION_COULOMB] * np.tanh(qd / SIGN_SMOOTHING_RAD_S) + par[FRICTION_VISCOUS] * qd)
+        lag = r.T @ (jac[:3] @ dq)
+        for i in range(3):
+            fs[TARGET_OFFSET + i] = par[GEOMETRY_OFFSET + i] + lag[i] if par[GEOMETRY_ON] == 1.0 else lag[i]
+    else:
+        fs[TARGET_OFFSET : TARGET_OFFSET + 3] = par[GEOMETRY_OFFSET : GEOMETRY_OFFSET + 3]
 
 
 @numba.njit(cache=True)
@@ -310,6 +392,17 @@ def _solve(
 
 
 @numba.njit(cache=True)
+def _rtde_tcp(fs: np.ndarray, par: np.ndarray, row: np.ndarray) -> None:  # pragma: no cover (compiled)
+    """The RTDE TCP (base frame, m) where the encoders put the servo-held tip of sample ``row``."""
+    o = R_BASE_TASK
+    x, y, z = row[3], row[4], row[5]
+    if par[GEOMETRY_ON] == 1.0:
+        x, y, z = x - par[GEOMETRY_OFFSET], y - par[GEOMETRY_OFFSET + 1], z - par[GEOMETRY_OFFSET + 2]
+    for i in range(3):
+        fs[RTDE_TCP + i] = par[ENTRY_BASE + i] + (par[o + 3 * i] * x + par[o + 3 * i + 1] * y + par[o + 3 * i + 2] * z)
+
+
+@numba.njit(cache=True)
 def _c_total(fs: np.ndarray, par: np.ndarray) -> np.ndarray:  # pragma: no cover (compiled)
     """Arm + drill compliance (3x3, m/N, task axes)."""
     c = np.empty((3, 3))
@@ -349,6 +442,10 @@ def advance(  # noqa: C901 (one step, in the env's order)
     pend[npend, 1:4] = command[:3]
     pend[npend, 4] = command[3]
     ist[PENDING] = npend + 1
+    if par[SOFTENING] > 0.0:
+        _soften(fs, ist, par)
+    if par[TARGET_OFFSET_ON] == 1.0:
+        _target_offset(fs, ist, pend, par)
     rtde_time = math.floor((fs[T_S] + CONTROL_DT_S) * RTDE_RATE_HZ + 1e-9) / RTDE_RATE_HZ
     c_total = _c_total(fs, par)
     nb = int(par[N_BINS])
@@ -394,11 +491,7 @@ def advance(  # noqa: C901 (one step, in the env's order)
     fs[SAMPLE : SAMPLE + 13] = smp[n - 1]
     o = R_BASE_TASK
     if rtde_k >= 0:  # the RTDE sample saw the servo-held tip before sample rtde_k
-        src = smp[rtde_k - 1] if rtde_k > 0 else smp[n - 1]
-        for i in range(3):
-            fs[RTDE_TCP + i] = par[ENTRY_BASE + i] + (
-                par[o + 3 * i] * src[3] + par[o + 3 * i + 1] * src[4] + par[o + 3 * i + 2] * src[5]
-            )
+        _rtde_tcp(fs, par, smp[rtde_k - 1] if rtde_k > 0 else smp[n - 1])
     # F/T readings: the true wrench at the sensor, noise, quantisation
     arm = par[SENSOR_ARM]
     dev_sum = 0.0
@@ -426,10 +519,7 @@ def advance(  # noqa: C901 (one step, in the env's order)
     if over:
         ist[FAILURE] = 1
     if rtde_time >= fs[T_S] - 1e-12:
-        for i in range(3):
-            fs[RTDE_TCP + i] = par[ENTRY_BASE + i] + (
-                par[o + 3 * i] * smp[n - 1, 3] + par[o + 3 * i + 1] * smp[n - 1, 4] + par[o + 3 * i + 2] * smp[n - 1, 5]
-            )
+        _rtde_tcp(fs, par, smp[n - 1])
     for c in range(6):
         fs[FT_LAST + c] = out[n - 1, OUT_FORCE + c]
         fs[FT_MEAN + c] = mean[c] / n
@@ -438,7 +528,8 @@ def advance(  # noqa: C901 (one step, in the env's order)
     entry = par[ENTRY_BASE : ENTRY_BASE + 3]
     stiffness = par[STIFFNESS : STIFFNESS + 6]
     jac = fs[JACOBIAN : JACOBIAN + 36].reshape((6, 6))
-    q = ik_step(fs[Q_MOTOR : Q_MOTOR + 6], jac, smp[n - 1, 3:6], entry, r_task, chains[0])
+    rigid = smp[n - 1, 3:6] - par[GEOMETRY_OFFSET : GEOMETRY_OFFSET + 3] if par[GEOMETRY_ON] == 1.0 else smp[n - 1, 3:6]
+    q = ik_step(fs[Q_MOTOR : Q_MOTOR + 6], jac, rigid, entry, r_task, chains[0])
     for i in range(6):
         if not math.isfinite(q[i]):
             ist[SINGULAR] = 1
@@ -455,6 +546,8 @@ def advance(  # noqa: C901 (one step, in the env's order)
         fs[TRACKER_STAMP] = stamp
         dq = joint_deflection(jac, smp[n - 1, 6:9], smp[n - 1, 9], r_task, stiffness)
         marker = frame_pose(q + dq, chains[1])[1]
+        if par[MARKER_ON] == 1.0:
+            marker = marker + par[MARKER_OFFSET : MARKER_OFFSET + 3]
         for i in range(3):
             noisy = marker[i] + par[TRACKER_NOISE] * noise[6 * n + i] if par[TRACKER_NOISE] > 0.0 else marker[i]
             fs[TRACKER_READING + i] = noisy

@@ -90,8 +90,10 @@ class TipContactSolver:
         self.reset((0.0, 0.0, -3e-3))
 
     def clear_effects(self) -> None:
-        """No depth profile, nominal side guidance (see :meth:`set_depth_profile`, ``guidance_hook``)."""
+        """No depth profile, nominal side guidance (see :meth:`set_depth_profile`, ``entry_guidance``, ``guidance_hook``)."""
         self.depth_profile: np.ndarray | None = None
+        self.entry_guidance = 0.0
+        """Extra side guidance while the lips enter, ``μ (1 − s)`` of the engaged share s < 1 (skid friction, -)."""
         self.guidance_hook: Callable[[float, float], float] | None = None
         """Unmodelled effects: ``(engaged share, nominal guidance) -> guidance`` of the tip by the bone."""
         self._key = (math.nan, math.nan)
@@ -131,6 +133,8 @@ class TipContactSolver:
         self._c = np.ascontiguousarray(compliance_m_n, dtype=float)
         share = float(np.interp(self.depth_local, self.table.depth_m, self.table.engaged_fraction))
         self._g = share**self.guidance_exponent * self._wall_factor()
+        if self.entry_guidance != 0.0 and share < 1.0:
+            self._g = self._g + self.entry_guidance * (1.0 - share)
         if self.guidance_hook is not None:
             self._g = self.guidance_hook(share, self._g)
         self._k_cut = self.k_lat_n / max(advance_per_update_m, 1e-7)

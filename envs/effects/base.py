@@ -120,8 +120,11 @@ class Effect:
     """The groups it changes before the drill touches the bone (most effects act only through the cut)."""
     sensor_only: ClassVar[bool] = False
     compiled: ClassVar[bool] = False
-    """True if the effect only changes what the compiled step reads at ``reset`` (the depth profile of the
-    cutting forces): an env with only such effects steps with :mod:`drillgym.envs.step_kernel`."""
+    """True if the compiled step (:mod:`drillgym.envs.step_kernel`) runs this effect: it changes only what the
+    kernel reads at ``reset`` (the tool's compliance and sensor arm, the geometry and marker offsets, the
+    force table's depth profile, the entry guidance), or its step hook has a kernel counterpart
+    (:data:`drillgym.envs.kernel_state.STEP_EFFECTS`). An env with only such effects steps compiled. Declared
+    by the class itself: a subclass that does not declare it again is stepped in Python."""
     servo_offset_task_m: np.ndarray | None = None
 
     def __init__(self, **values: float) -> None:
@@ -176,7 +179,7 @@ class Effect:
 
 
 _STEP_HOOKS = ("command_delay_s", "begin_step", "delay_target", "sensor_wrenches")
-"""The hooks the env calls during a step (the compiled step calls none)."""
+"""The hooks the env calls during a step (the compiled step calls none: it has their counterparts)."""
 
 
 def _overrides(effect: Effect, method: str) -> bool:
@@ -198,8 +201,12 @@ class EffectStack:
         self.target_hook: Callable[[float, tuple[float, float, float]], tuple[float, float, float]] | None = (
             self._delay_target if self._target else None
         )
-        self.compiled = all(type(e).compiled and not any(_overrides(e, h) for h in _STEP_HOOKS) for e in self.effects)
-        """Whether the compiled step can run these effects (each :attr:`Effect.compiled`, none with a step hook)."""
+        hooked = [type(e) for e in self.effects if any(_overrides(e, h) for h in _STEP_HOOKS)]
+        self.compiled = len(set(hooked)) == len(hooked) and all(
+            type(e).__dict__.get("compiled", False) for e in self.effects
+        )
+        """Whether the compiled step can run these effects: each declares :attr:`Effect.compiled`, and no two of
+        one class have step hooks (the kernel holds one set of parameters per hook)."""
 
     def attach(self, env: EffectHost) -> None:
         """Attach every effect (the cell has just been cleared)."""

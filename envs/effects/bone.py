@@ -59,6 +59,7 @@ class ThermalSoftening(Effect):
         Param("work_j", 1.0, 200.0, 20.0, "cutting work for 63 % of the loss (J)"),
     )
     channels = frozenset({"force", "torque", "tracker"})
+    compiled = True
 
     def attach(self, env: EffectHost) -> None:
         """Cold bone."""
@@ -89,14 +90,8 @@ class SkidFriction(Effect):
     summary = "friction at entry adds side guidance while the lips are partly engaged"
     params = (Param("mu", 0.0, 3.0, 0.0, "extra side guidance at first touch (share of full guidance)"),)
     channels = frozenset({"force", "torque", "tracker"})
+    compiled = True
 
     def attach(self, env: EffectHost) -> None:
-        """Install the guidance hook."""
-        mu = self.values["mu"]
-        if mu == 0.0:
-            return
-
-        def guidance(share: float, nominal: float) -> float:
-            return nominal + mu * (1.0 - share) if share < 1.0 else nominal
-
-        env.cell.solver.guidance_hook = guidance
+        """Add the entry guidance (:attr:`TipContactSolver.entry_guidance <drillgym.envs.drilling.contact.TipContactSolver.entry_guidance>`)."""
+        env.cell.solver.entry_guidance += self.values["mu"]

@@ -71,6 +71,7 @@ class JointFriction(Effect):
     )
     channels = frozenset({"force", "torque", "tracker", "q", "tcp"})
     channels_before_contact = frozenset({"tracker", "q", "tcp"})
+    compiled = True
 
     def begin_step(self, env: EffectHost) -> None:
         """Set the servo offset from the joint speeds of the commanded motion."""
@@ -100,6 +101,7 @@ class KinematicOffset(Effect):
     )
     channels = frozenset({"force", "torque", "tracker"})
     channels_before_contact = frozenset({"tracker"})
+    compiled = True
 
     @classmethod
     def initial_guess(cls, evidence: dict[str, Any]) -> dict[str, float] | None:

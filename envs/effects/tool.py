@@ -22,6 +22,7 @@ class ToolLength(Effect):
     summary = "drill stick-out differs from the plan: tip further along the axis, softer drill, longer arm"
     params = (Param("dl_m", -8e-3, 8e-3, 0.0, "real minus planned stick-out (m)"),)
     channels = frozenset({"force", "torque", "tracker"})
+    compiled = True
 
     def attach(self, env: EffectHost) -> None:
         """Rebuild the drill's compliance, move the tip and lengthen the sensor arm."""

@@ -100,6 +100,8 @@ def _prepare(sv: Any, compliance_m_n: np.ndarray, chip_m: float, advance_per_upd
         wall = min(max((sv.depth_local - sv._bounds[3]) / sv.wall_length_m, 0.0), 1.0)
         wall_factor = sv.wall_floor + (1.0 - sv.wall_floor) * wall
     sv._ref_g = share**sv.guidance_exponent * wall_factor
+    if sv.entry_guidance != 0.0 and share < 1.0:  # skid friction (once a guidance hook)
+        sv._ref_g = sv._ref_g + sv.entry_guidance * (1.0 - share)
     if sv.guidance_hook is not None:
         sv._ref_g = sv.guidance_hook(share, sv._ref_g)
     sv._ref_k_cut = sv.k_lat_n / max(advance_per_update_m, 1e-7)

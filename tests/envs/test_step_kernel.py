@@ -12,7 +12,7 @@ import pytest
 from bitwise import largest_difference
 
 from drillgym import envs
-from drillgym.envs.effects.registry import EFFECTS
+from drillgym.envs.effects.registry import EFFECTS, build_effects
 
 ENV_ID = envs.ENV_IDS[0]
 TOLERANCE = 1e-12
@@ -82,24 +82,75 @@ def test_compiled_step_stops_at_the_force_limit_like_the_python_step():
     assert _run({"force_limit_n": 4.0}, 0, None) < 200
 
 
-def test_compiled_step_matches_the_python_step_with_a_density_gradient():
+COMPILED_EFFECTS = {
+    "density_gradient": "density_gradient:offset=0.2,gradient_per_m=-60",
+    "kinematic_offset": "kinematic_offset:dx_base_m=4e-4,dy_base_m=-3e-4,dz_base_m=5e-4",
+    "tool_length": "tool_length:dl_m=4e-3",
+    "skid_friction": "skid_friction:mu=1.5",
+    "thermal_softening": "thermal_softening:softening=0.5,work_j=5",
+    "joint_friction": "joint_friction:coulomb_rad=5e-4,viscous_s=0.01",
+    "all": "kinematic_offset:dx_base_m=2e-4+tool_length:dl_m=-3e-3+skid_friction:mu=0.7"
+    "+thermal_softening:softening=0.3+joint_friction:coulomb_rad=2e-4,viscous_s=0.005+density_gradient:offset=-0.1",
+}
+"""Every effect the compiled step runs, each at a size that moves the episode well away from the nominal one."""
+
+
+@pytest.mark.parametrize("name", sorted(COMPILED_EFFECTS))
+def test_compiled_step_matches_the_python_step_with_each_compiled_effect(name):
     def effects():
-        return [EFFECTS["density_gradient"](offset=0.2, gradient_per_m=-60.0)]
+        return build_effects(COMPILED_EFFECTS[name])
 
     assert _run({}, 7, _random_actions(8), effects) > 100
+    moved = _largest_force_change(effects(), 7, _random_actions(8))
+    assert moved > 0.5, f"{name} changes the F/T force by only {moved:.3g} N: the test would not see it"
 
 
-def test_compiled_step_is_used_only_without_step_hooks():
+def _largest_force_change(effects: list, seed: int, actions: np.ndarray) -> float:
+    """Largest change of the recorded F/T force (N) the effects make on a seeded episode (compiled step)."""
+    forces = []
+    for fx in (effects, []):
+        env = gym.make(ENV_ID)
+        env.reset(seed=seed, options={"effects": fx})
+        for step in range(4000):
+            if any(env.step(actions[step % len(actions)])[2:4]):
+                break
+        forces.append(np.asarray(env.unwrapped.recorder.ft_force_n))
+        env.close()
+    n = min(len(f) for f in forces)
+    return float(np.abs(forces[0][:n] - forces[1][:n]).max())
+
+
+def test_every_compiled_effect_is_exercised():
+    compiled = {n for n, cls in EFFECTS.items() if cls.__dict__.get("compiled", False)}
+    assert compiled == set(COMPILED_EFFECTS) - {"all"}
+
+
+def test_compiled_step_is_used_only_for_compiled_effects():
     env = gym.make(ENV_ID)
     try:
         env.reset(seed=0, options={"effects": [EFFECTS["latency"](extra_latency_s=0.02)]})
         assert env.unwrapped._kernel is None
         gradient = EFFECTS["density_gradient"](offset=0.1)
-        env.reset(seed=0, options={"effects": [gradient, EFFECTS["kinematic_offset"](dx_base_m=1e-4)]})
+        env.reset(seed=0, options={"effects": [gradient, EFFECTS["ft_drift"](fx_rate_n_s=0.01)]})
         assert env.unwrapped._kernel is None
-        env.reset(seed=0, options={"effects": [gradient]})
+        two = [EFFECTS["joint_friction"](coulomb_rad=1e-4), EFFECTS["joint_friction"](viscous_s=1e-3)]
+        env.reset(seed=0, options={"effects": two})  # one set of kernel parameters per hooked effect
+        assert env.unwrapped._kernel is None
+        env.reset(seed=0, options={"effects": [gradient, EFFECTS["kinematic_offset"](dx_base_m=1e-4)]})
         assert env.unwrapped._kernel is not None
         env.reset(seed=0, options={"effects": []})
         assert env.unwrapped._kernel is not None
+    finally:
+        env.close()
+
+
+def test_a_subclass_of_a_compiled_effect_steps_in_python_unless_it_says_so():
+    class Shifted(EFFECTS["kinematic_offset"]):
+        name = "shifted"
+
+    env = gym.make(ENV_ID)
+    try:
+        env.reset(seed=0, options={"effects": [Shifted(dx_base_m=1e-4)]})
+        assert env.unwrapped._kernel is None
     finally:
         env.close()
