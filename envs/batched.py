@@ -88,6 +88,7 @@ class BatchedDrillEnv(VectorEnv):
             centre=np.zeros((n, bins, 2)),
             filled=np.zeros((n, bins), dtype=bool),
             bins=np.full((n, 2), -1, dtype=np.int64),
+            delay=np.zeros((n, 1, 4)),  # no effects: no delay line
         )
         self.fs, self.ist, self.par = self.arrays.fs, self.arrays.ist, self.arrays.par
         self.command = np.zeros((n, 4))

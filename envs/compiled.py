@@ -34,6 +34,10 @@ def compile_kernels() -> float:
     env.reset(seed=0)
     env.step(np.zeros(4, dtype=np.float32))
     env.close()
+    env = UR5BoneDrillEnv(ft_noise_n=0.0, tracker_noise_mm=0.0)  # an open-loop replay (the diagnosis)
+    env.reset(seed=0)
+    env.advance_open_loop(np.zeros((1, 4)))
+    env.close()
     from drillgym.envs.batched import BatchedDrillEnv
 
     batch = BatchedDrillEnv(1)

@@ -407,16 +407,56 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             self.metrics = self.episode_metrics()
         return terminated, truncated
 
+    def advance_open_loop(self, actions: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+        """:meth:`advance` through ``actions`` (T, 4) until the episode ends (an open-loop replay).
+
+        Returns the steps taken and, after each, the motor-side joint angles (T, 6, rad) and the tracker
+        reading (T, 3, m, base frame); rows past the end are NaN. The physics and the records are those of
+        calling :meth:`advance` step by step (equal within 1e-12, ``tests/envs/test_step_kernel.py``); on the
+        compiled step without sensor noise the whole replay is one compiled call.
+        """
+        a = checked_action(actions, "env state unchanged", num_envs=len(actions))
+        if self.path.phase == Phase.DONE or self.failure is not None:
+            raise RuntimeError("advance_open_loop() called after the episode ended; call reset()")
+        kernel = self._kernel
+        if kernel is not None and kernel.noiseless:
+            commands = np.empty((len(a), 4))
+            for k, row in enumerate(a):  # the single step's scaling, row by row (bit for bit)
+                commands[k, :3], commands[k, 3] = scale_action(row)
+            done, q, tracker, out = kernel.open_loop(self, commands)
+            self._record(out)
+            self._ended()
+            return done, q, tracker
+        q = np.full((len(a), 6), np.nan)
+        tracker = np.full((len(a), 3), np.nan)
+        done = 0
+        for k, row in enumerate(a):
+            terminated, truncated = self._advance(row, "advance_open_loop")
+            q[k], tracker[k] = self.cell.q_motor_rad, self.tracker_reading
+            done = k + 1
+            if terminated or truncated:
+                break
+        return done, q, tracker
+
     def _advance_compiled(self, corr: np.ndarray, scale: float) -> tuple[bool, bool]:
         """:meth:`_advance` without effects, in one compiled call (:mod:`drillgym.envs.step_kernel`)."""
         assert self._kernel is not None
-        out = record_channels(self._kernel.step(self, corr, scale))
+        self._record(self._kernel.step(self, corr, scale))
+        return self._ended()
+
+    def _record(self, rows: np.ndarray) -> None:
+        """Append the compiled step's sample rows to the recorder."""
+        out = record_channels(rows)
         rec = self.recorder
         for name in ("t_s", "phase", "stage", "depth_cmd_m", "deviation_m", "tracker_deviation_m"):
             getattr(rec, name).extend(out[name].tolist())
         rec.tip_task_m.extend(map(tuple, out["tip_task_m"].tolist()))
         rec.ft_force_n.extend(out["ft_force_n"])
         rec.ft_torque_nm.extend(out["ft_torque_nm"])
+
+    def _ended(self) -> tuple[bool, bool]:
+        """``(terminated, truncated)`` after a compiled step; the metrics when the episode ended."""
+        assert self._kernel is not None
         ist = self._kernel.ist
         terminated, truncated = bool(ist[TERMINATED]), bool(ist[TRUNCATED])
         self.truncated = truncated

@@ -26,6 +26,7 @@ from drillgym.envs.drilling.force_model import EngagementTable
 from drillgym.envs.effects.base import Effect
 from drillgym.envs.effects.bone import ThermalSoftening
 from drillgym.envs.effects.joints import JointFriction
+from drillgym.envs.effects.timing import Latency
 from drillgym.envs.task import Phase
 
 UR5BoneDrillEnv = Any
@@ -112,12 +113,17 @@ def _joint_friction(effect: Effect, cell: SimCell, par: np.ndarray) -> None:
         par[sk.FRICTION_ON] = par[sk.TARGET_OFFSET_ON] = 1.0
 
 
+def _latency(effect: Effect, cell: SimCell, par: np.ndarray) -> None:
+    par[sk.EXTRA_LATENCY] = effect.values["extra_latency_s"]
+
+
 STEP_EFFECTS: dict[str, Callable[[Effect, SimCell, np.ndarray], None]] = {
     ThermalSoftening.name: _thermal_softening,
     JointFriction.name: _joint_friction,
+    Latency.name: _latency,
 }
 """The effects with a step hook the compiled step runs, by name: each writes its parameters into ``par``
-(the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._target_offset``)."""
+(the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._target_offset``, ``step_kernel._delayed``)."""
 
 
 def tracker_sample_is_new(t_s: Any, stamp_s: Any) -> Any:
@@ -198,6 +204,7 @@ class KernelState:
             centre=hole.centre_xy_m,
             filled=hole.filled,
             bins=hole.bins,
+            delay=np.zeros((sk.DELAY_ROWS, 4)),
         )
         self.fs, self.ist, self.pend, self.par = fs, self.arrays.ist, self.arrays.pend, self.arrays.par
         self.effects = [] if env.effects is None else env.effects.effects
@@ -227,6 +234,38 @@ class KernelState:
         env.pending.append((t_apply, correction_base_m, feed_scale))
         self.store(env)
         return out
+
+    @property
+    def noiseless(self) -> bool:
+        """Whether the episode's F/T and tracker have no noise (a step then draws nothing)."""
+        return not (self.par[sk.FT_STD : sk.FT_STD + 6] > 0.0).any() and not self.par[sk.TRACKER_NOISE] > 0.0
+
+    def open_loop(self, env: UR5BoneDrillEnv, commands: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+        """Advance ``env`` through ``commands`` (T, 4: correction m base frame, feed scale) in one call.
+
+        Noiseless episodes only. Returns the steps taken, the motor angles (T, 6) and tracker readings (T, 3)
+        after each step (NaN past the end) and the steps' sample rows (5 per step, ``OUT_COLUMNS``).
+        """
+        if not self.noiseless:
+            raise ValueError("an open-loop call draws no noise: the episode's sensors must be noiseless")
+        if not self.loaded:
+            self.load(env)
+        n = len(commands)
+        out = np.empty((SUBSTEPS_PER_STEP * n, sk.OUT_COLUMNS))
+        q = np.full((n, 6), math.nan)
+        tracker = np.full((n, 3), math.nan)
+        done = sk.advance_open_loop(*self.arrays, np.ascontiguousarray(commands, dtype=float), out, q, tracker)
+        if self.ist[sk.SINGULAR]:
+            raise np.linalg.LinAlgError(
+                f"singular TCP Jacobian at q = {self.fs[sk.Q_MOTOR : sk.Q_MOTOR + 6].tolist()} rad"
+            )
+        pend = self.pend
+        env.pending.clear()
+        for k in range(self.ist[sk.PENDING]):  # the queue as the kernel left it: every command applied was popped
+            env.pending.append((float(pend[k, 0]), pend[k, 1:4].copy(), float(pend[k, 4])))
+        env.correction_base_m = self.fs[sk.CORRECTION : sk.CORRECTION + 3].copy()
+        self.store(env)
+        return done, q, tracker, out[: SUBSTEPS_PER_STEP * done]
 
     def load(self, env: UR5BoneDrillEnv) -> None:
         """Copy the env's state into the arrays (at the episode's first step)."""

@@ -17,7 +17,8 @@ An episode's arrays travel together as :class:`KernelArrays` (index constants be
 state, ``ist`` the integer state, ``pend`` the command queue (rows ``t_apply_s, correction_base_m (3),
 feed_scale``), ``par`` the episode's constant parameters, ``tab`` the force table (:data:`TABLE_ROWS`),
 ``rows`` the cutting forces for the chip in effect, ``chains`` the TCP's and the tracker marker's packed
-chains, and the hole (``centre``, ``filled``, ``bins``). ``out`` takes the step's five sample rows for the
+chains, the hole (``centre``, ``filled``, ``bins``) and the servo target's delay line (``delay``,
+:data:`DELAY_ROWS`). ``out`` takes the step's five sample rows for the
 recorder (:data:`OUT_COLUMNS`).
 """
 
@@ -116,7 +117,9 @@ SINGULAR = 8
 """1 if the inverse kinematics met a singular Jacobian (the caller raises)."""
 TRACKER_NEW = 9
 """1 if this step's tracker sample is new (its noise was drawn)."""
-INT_STATE_SIZE = 10
+DELAY_COUNT = 10
+"""Samples held in the delay line ``delay`` (extra latency)."""
+INT_STATE_SIZE = 11
 
 PENDING_ROWS = 16
 """Capacity of the command queue (a latency of up to 0.5 s queues at most 11 commands)."""
@@ -183,7 +186,13 @@ FRICTION_VISCOUS = 75
 """Joint friction: viscous position error per joint speed (s)."""
 FRICTION_ON = 76
 """1 if the joint friction is on."""
-PARAM_SIZE = 77
+EXTRA_LATENCY = 77
+"""Extra delay of the whole servo target (s; 0: off; :class:`~drillgym.envs.effects.timing.Latency`)."""
+PARAM_SIZE = 78
+
+DELAY_ROWS = 1024
+"""Capacity of the delay line ``delay`` (rows ``t_s, target (3, m, task frame)``, one per sample); when full,
+its newest half is kept, 0.512 s of samples, more than the longest extra latency (0.3 s) reads back."""
 
 TABLE_ROWS = 11
 """``tab`` rows (one column per grid depth): depth (m), edge forces (4), per-chip forces (4), engaged fraction,
@@ -215,6 +224,7 @@ class KernelArrays(NamedTuple):
     centre: np.ndarray
     filled: np.ndarray
     bins: np.ndarray
+    delay: np.ndarray
 
 
 APPROACH, FEED, RETRACT, DONE = 0, 1, 2, 3
@@ -392,6 +402,34 @@ def _solve(
 
 
 @numba.njit(cache=True)
+def _delayed(
+    ist: np.ndarray, delay: np.ndarray, t_s: float, x: float, y: float, z: float, delay_s: float
+) -> tuple[float, float, float]:  # pragma: no cover (compiled)
+    """The servo target (m, task frame) as it was ``delay_s`` before ``t_s``, after recording ``(x, y, z)`` at ``t_s``.
+
+    :class:`~drillgym.envs.effects.timing.DelayLine`'s ``push`` and ``read``: linear interpolation between
+    samples, the first sample before it.
+    """
+    n = ist[DELAY_COUNT]
+    if n == delay.shape[0]:  # full: keep the newest half
+        keep = n // 2
+        delay[:keep] = delay[n - keep : n].copy()
+        n = keep
+    delay[n, 0], delay[n, 1], delay[n, 2], delay[n, 3] = t_s, x, y, z
+    n += 1
+    ist[DELAY_COUNT] = n
+    t_read = t_s - delay_s
+    if t_read <= delay[0, 0]:
+        return delay[0, 1], delay[0, 2], delay[0, 3]
+    j = np.searchsorted(delay[:n, 0], t_read, side="right")
+    if j >= n:
+        return delay[n - 1, 1], delay[n - 1, 2], delay[n - 1, 3]
+    w = (t_read - delay[j - 1, 0]) / (delay[j, 0] - delay[j - 1, 0])
+    a, b = delay[j - 1], delay[j]
+    return a[1] + w * (b[1] - a[1]), a[2] + w * (b[2] - a[2]), a[3] + w * (b[3] - a[3])
+
+
+@numba.njit(cache=True)
 def _rtde_tcp(fs: np.ndarray, par: np.ndarray, row: np.ndarray) -> None:  # pragma: no cover (compiled)
     """The RTDE TCP (base frame, m) where the encoders put the servo-held tip of sample ``row``."""
     o = R_BASE_TASK
@@ -424,6 +462,7 @@ def advance(  # noqa: C901 (one step, in the env's order)
     centre: np.ndarray,
     filled: np.ndarray,
     bins: np.ndarray,
+    delay: np.ndarray,
     command: np.ndarray,
     noise: np.ndarray,
     out: np.ndarray,
@@ -480,7 +519,12 @@ def advance(  # noqa: C901 (one step, in the env's order)
         s = _path_advance(fs, ist, par[DEPTH], par[FEED_M_S])
         if t_s <= rtde_time < t_next:
             rtde_k = k
-        targets[k, 0], targets[k, 1], targets[k, 2] = cx, cy, cz + s
+        if par[EXTRA_LATENCY] > 0.0:
+            targets[k, 0], targets[k, 1], targets[k, 2] = _delayed(
+                ist, delay, t_next, cx, cy, cz + s, par[EXTRA_LATENCY]
+            )
+        else:
+            targets[k, 0], targets[k, 1], targets[k, 2] = cx, cy, cz + s
         out[k, OUT_T_S] = t_next
         out[k, OUT_PHASE] = phase
         out[k, OUT_DEPTH_CMD] = s
@@ -582,6 +626,7 @@ def advance_batch(
     centre: np.ndarray,
     filled: np.ndarray,
     bins: np.ndarray,
+    delay: np.ndarray,
     command: np.ndarray,
     noise: np.ndarray,
     record: np.ndarray,
@@ -596,7 +641,47 @@ def advance_batch(
     for i in range(fs.shape[0]):
         k = recorded[i]
         advance(
-            fs[i], ist[i], pend[i], par[i], tab[i], rows[i], chains[i], centre[i], filled[i], bins[i],
+            fs[i], ist[i], pend[i], par[i], tab[i], rows[i], chains[i], centre[i], filled[i], bins[i], delay[i],
             command[i], noise[i], record[i, k : k + n],
         )  # fmt: skip
         recorded[i] = k + n
+
+
+@numba.njit(cache=True)
+def advance_open_loop(
+    fs: np.ndarray,
+    ist: np.ndarray,
+    pend: np.ndarray,
+    par: np.ndarray,
+    tab: np.ndarray,
+    rows: np.ndarray,
+    chains: np.ndarray,
+    centre: np.ndarray,
+    filled: np.ndarray,
+    bins: np.ndarray,
+    delay: np.ndarray,
+    commands: np.ndarray,
+    out: np.ndarray,
+    q_motor: np.ndarray,
+    tracker: np.ndarray,
+) -> int:  # pragma: no cover (compiled)
+    """:func:`advance` through ``commands`` (T, 4) until the episode ends, without noise; the steps taken.
+
+    Sample rows go to ``out`` (5 T, :data:`OUT_COLUMNS`); after each step the motor angles (rad) to
+    ``q_motor[k]`` (T, 6) and the tracker reading (m, base frame) to ``tracker[k]`` (T, 3). Stops at a
+    singular Jacobian with ``ist[SINGULAR]`` set (that step not counted).
+    """
+    n = SUBSTEPS_PER_STEP
+    noise = np.zeros(6 * n + 3)
+    for k in range(commands.shape[0]):
+        advance(
+            fs, ist, pend, par, tab, rows, chains, centre, filled, bins, delay, commands[k], noise,
+            out[n * k : n * k + n],
+        )  # fmt: skip
+        if ist[SINGULAR] == 1:
+            return k
+        q_motor[k] = fs[Q_MOTOR : Q_MOTOR + 6]
+        tracker[k] = fs[TRACKER_READING : TRACKER_READING + 3]
+        if ist[TERMINATED] == 1 or ist[TRUNCATED] == 1:
+            return k + 1
+    return commands.shape[0]

@@ -55,6 +55,7 @@ class Latency(Effect):
     params = (Param("extra_latency_s", 0.0, 0.3, 0.0, "extra delay of the servo target (s)"),)
     channels = frozenset({"force", "torque", "tracker", "q", "tcp"})
     channels_before_contact = frozenset({"tracker", "q", "tcp"})
+    compiled = True
 
     def attach(self, env: EffectHost) -> None:
         """Start an empty delay line."""

@@ -104,17 +104,7 @@ class Replayer:
         env.set_effects(list(effects) or None)
         env.reset(seed=seed, options={"scenario": scenario} if key != self._key else None)
         self._key = key
-        n_steps = len(ep.actions)
-        q = np.full((n_steps, 6), np.nan)
-        tracker = np.full((n_steps, 3), np.nan)
-        done = 0
-        for i in range(n_steps):
-            terminated, truncated = env.advance(ep.actions[i])
-            q[i] = env.cell.q_motor_rad
-            tracker[i] = env.tracker_reading
-            done = i + 1
-            if terminated or truncated:
-                break
+        done, q, tracker = env.advance_open_loop(ep.actions)
         rec = env.recorder
         m = min(len(rec.t_s), ep.n)
         reps = np.diff(np.concatenate([[0], np.arange(1, done + 1) * 5]))  # 5 samples per step

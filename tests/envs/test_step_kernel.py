@@ -89,8 +89,10 @@ COMPILED_EFFECTS = {
     "skid_friction": "skid_friction:mu=1.5",
     "thermal_softening": "thermal_softening:softening=0.5,work_j=5",
     "joint_friction": "joint_friction:coulomb_rad=5e-4,viscous_s=0.01",
+    "latency": "latency:extra_latency_s=0.12",
     "all": "kinematic_offset:dx_base_m=2e-4+tool_length:dl_m=-3e-3+skid_friction:mu=0.7"
-    "+thermal_softening:softening=0.3+joint_friction:coulomb_rad=2e-4,viscous_s=0.005+density_gradient:offset=-0.1",
+    "+thermal_softening:softening=0.3+joint_friction:coulomb_rad=2e-4,viscous_s=0.005+density_gradient:offset=-0.1"
+    "+latency:extra_latency_s=0.3",
 }
 """Every effect the compiled step runs, each at a size that moves the episode well away from the nominal one."""
 
@@ -128,7 +130,7 @@ def test_every_compiled_effect_is_exercised():
 def test_compiled_step_is_used_only_for_compiled_effects():
     env = gym.make(ENV_ID)
     try:
-        env.reset(seed=0, options={"effects": [EFFECTS["latency"](extra_latency_s=0.02)]})
+        env.reset(seed=0, options={"effects": [EFFECTS["servo_deadband"](band_m=1e-4)]})
         assert env.unwrapped._kernel is None
         gradient = EFFECTS["density_gradient"](offset=0.1)
         env.reset(seed=0, options={"effects": [gradient, EFFECTS["ft_drift"](fx_rate_n_s=0.01)]})
@@ -154,3 +156,53 @@ def test_a_subclass_of_a_compiled_effect_steps_in_python_unless_it_says_so():
         assert env.unwrapped._kernel is None
     finally:
         env.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "spec", "compiled"),
+    [
+        ({"ft_noise_n": 0.0, "tracker_noise_mm": 0.0}, "", True),
+        ({"ft_noise_n": 0.0, "tracker_noise_mm": 0.0, "latency_s": 0.1}, COMPILED_EFFECTS["all"], True),
+        ({}, "kinematic_offset:dx_base_m=2e-4", False),  # noisy sensors: step by step
+        ({"ft_noise_n": 0.0, "tracker_noise_mm": 0.0}, "servo_deadband:band_m=1e-4", False),  # Python step
+    ],
+)
+def test_an_open_loop_replay_equals_stepping_the_same_actions(kwargs, spec, compiled):
+    actions = _random_actions(11)
+    envs_ = [gym.make(ENV_ID, **kwargs).unwrapped for _ in range(2)]
+    try:
+        for env in envs_:
+            env.reset(seed=3, options={"effects": build_effects(spec) if spec else []})
+        replayed, stepped = envs_
+        assert replayed._kernel is not None and replayed._kernel.noiseless if compiled else True
+        done, q, tracker = replayed.advance_open_loop(actions)
+        q_ref, tracker_ref = np.full_like(q, np.nan), np.full_like(tracker, np.nan)
+        for k, a in enumerate(actions):
+            ended = stepped.advance(a)
+            q_ref[k], tracker_ref[k] = stepped.cell.q_motor_rad, stepped.tracker_reading
+            if any(ended):
+                break
+        assert done == k + 1 < len(actions)
+        worst, where = largest_difference(
+            {"q": q, "tracker": tracker, **{k: np.asarray(v) for k, v in replayed.recorder.__dict__.items()}},
+            {"q": q_ref, "tracker": tracker_ref, **{k: np.asarray(v) for k, v in stepped.recorder.__dict__.items()}},
+        )
+        assert worst <= TOLERANCE, f"{where} differs by {worst:.2e}"
+        assert replayed.metrics == pytest.approx(stepped.metrics, rel=TOLERANCE)
+        assert replayed.t_s == stepped.t_s and replayed.path.phase == stepped.path.phase
+        with pytest.raises(RuntimeError, match="ended"):
+            replayed.advance_open_loop(actions[:1])
+    finally:
+        for env in envs_:
+            env.close()
+
+
+def test_an_open_loop_replay_rejects_a_nan_action_and_keeps_the_state():
+    env = gym.make(ENV_ID, ft_noise_n=0.0, tracker_noise_mm=0.0).unwrapped
+    env.reset(seed=0)
+    actions = _random_actions(1, 50)
+    actions[30, 2] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        env.advance_open_loop(actions)
+    assert env.steps == 0 and not env.recorder.t_s
+    env.close()
