@@ -5,7 +5,7 @@ from __future__ import annotations
 from drillgym.envs.effects.base import Effect
 from drillgym.envs.effects.bone import DensityGradient, SkidFriction, ThermalSoftening
 from drillgym.envs.effects.joints import JointFriction, KinematicOffset
-from drillgym.envs.effects.sensor import FTDrift, FTGain, ToolRunout
+from drillgym.envs.effects.sensor import FTContactBias, FTDrift, FTGain, ToolRunout
 from drillgym.envs.effects.servo import ServoDeadband
 from drillgym.envs.effects.timing import Latency
 from drillgym.envs.effects.tool import ToolLength
@@ -25,15 +25,17 @@ EFFECTS: dict[str, type[Effect]] = {
         ToolRunout,
         ServoDeadband,
         FTGain,
+        FTContactBias,
     )
 }
 """The unmodelled effects of the library, by name (``build_effects``, ``make-reality``, cells)."""
 
-OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain")
+OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias")
 """In the library, but tried only when asked for (``diagnose --candidates``). ``servo_deadband`` (added for
 ``drillgym explain-paper``): the withheld-effect benchmark has not been run with it. ``ft_gain``: on the
 benchmark it named its own reality, but also served as a second effect patching a bone model's force level
-(``docs/diagnosis.md`` §6)."""
+(``docs/diagnosis.md`` §6). ``ft_contact_bias``: named on its own reality (``ft_load_bias``) at two
+magnitudes, not yet run on the whole benchmark (``docs/diagnosis.md`` §3)."""
 DIAGNOSIS_CANDIDATES: tuple[str, ...] = tuple(name for name in EFFECTS if name not in OPT_IN_CANDIDATES)
 """The candidates ``drillgym diagnose`` and ``bench-diagnosis`` try by default."""
 

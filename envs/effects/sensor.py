@@ -81,6 +81,49 @@ class FTGain(Effect):
         trace.force_n *= self._gains()[None, :]
 
 
+def engaged_share(env: EffectHost, n: int) -> np.ndarray:
+    """Share of the lips' length in bone at the step's last ``n`` recorded samples (from the true tip), in [0, 1]."""
+    cell = env.cell
+    tips = np.asarray(env.recorder.tip_task_m[-n:], dtype=float)
+    depth = tips[:, 2] + tips[:, 0] * cell.solver.tan_beta
+    return np.clip(np.interp(depth, cell.table.depth_m, cell.table.engaged_fraction), 0.0, 1.0)
+
+
+class FTContactBias(Effect):
+    """F/T bias that appears at contact: the force reading shifts by ``s · b`` while the lips cut.
+
+    ``F_read = F + s b`` (b per force axis in N, sensor frame; s the engaged share of the lips, 0 before
+    contact and after the drill leaves). A load that reaches the strain gauges only while the tool is
+    loaded: a cable or a spindle hose pulled as the arm pushes, a preloaded mount that seats under thrust,
+    the spindle's heat flowing into the sensor while it cuts. Torques are left alone. Unlike a drift it reads
+    nothing before contact, and unlike a gain it does not grow with the cutting force.
+    """
+
+    name = "ft_contact_bias"
+    summary = "F/T force offset present only while the drill cuts (proportional to the engaged share)"
+    params = (
+        Param("bx_n", -3.0, 3.0, 0.0, "bias of Fx at full engagement (N, sensor frame)"),
+        Param("by_n", -3.0, 3.0, 0.0, "bias of Fy at full engagement (N, sensor frame)"),
+        Param("bz_n", -3.0, 3.0, 0.0, "bias of Fz at full engagement (N, sensor frame)"),
+    )
+    channels = frozenset({"force"})
+    sensor_only = True
+
+    def _bias(self) -> np.ndarray:
+        v = self.values
+        return np.array([v["bx_n"], v["by_n"], v["bz_n"]])
+
+    def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Add the engaged share times the bias to the force axes."""
+        out = np.array(wrenches, dtype=float)
+        out[:, :3] += engaged_share(env, len(t_s))[:, None] * self._bias()[None, :]
+        return out
+
+    def apply_to_trace(self, trace: TraceView) -> None:
+        """Add the bias to the recorded forces, with the trace's engaged share."""
+        trace.force_n += np.clip(trace.engaged_share, 0.0, 1.0)[:, None] * self._bias()[None, :]
+
+
 RUNOUT_STIFFNESS_N_M = 5.0e3
 """Radial force per metre of runout (N/m): the hole wall forces the orbiting tip back toward the axis
 through the drill's and the lips' lateral stiffness in series (drill 1.65 N/mm, lips ~10 N/mm)."""
@@ -110,13 +153,9 @@ class ToolRunout(Effect):
 
     def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Add the rotating force (and its moment about the sensor) to the step's samples."""
-        cell = env.cell
-        tips = np.asarray(env.recorder.tip_task_m[-len(t_s) :], dtype=float)
-        depth = tips[:, 2] + tips[:, 0] * cell.solver.tan_beta
-        share = np.interp(depth, cell.table.depth_m, cell.table.engaged_fraction)
-        f = self._rotating(t_s, share, env.scenario.spindle_rpm)
+        f = self._rotating(t_s, engaged_share(env, len(t_s)), env.scenario.spindle_rpm)
         out = np.array(wrenches, dtype=float)
-        arm = cell.sensor_arm_m
+        arm = env.cell.sensor_arm_m
         out[:, 0] += f[:, 0]
         out[:, 1] += f[:, 1]
         out[:, 3] += -arm * f[:, 1]

@@ -35,6 +35,7 @@ SETTINGS = {
     "tool_runout": "tool_runout:runout_m=3e-5",
     "servo_deadband": "servo_deadband:band_m=2e-4",
     "ft_gain": "ft_gain:fxy_gain=0.2,fz_gain=-0.1",
+    "ft_contact_bias": "ft_contact_bias:bx_n=0.5,bz_n=-0.8",
 }
 
 

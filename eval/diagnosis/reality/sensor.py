@@ -1,6 +1,7 @@
-"""Reality: F/T warm-up drift, a lateral F/T calibration error and a wobbling runout.
+"""Reality: F/T warm-up drift, a lateral F/T calibration error, a wobbling runout and a thrust-loaded bias.
 
-Forms unlike the candidates' linear drift, per-axis gain and clean once-per-revolution force.
+Forms unlike the candidates' linear drift, per-axis gain, clean once-per-revolution force and
+engagement-proportional bias.
 """
 
 from __future__ import annotations
@@ -118,4 +119,32 @@ class WobblyRunout(RealityEffect):
         out[:, 1] += fy
         out[:, 3] -= arm * fy
         out[:, 4] += arm * fx
+        return out
+
+
+class FTLoadBias(RealityEffect):
+    """An F/T offset loaded by the thrust: ``F_read = F + b tanh(|F_z| / F₀)`` on each force axis.
+
+    The offset comes with the axial load (a hose or cable pulled, a mount seating as the arm pushes) and
+    saturates above F₀; it goes when the thrust does. The candidate ``ft_contact_bias`` has it follow the
+    engaged share of the lips instead: the two agree in the stable cut and differ at entry and exit.
+    """
+
+    name = "ft_load_bias"
+    summary = "F/T force offset loaded by the thrust (saturating in |Fz|)"
+    explains = "ft_contact_bias"
+    params = (
+        Param("bx_n", -3.0, 3.0, 0.0, "saturated bias of Fx (N, sensor frame)"),
+        Param("by_n", -3.0, 3.0, 0.0, "saturated bias of Fy (N, sensor frame)"),
+        Param("bz_n", -3.0, 3.0, 0.0, "saturated bias of Fz (N, sensor frame)"),
+        Param("load_n", 0.2, 10.0, 1.5, "thrust at which the bias reaches 76 % (tanh 1) of its saturated value (N)"),
+    )
+    channels = frozenset({"force"})
+
+    def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Add the thrust-loaded bias."""
+        v = self.values
+        out = np.array(wrenches, dtype=float)
+        load = np.tanh(np.abs(out[:, 2]) / v["load_n"])
+        out[:, :3] += load[:, None] * np.array([v["bx_n"], v["by_n"], v["bz_n"]])[None, :]
         return out
