@@ -101,29 +101,29 @@ def episode_params(
     return par
 
 
-def _thermal_softening(effect: Effect, cell: SimCell, par: np.ndarray) -> None:
+def _thermal_softening(effect: Effect, par: np.ndarray) -> None:
     par[sk.SOFTENING] = effect.values["softening"]
     par[sk.SOFTENING_WORK_J] = effect.values["work_j"]
 
 
-def _joint_friction(effect: Effect, cell: SimCell, par: np.ndarray) -> None:
+def _joint_friction(effect: Effect, par: np.ndarray) -> None:
     c, tv = effect.values["coulomb_rad"], effect.values["viscous_s"]
     par[sk.FRICTION_COULOMB], par[sk.FRICTION_VISCOUS] = c, tv
     if c != 0.0 or tv != 0.0:
         par[sk.FRICTION_ON] = par[sk.TARGET_OFFSET_ON] = 1.0
 
 
-def _latency(effect: Effect, cell: SimCell, par: np.ndarray) -> None:
+def _latency(effect: Effect, par: np.ndarray) -> None:
     par[sk.EXTRA_LATENCY] = effect.values["extra_latency_s"]
 
 
-STEP_EFFECTS: dict[str, Callable[[Effect, SimCell, np.ndarray], None]] = {
+STEP_EFFECTS: dict[str, Callable[[Effect, np.ndarray], None]] = {
     ThermalSoftening.name: _thermal_softening,
     JointFriction.name: _joint_friction,
     Latency.name: _latency,
 }
 """The effects with a step hook the compiled step runs, by name: each writes its parameters into ``par``
-(the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._target_offset``, ``step_kernel._delayed``)."""
+(the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._friction_lag``, ``step_kernel._delayed``)."""
 
 
 def tracker_sample_is_new(t_s: Any, stamp_s: Any) -> Any:
@@ -207,13 +207,14 @@ class KernelState:
             delay=np.zeros((sk.DELAY_ROWS, 4)),
         )
         self.fs, self.ist, self.pend, self.par = fs, self.arrays.ist, self.arrays.pend, self.arrays.par
-        self.effects = [] if env.effects is None else env.effects.effects
-        for e in self.effects:
-            if not type(e).__dict__.get("compiled", False):
-                raise ValueError(f"the compiled step does not run {e!r}; step this env in Python")
+        effects = [] if env.effects is None else env.effects.effects
+        if env.effects is not None and not env.effects.compiled:
+            raise ValueError(f"the compiled step does not run all of {effects!r}; step this env in Python")
+        for e in effects:
             hook = STEP_EFFECTS.get(type(e).name)
             if hook is not None:
-                hook(e, cell, self.par)
+                hook(e, self.par)
+        self._thermal = next((e for e in effects if isinstance(e, ThermalSoftening)), None)
         self.noise = np.zeros(NOISE_SIZE)
         self.command = np.zeros(4)
         self.loaded = False
@@ -282,14 +283,14 @@ class KernelState:
         fs[sk.JACOBIAN : sk.JACOBIAN + 36] = cell.J_tcp.ravel()
         fs[sk.C_ROBOT : sk.C_ROBOT + 9] = cell.C_robot.ravel()
         self.par[sk.FORCE_SCALE] = solver.force_scale
-        fs[sk.THERMAL_SCALE] = solver.force_scale
+        fs[sk.FORCE_SCALE_NOW] = solver.force_scale
+        fs[sk.TARGET_OFFSET : sk.TARGET_OFFSET + 3] = self.par[sk.GEOMETRY_OFFSET : sk.GEOMETRY_OFFSET + 3]
         smp = cell.sample
         o = sk.SAMPLE
         fs[o : o + 10] = [*smp.tip, *smp.rigid, *smp.force, smp.torque_axis]
         fs[o + 10 : o + 13] = smp.depth_local, smp.stage, 1.0 if smp.cutting else 0.0
-        for e in self.effects:
-            if isinstance(e, ThermalSoftening):
-                fs[sk.WORK_J] = e.work_j
+        if self._thermal is not None:
+            fs[sk.WORK_J] = self._thermal.work_j
         ist[sk.PHASE] = int(env.path.phase)
         ist[sk.TOUCHING] = 1 if solver.touching else 0
         ist[sk.BRACKET] = solver._j
@@ -342,11 +343,9 @@ class KernelState:
         cell.J_tcp = fs[sk.JACOBIAN : sk.JACOBIAN + 36].copy().reshape(6, 6)
         cell.C_robot = fs[sk.C_ROBOT : sk.C_ROBOT + 9].copy().reshape(3, 3)
         cell.C_total = cell.C_robot + cell.C_tool
-        if self.par[sk.SOFTENING] > 0.0:
-            solver.force_scale = v[sk.THERMAL_SCALE]
-            for e in self.effects:
-                if isinstance(e, ThermalSoftening):
-                    e.work_j = v[sk.WORK_J]
+        solver.force_scale = v[sk.FORCE_SCALE_NOW]
+        if self._thermal is not None:
+            self._thermal.work_j = v[sk.WORK_J]
         if i[sk.FAILURE] and env.failure is None:
             env.failure = "force_limit"
         env.steps = i[sk.STEPS]

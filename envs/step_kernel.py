@@ -90,12 +90,12 @@ C_ROBOT = 83
 SAMPLE = 92
 """The latest sample's row (13, :data:`~drillgym.envs.drilling.contact_kernel.ROW_SIZE`)."""
 TARGET_OFFSET = 105
-"""This step's shift of the servo target (3, m, task frame): the tool's geometry offset plus the joint
-friction's servo lag (used where ``par[TARGET_OFFSET_ON]``)."""
+"""This step's shift of the servo target (3, m, task frame): the tool's geometry offset (set at load) plus,
+with joint friction, its servo lag (used where ``par[TARGET_OFFSET_ON]``)."""
 WORK_J = 108
 """Cutting work done so far (J; thermal softening)."""
-THERMAL_SCALE = 109
-"""The specimen's force scale after thermal softening (used where ``par[SOFTENING] > 0``)."""
+FORCE_SCALE_NOW = 109
+"""The force scale in effect: the specimen's (``par[FORCE_SCALE]``), after thermal softening if on."""
 FLOAT_STATE_SIZE = 110
 
 # ---------------------------------------------------------------- integer state ``ist``
@@ -286,7 +286,7 @@ def _prepare(
     """``cell.begin_step``: the force rows for the chip in effect and the guided lateral stiffness (N/m)."""
     n = int(par[N_GRID])
     chip = par[FEED_M_S] * fs[FEED_SCALE] / (par[N_LIPS] * par[REV_PER_S]) * par[SIN_KAPPA]
-    scale = fs[THERMAL_SCALE] if par[SOFTENING] > 0.0 else par[FORCE_SCALE]
+    scale = fs[FORCE_SCALE_NOW]
     if chip != fs[KEY_CHIP] or scale != fs[KEY_SCALE]:
         fs[KEY_CHIP], fs[KEY_SCALE] = chip, scale
         for i in range(n):
@@ -329,11 +329,11 @@ def _soften(fs: np.ndarray, ist: np.ndarray, par: np.ndarray) -> None:  # pragma
     power_w = abs(fs[o + 9]) * par[OMEGA] + abs(fs[o + 8]) * max(speed, 0.0)
     fs[WORK_J] += power_w * CONTROL_DT_S
     factor = 1.0 - par[SOFTENING] * (1.0 - math.exp(-fs[WORK_J] / par[SOFTENING_WORK_J]))
-    fs[THERMAL_SCALE] = par[FORCE_SCALE] * max(factor, MIN_HARDNESS)
+    fs[FORCE_SCALE_NOW] = par[FORCE_SCALE] * max(factor, MIN_HARDNESS)
 
 
 @numba.njit(cache=True)
-def _target_offset(fs: np.ndarray, ist: np.ndarray, pend: np.ndarray, par: np.ndarray) -> None:  # pragma: no cover
+def _friction_lag(fs: np.ndarray, ist: np.ndarray, pend: np.ndarray, par: np.ndarray) -> None:  # pragma: no cover
     """The step's servo-target shift (task frame, m): the geometry offset plus the joint friction's lag.
 
     The lag is :class:`~drillgym.envs.effects.joints.JointFriction`'s ``begin_step``, from the commanded tip
@@ -341,24 +341,21 @@ def _target_offset(fs: np.ndarray, ist: np.ndarray, pend: np.ndarray, par: np.nd
     """
     o = R_BASE_TASK
     r = par[o : o + 9].reshape((3, 3))
-    if par[FRICTION_ON] == 1.0:
-        v = np.zeros(3)
-        v[2] = _speed_m_s(ist[PHASE], par[FEED_M_S], fs[FEED_SCALE])
-        last = ist[PENDING] - 1
-        d = np.empty(3)
-        for i in range(3):
-            d[i] = pend[last, 1 + i] - fs[CORRECTION + i]
-        v += (r.T @ d) / CONTROL_DT_S
-        twist = np.zeros(6)
-        twist[:3] = r @ v
-        jac = fs[JACOBIAN : JACOBIAN + 36].reshape((6, 6))
-        qd = np.linalg.solve(jac, twist)
-        dq = -(par[FRICTION_COULOMB] * np.tanh(qd / SIGN_SMOOTHING_RAD_S) + par[FRICTION_VISCOUS] * qd)
-        lag = r.T @ (jac[:3] @ dq)
-        for i in range(3):
-            fs[TARGET_OFFSET + i] = par[GEOMETRY_OFFSET + i] + lag[i] if par[GEOMETRY_ON] == 1.0 else lag[i]
-    else:
-        fs[TARGET_OFFSET : TARGET_OFFSET + 3] = par[GEOMETRY_OFFSET : GEOMETRY_OFFSET + 3]
+    v = np.zeros(3)
+    v[2] = _speed_m_s(ist[PHASE], par[FEED_M_S], fs[FEED_SCALE])
+    last = ist[PENDING] - 1
+    d = np.empty(3)
+    for i in range(3):
+        d[i] = pend[last, 1 + i] - fs[CORRECTION + i]
+    v += (r.T @ d) / CONTROL_DT_S
+    twist = np.zeros(6)
+    twist[:3] = r @ v
+    jac = fs[JACOBIAN : JACOBIAN + 36].reshape((6, 6))
+    qd = np.linalg.solve(jac, twist)
+    dq = -(par[FRICTION_COULOMB] * np.tanh(qd / SIGN_SMOOTHING_RAD_S) + par[FRICTION_VISCOUS] * qd)
+    lag = r.T @ (jac[:3] @ dq)
+    for i in range(3):
+        fs[TARGET_OFFSET + i] = par[GEOMETRY_OFFSET + i] + lag[i] if par[GEOMETRY_ON] == 1.0 else lag[i]
 
 
 @numba.njit(cache=True)
@@ -483,8 +480,8 @@ def advance(  # noqa: C901 (one step, in the env's order)
     ist[PENDING] = npend + 1
     if par[SOFTENING] > 0.0:
         _soften(fs, ist, par)
-    if par[TARGET_OFFSET_ON] == 1.0:
-        _target_offset(fs, ist, pend, par)
+    if par[FRICTION_ON] == 1.0:
+        _friction_lag(fs, ist, pend, par)
     rtde_time = math.floor((fs[T_S] + CONTROL_DT_S) * RTDE_RATE_HZ + 1e-9) / RTDE_RATE_HZ
     c_total = _c_total(fs, par)
     nb = int(par[N_BINS])
