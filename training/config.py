@@ -46,6 +46,10 @@ class TrainConfig:
     """Extra env arguments for training and evaluation (e.g. reward weights: ``reward_force_weight``)."""
     domain_randomization: bool = True
     """Draw a new scenario every episode inside the training ranges."""
+    paired_reward: bool = False
+    """Reward each training step relative to the base controller's own episode on the same seed and scenario
+    (:class:`drillgym.training.paired_reward.PairedReward`): the same optimum, without the episode-to-episode
+    swing of the specimen and scenario. Evaluation and selection are unchanged."""
     dr_ranges: dict[str, list[float]] = field(default_factory=dict)
     """Extra or replaced domain-randomisation ranges, ``{scenario argument: [low, high]}`` on top of
     :data:`drillgym.training.domain_randomization.DR_RANGES` (training and validation draws alike)."""

@@ -19,6 +19,7 @@ from drillgym.training.domain_randomization import (
     training_plan_support,
     validation_scenarios,
 )
+from drillgym.training.paired_reward import PairedReward
 from drillgym.training.residual_wrapper import ResidualWrapper
 
 ENV_ID = SIM_ENV_ID
@@ -41,10 +42,12 @@ def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:
 
 
 def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | None = None) -> gym.Env:
-    """One drilling env (optionally domain-randomised) under the residual wrapper."""
+    """One drilling env (optionally domain-randomised, then with ``cfg.paired_reward``) under the residual wrapper."""
     env: gym.Env = gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})})
     if randomize:
         env = DomainRandomization(env, merged_ranges(cfg.dr_ranges))
+        if cfg.paired_reward:
+            env = PairedReward(env, cfg.base, lambda: gym.make(ENV_ID, **cfg.env_kwargs))
     return wrap_residual(env, cfg)
 
 
