@@ -543,7 +543,10 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         stamp = latest_sample_time_s(self.t_s, TRACKER_RATE_HZ)
         if stamp != self.tracker_stamp:
             self.tracker_stamp = stamp
-            self.tracker_reading = self.tracker.sample(self.cell.marker_base_m())
+            marker = self.cell.marker_base_m()
+            if self.effects is not None:
+                marker = self.effects.tracker_marker_base_m(self, marker, stamp)
+            self.tracker_reading = self.tracker.sample(marker)
         planned = self.marker_start_base + self.cell.R_base_task @ np.array([0.0, 0.0, self.path.s_m - self.s_start_m])
         self.tracker_error_base = self.tracker_reading - planned
         lateral = self.cell.R_base_task.T @ self.tracker_error_base

@@ -18,6 +18,7 @@ from drillgym.envs.effects.sensor import FTDrift, ToolRunout
 from drillgym.envs.effects.servo import ServoDeadband
 from drillgym.envs.effects.timing import DelayLine, Latency
 from drillgym.envs.effects.tool import ToolLength
+from drillgym.envs.effects.tracker import TrackerLatency
 
 __all__ = [
     "CHANNEL_GROUPS",
@@ -37,6 +38,7 @@ __all__ = [
     "ToolLength",
     "ToolRunout",
     "TraceView",
+    "TrackerLatency",
     "add_geometry_offset",
     "build_effects",
     "parse_effect_spec",

@@ -97,6 +97,9 @@ class TraceView:
         engaged_share: share of the lips' length in bone, in [0, 1], (n,).
         sensor_arm_m: F/T sensor origin to drill tip along the tool axis (m).
         spindle_rpm: spindle speed (rpm).
+        tracker_m: tracker readings (m, any fixed frame), (n, 3), one per F/T sample (the agent step's reading,
+            held over its samples; NaN where the tracker was not tracking); None where the trace has none.
+        tracker_stamp_s: the time stamp of each row's tracker reading (s), (n,) (with ``tracker_m``).
     """
 
     t_s: np.ndarray
@@ -105,6 +108,8 @@ class TraceView:
     engaged_share: np.ndarray
     sensor_arm_m: float
     spindle_rpm: float
+    tracker_m: np.ndarray | None = None
+    tracker_stamp_s: np.ndarray | None = None
 
 
 class Effect:
@@ -164,6 +169,10 @@ class Effect:
         """True wrenches (5, 6) (N, N·m, sensor frame) at the sample times ``t_s`` (s), before noise."""
         return wrenches
 
+    def tracker_marker_base_m(self, env: EffectHost, marker_base_m: np.ndarray, stamp_s: float) -> np.ndarray:
+        """The marker position (m, base frame) the tracker reports for its sample stamped ``stamp_s`` (s), before noise."""
+        return marker_base_m
+
     def apply_to_trace(self, trace: TraceView) -> None:
         """Sensor-only effects: the same change on a recorded trace (in place)."""
         raise NotImplementedError(f"{self.name} changes physics; it must be simulated")
@@ -178,7 +187,7 @@ class Effect:
         return None
 
 
-_STEP_HOOKS = ("command_delay_s", "begin_step", "delay_target", "sensor_wrenches")
+_STEP_HOOKS = ("command_delay_s", "begin_step", "delay_target", "sensor_wrenches", "tracker_marker_base_m")
 """The hooks the env calls during a step (the compiled step calls none: it has their counterparts)."""
 
 
@@ -198,6 +207,7 @@ class EffectStack:
         self._begin = [e for e in self.effects if _overrides(e, "begin_step")]
         self._target = [e for e in self.effects if _overrides(e, "delay_target")]
         self._sensor = [e for e in self.effects if _overrides(e, "sensor_wrenches")]
+        self._tracker = [e for e in self.effects if _overrides(e, "tracker_marker_base_m")]
         self.target_hook: Callable[[float, tuple[float, float, float]], tuple[float, float, float]] | None = (
             self._delay_target if self._target else None
         )
@@ -246,3 +256,9 @@ class EffectStack:
         for e in self._sensor:
             wrenches = e.sensor_wrenches(env, wrenches, t_s)
         return wrenches
+
+    def tracker_marker_base_m(self, env: EffectHost, marker_base_m: np.ndarray, stamp_s: float) -> np.ndarray:
+        """The marker position the tracker reports after every tracker-side effect (m, base frame)."""
+        for e in self._tracker:
+            marker_base_m = e.tracker_marker_base_m(env, marker_base_m, stamp_s)
+        return marker_base_m

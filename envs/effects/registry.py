@@ -9,6 +9,7 @@ from drillgym.envs.effects.sensor import FTContactBias, FTDrift, FTGain, ToolRun
 from drillgym.envs.effects.servo import ServoDeadband
 from drillgym.envs.effects.timing import Latency
 from drillgym.envs.effects.tool import ToolLength
+from drillgym.envs.effects.tracker import TrackerLatency
 from drillgym.envs.key_values import convert, split_items, split_named
 
 EFFECTS: dict[str, type[Effect]] = {
@@ -26,16 +27,18 @@ EFFECTS: dict[str, type[Effect]] = {
         ServoDeadband,
         FTGain,
         FTContactBias,
+        TrackerLatency,
     )
 }
 """The unmodelled effects of the library, by name (``build_effects``, ``make-reality``, cells)."""
 
-OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias")
+OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias", "tracker_latency")
 """In the library, but tried only when asked for (``diagnose --candidates``). ``servo_deadband`` (added for
 ``drillgym explain-paper``): the withheld-effect benchmark has not been run with it. ``ft_gain``: on the
 benchmark it named its own reality, but also served as a second effect patching a bone model's force level
 (``docs/diagnosis.md`` §6). ``ft_contact_bias``: named on its own reality (``ft_load_bias``) at two
-magnitudes, not yet run on the whole benchmark (``docs/diagnosis.md`` §3)."""
+magnitudes, not yet run on the whole benchmark (``docs/diagnosis.md`` §3). ``tracker_latency``: likewise, on its
+reality ``tracker_smoothing``."""
 DIAGNOSIS_CANDIDATES: tuple[str, ...] = tuple(name for name in EFFECTS if name not in OPT_IN_CANDIDATES)
 """The candidates ``drillgym diagnose`` and ``bench-diagnosis`` try by default."""
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from drillgym.envs.drill_env import UR5BoneDrillEnv
 from drillgym.envs.effects.base import Effect, TraceView
+from drillgym.envs.effects.tracker import step_tracker_stamps_s
 from drillgym.eval.diagnosis.channels import FORCE, LF_CHANNELS, TORQUE, TRACKER, Q
 from drillgym.eval.diagnosis.episodes import EpisodeData
 
@@ -45,7 +46,7 @@ class SimTrace:
         return SimTrace(self.lf.copy(), self.t_s, self.engaged_share, self.sensor_arm_m, self.spindle_rpm)
 
     def with_sensor_effects(self, effects: Sequence[Effect]) -> SimTrace:
-        """A copy with sensor-only effects applied to its F/T channels."""
+        """A copy with sensor-only effects applied to its F/T and tracker channels."""
         out = self.copy()
         if effects:
             view = TraceView(
@@ -55,11 +56,14 @@ class SimTrace:
                 engaged_share=self.engaged_share,
                 sensor_arm_m=self.sensor_arm_m,
                 spindle_rpm=self.spindle_rpm,
+                tracker_m=out.lf[:, TRACKER],
+                tracker_stamp_s=step_tracker_stamps_s(self.t_s),
             )
             for e in effects:
                 e.apply_to_trace(view)
             out.lf[:, FORCE] = view.force_n
             out.lf[:, TORQUE] = view.torque_nm
+            out.lf[:, TRACKER] = view.tracker_m
         return out
 
 

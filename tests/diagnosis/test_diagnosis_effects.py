@@ -36,6 +36,7 @@ SETTINGS = {
     "servo_deadband": "servo_deadband:band_m=2e-4",
     "ft_gain": "ft_gain:fxy_gain=0.2,fz_gain=-0.1",
     "ft_contact_bias": "ft_contact_bias:bx_n=0.5,bz_n=-0.8",
+    "tracker_latency": "tracker_latency:latency_s=0.07",
 }
 
 
@@ -176,12 +177,17 @@ def test_sensor_only_effect_on_a_trace_matches_the_simulated_one(name):
     sim = channels(SETTINGS[name])
     n = len(base["force"])
     arm = CellParams().sensor_to_chuck_m + QUIET.get("stickout_mm", Scenario().stickout_mm) * 1e-3
-    view = TraceView((np.arange(n) + 1) * 0.01, base["force"].copy(), base["torque"].copy(), share, arm, 20000.0)
+    t_s = (np.arange(n) + 1) * 0.01
+    tracker = np.repeat(base["tracker"], SUBSTEPS_PER_STEP, axis=0)[:n]  # held over each step's samples
+    view = TraceView(t_s, base["force"].copy(), base["torque"].copy(), share, arm, 20000.0, tracker.copy())
     EFFECTS[name](**parse_effect_spec(SETTINGS[name])[0][1]).apply_to_trace(view)
     assert np.all(
         np.max(np.abs(view.force_n - sim["force"]), axis=0) <= [0.0101, 0.0101, 0.0201]
     )  # one resolution step
     assert np.max(np.abs(view.torque_nm - sim["torque"])) <= 2e-4
+    # the env reads the tracker once per step: the trace holds every reading the simulated delay line had
+    assert view.tracker_m is not None
+    assert max_diff(view.tracker_m[SUBSTEPS_PER_STEP - 1 :: SUBSTEPS_PER_STEP], sim["tracker"]) <= 1e-9
 
 
 def test_effect_specs_and_parameters_are_validated():

@@ -147,3 +147,17 @@ def test_an_ft_gain_error_is_named_with_an_interval_holding_its_gain_when_ft_gai
     named = next(e for e in res["effects"] if e["named"])
     ci = named["param_intervals"]["ft_gain"]["fxy_gain"]
     assert ci["low"] <= 0.2 <= ci["high"] and ci["high"] - ci["low"] < 0.05 and not ci["contains_off"]
+
+
+def test_a_smoothing_tracker_is_named_as_a_late_tracker_with_its_lag_when_tracker_latency_is_a_candidate(tmp_path):
+    # The reality is a first-order pose filter (time constant 60 ms), the candidate a pure delay: at a steady
+    # speed the filter lags by its time constant, and that is the delay the fit should find.
+    make_reality("tracker_smoothing:tau_s=0.06", 12, 11, tmp_path / "logs")
+    eps, _ = load_episodes(tmp_path / "logs")
+    candidates = ("ft_drift", "latency", "joint_friction", "tracker_latency")
+    res = diagnose(eps, DiagnoseOptions(workers=1, candidates=candidates, progress=False))
+    assert res["named"] == ["tracker_latency"]
+    named = next(e for e in res["effects"] if e["named"])
+    assert named["shrink"] > 0.8
+    ci = named["param_intervals"]["tracker_latency"]["latency_s"]
+    assert 0.055 <= ci["low"] <= ci["high"] <= 0.065 and not ci["contains_off"]

@@ -5,7 +5,13 @@ from __future__ import annotations
 from drillgym.eval.diagnosis.reality.arm import ChuckToolLength, JitteredLatency, JointZeroOffsets, StribeckFriction
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 from drillgym.eval.diagnosis.reality.bone import BoneVoid, DensityLayer, EntryFriction, HeatSoftening
-from drillgym.eval.diagnosis.reality.sensor import FTLateralGain, FTLoadBias, FTWarmup, WobblyRunout
+from drillgym.eval.diagnosis.reality.sensor import (
+    FTLateralGain,
+    FTLoadBias,
+    FTWarmup,
+    TrackerSmoothing,
+    WobblyRunout,
+)
 
 REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
     cls.name: cls
@@ -21,6 +27,7 @@ REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
         WobblyRunout,
         FTLateralGain,
         FTLoadBias,
+        TrackerSmoothing,
         BoneVoid,
     )
 }

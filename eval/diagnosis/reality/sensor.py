@@ -1,7 +1,7 @@
-"""Reality: F/T warm-up drift, a lateral F/T calibration error, a wobbling runout and a thrust-loaded bias.
+"""Reality: F/T drift, calibration error and loaded bias, a wobbling runout, and a smoothing tracker.
 
-Forms unlike the candidates' linear drift, per-axis gain, clean once-per-revolution force and
-engagement-proportional bias.
+Forms unlike the candidates' linear drift, per-axis gain, clean once-per-revolution force,
+engagement-proportional bias and pure tracker delay.
 """
 
 from __future__ import annotations
@@ -148,3 +148,44 @@ class FTLoadBias(RealityEffect):
         load = np.tanh(np.abs(out[:, 2]) / v["load_n"])
         out[:, :3] += load[:, None] * np.array([v["bx_n"], v["by_n"], v["bz_n"]])[None, :]
         return out
+
+
+class TrackerSmoothing(RealityEffect):
+    """A tracker whose pose filter smooths the marker: a first-order low-pass with time constant τ.
+
+    Each reading moves toward the marker's position by ``1 − e^{−Δt/τ}`` of the distance (Δt the time
+    since the previous reading). At a steady speed it lags by τ, like a delay; where the speed changes
+    (approach to feed, the retract, a correction) it rounds the motion instead of shifting it. The candidate
+    ``tracker_latency`` is a pure delay.
+    """
+
+    name = "tracker_smoothing"
+    summary = "tracker pose filter: first-order low-pass of the marker position"
+    explains = "tracker_latency"
+    params = (Param("tau_s", 0.0, 0.3, 0.0, "time constant of the pose filter (s)"),)
+    channels = frozenset({"tracker"})
+
+    def attach(self, env: EffectHost) -> None:
+        """No filtered reading yet."""
+        self._filtered: np.ndarray | None = None
+        self._marker = np.zeros(3)
+        self._stamp_s = 0.0
+
+    def tracker_marker_base_m(self, env: EffectHost, marker_base_m: np.ndarray, stamp_s: float) -> np.ndarray:
+        """Run the filter from the previous reading to this one and report its output.
+
+        The marker is taken to move at a constant velocity between the two readings; the filter's answer to
+        that ramp is exact (``y' = (x − y) / τ``), so the filter runs in continuous time whatever the reading rate.
+        """
+        tau = self.values["tau_s"]
+        x1 = np.asarray(marker_base_m, dtype=float)
+        if tau <= 0.0:
+            return marker_base_m
+        if self._filtered is None:
+            self._filtered = x1.copy()
+        else:
+            dt = stamp_s - self._stamp_s
+            ramp = (x1 - self._marker) / dt * tau if dt > 0.0 else np.zeros(3)
+            self._filtered = x1 - ramp + (self._filtered - self._marker + ramp) * math.exp(-dt / tau)
+        self._marker, self._stamp_s = x1, stamp_s
+        return self._filtered.copy()
