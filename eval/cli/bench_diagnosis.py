@@ -24,6 +24,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=0,
         help="added to every case's seed: the same cases on other episodes and specimens (default 0)",
     )
+    parser.add_argument(
+        "--candidates",
+        default="",
+        help="comma-separated candidate effects (default: diagnose's defaults; quick: three); e.g. the defaults "
+        "plus opt-in ones, to benchmark them before they become defaults",
+    )
+    parser.add_argument(
+        "--opt-in",
+        action="store_true",
+        help="also the cases of the opt-in candidates' realities (ft_load_bias, tracker_smoothing), with those "
+        "candidates added to the defaults",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--ray", action="store_true", help="run the cases as Ray tasks (a local instance by default)")
     parser.add_argument(
@@ -33,11 +45,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print its figures."""
-    from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
-    from drillgym.eval.diagnosis.bench.cases import QUICK_CANDIDATES, full_cases, quick_cases
+    from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS
+    from drillgym.eval.diagnosis.bench.cases import QUICK_CANDIDATES, Case, full_cases, opt_in_candidates, quick_cases
     from drillgym.eval.diagnosis.bench.run import run_bench
 
-    cases = quick_cases() if args.quick else full_cases()
+    if args.quick and args.opt_in:
+        raise ValueError("--opt-in adds full-size cases; it cannot be combined with --quick")
+    cases: list[Case] = quick_cases() if args.quick else full_cases(opt_in=args.opt_in)
     if args.only:
         wanted = {c.strip() for c in args.only.split(",") if c.strip()}
         unknown = sorted(wanted - {c.name for c in cases})
@@ -52,6 +66,13 @@ def run(args: argparse.Namespace) -> int:
         cases = [dataclasses.replace(c, seed=c.seed + args.seed_offset) for c in cases]
     episodes = args.episodes or (6 if args.quick else 12)
     candidates = QUICK_CANDIDATES if args.quick else DIAGNOSIS_CANDIDATES
+    if args.opt_in:
+        candidates = (*candidates, *opt_in_candidates())
+    if args.candidates:
+        candidates = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
+        unknown = sorted(set(candidates) - set(EFFECTS))
+        if unknown:
+            raise ValueError(f"unknown candidate effect(s) {unknown}; choose from {sorted(EFFECTS)}")
     rows_of = None
     if args.ray or args.address:
         from drillgym.eval.scale.cluster import require_ray

@@ -139,6 +139,27 @@ def test_bench_diagnosis_refuses_unknown_case_names(tmp_path, capsys):
     assert "pair-99" in capsys.readouterr().err and not (tmp_path / "bench.json").exists()
 
 
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [(["--candidates", "ft_drift,warp_drive"], "warp_drive"), (["--quick", "--opt-in"], "--quick")],
+)
+def test_bench_diagnosis_refuses_unknown_candidates_and_opt_in_quick_runs(tmp_path, capsys, args, message):
+    from drillgym.eval.cli import main
+
+    assert main(["bench-diagnosis", *args, "--out", str(tmp_path), "--no-progress"]) == 2
+    assert message in capsys.readouterr().err and not (tmp_path / "bench.json").exists()
+
+
+def test_opt_in_cases_come_after_the_default_singles_which_keep_their_seeds():
+    from drillgym.eval.diagnosis.bench.cases import OPT_IN_SINGLES, opt_in_candidates
+
+    default, with_opt_in = full_cases(), full_cases(opt_in=True)
+    assert len(with_opt_in) == len(default) + 2 * len(OPT_IN_SINGLES)
+    seeds = {c.name: c.seed for c in with_opt_in}
+    assert all(seeds[c.name] == c.seed for c in default)
+    assert set(opt_in_candidates()) == {"ft_contact_bias", "tracker_latency"}
+
+
 def test_an_ft_gain_error_is_named_with_an_interval_holding_its_gain_when_ft_gain_is_a_candidate(tmp_path):
     make_reality("ft_lateral_gain:gain=0.2", 12, 2, tmp_path / "logs")  # no cross-talk: the candidate's form
     eps, _ = load_episodes(tmp_path / "logs")

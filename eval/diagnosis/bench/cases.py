@@ -56,7 +56,13 @@ SINGLES: dict[str, tuple[str, str]] = {
     "entry_friction": ("entry_friction:mu=0.2", "entry_friction:mu=0.6"),
     "wobbly_runout": ("wobbly_runout:runout_m=2e-5", "wobbly_runout:runout_m=4e-5"),
 }
-"""Reality effect -> (moderate, strong) spec."""
+"""Reality effect -> (moderate, strong) spec, for the default candidates."""
+OPT_IN_SINGLES: dict[str, tuple[str, str]] = {
+    "ft_load_bias": ("ft_load_bias:bx_n=0.6,bz_n=-0.8", "ft_load_bias:bx_n=-1.5,by_n=1.0,bz_n=2.0"),
+    "tracker_smoothing": ("tracker_smoothing:tau_s=0.06", "tracker_smoothing:tau_s=0.15"),
+}
+"""Reality effects whose candidates are opt-in (``ft_contact_bias``, ``tracker_latency``): run (after the default
+single cases, which keep their seeds) with ``bench-diagnosis --opt-in``, which adds those candidates."""
 
 PAIRS: tuple[str, ...] = (
     "jittered_latency:mean_s=0.08,jitter_s=0.02+heat_softening:softening_per_k=0.002",
@@ -71,10 +77,15 @@ OUTSIDE: tuple[str, ...] = ("bone_void:length_m=0.001", "bone_void:length_m=0.00
 CLEAN_TRIALS = 6
 
 
-def full_cases() -> list[Case]:
-    """Every case of the full benchmark."""
+def opt_in_candidates() -> tuple[str, ...]:
+    """The candidates that model :data:`OPT_IN_SINGLES`' realities."""
+    return tuple(dict.fromkeys(n for specs in OPT_IN_SINGLES.values() for n in Case("", "single", specs[0], 0).truth))
+
+
+def full_cases(opt_in: bool = False) -> list[Case]:
+    """Every case of the full benchmark (and with ``opt_in`` the cases of :data:`OPT_IN_SINGLES`)."""
     cases: list[Case] = []
-    for name, specs in SINGLES.items():
+    for name, specs in (SINGLES | OPT_IN_SINGLES if opt_in else SINGLES).items():
         for k, spec in enumerate(specs):
             cases.append(Case(f"{name}-{('moderate', 'strong')[k]}", "single", spec, 100 + len(cases)))
     for k, spec in enumerate(PAIRS):
