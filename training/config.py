@@ -46,6 +46,9 @@ class TrainConfig:
     """Extra env arguments for training and evaluation (e.g. reward weights: ``reward_force_weight``)."""
     domain_randomization: bool = True
     """Draw a new scenario every episode inside the training ranges."""
+    paper_share: float = 0.0
+    """Share of the training episodes drilled in the paper scenario (the env's defaults with ``env_kwargs``) instead
+    of a draw inside the training ranges (0: every episode drawn)."""
     paired_reward: bool = False
     """Reward each training step relative to the base controller's own episode on the same seed and scenario
     (:class:`drillgym.training.paired_reward.PairedReward`): the same optimum, without the episode-to-episode
@@ -105,6 +108,8 @@ class TrainConfig:
 
         check_mode(self.residual_mode, self.residual_feed_ceiling)
         check_ranges(self.dr_ranges)
+        if not 0.0 <= self.paper_share <= 1.0:
+            raise ValueError(f"paper_share={self.paper_share!r} must be in [0, 1]")
         if self.total_timesteps < 1 or self.n_envs < 1:
             raise ValueError("total_timesteps and n_envs must be >= 1")
 

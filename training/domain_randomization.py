@@ -82,21 +82,31 @@ def sample_scenario(rng: np.random.Generator, ranges: dict[str, tuple[float, flo
 class DomainRandomization(gym.Wrapper):
     """At every reset, draw a scenario from the wrapper's own generator and pass it to the env.
 
+    With ``paper_share`` > 0 that share of the episodes is drilled in the env's own scenario (the one it was
+    made with: the paper scenario for a default env) instead of a draw; 0 draws every episode, as before.
+
     The draws come from a generator seeded by the first ``reset(seed=...)``, so a seeded training run
     sees the same sequence of scenarios.
     """
 
-    def __init__(self, env: gym.Env, ranges: dict[str, tuple[float, float]] | None = None):
+    def __init__(self, env: gym.Env, ranges: dict[str, tuple[float, float]] | None = None, paper_share: float = 0.0):
         super().__init__(env)
+        if not 0.0 <= paper_share <= 1.0:
+            raise ValueError(f"paper_share={paper_share!r} must be in [0, 1]")
         self.ranges = dict(DR_RANGES if ranges is None else ranges)
+        self.paper_share = float(paper_share)
+        self._paper = dict(env.unwrapped.scenario.to_dict())  # type: ignore[attr-defined]
         self._rng: np.random.Generator | None = None
         self.current: dict[str, Any] = {}
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
-        """Draw a scenario and reset the env with it."""
+        """Draw a scenario (or, with ``paper_share``, sometimes the env's own) and reset the env with it."""
         if seed is not None or self._rng is None:
             self._rng = np.random.default_rng(seed)
-        self.current = sample_scenario(self._rng, self.ranges)
+        if self.paper_share > 0.0 and self._rng.uniform() < self.paper_share:
+            self.current = dict(self._paper)
+        else:
+            self.current = sample_scenario(self._rng, self.ranges)
         opts = {**(options or {}), "scenario": {**self.current, **(options or {}).get("scenario", {})}}
         obs, info = self.env.reset(seed=seed, options=opts)
         return obs, {**info, "scenario": dict(self.current)}

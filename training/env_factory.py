@@ -45,7 +45,7 @@ def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | N
     """One drilling env (optionally domain-randomised, then with ``cfg.paired_reward``) under the residual wrapper."""
     env: gym.Env = gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})})
     if randomize:
-        env = DomainRandomization(env, merged_ranges(cfg.dr_ranges))
+        env = DomainRandomization(env, merged_ranges(cfg.dr_ranges), cfg.paper_share)
         if cfg.paired_reward:
             env = PairedReward(env, cfg.base, lambda: gym.make(ENV_ID, **cfg.env_kwargs))
     return wrap_residual(env, cfg)

@@ -284,6 +284,21 @@ def test_extra_randomisation_ranges_reach_training_and_validation_draws():
     env.close()
 
 
+def test_a_paper_share_drills_that_share_of_episodes_in_the_paper_scenario_and_draws_the_rest():
+    from drillgym.training.domain_randomization import DomainRandomization
+
+    env = DomainRandomization(gym.make(ENV_ID), paper_share=0.5)
+    paper = gym.make(ENV_ID).unwrapped.scenario.to_dict()
+    kinds = []
+    for k in range(40):
+        env.reset(seed=7 if k == 0 else None)
+        kinds.append(env.unwrapped.scenario.to_dict() == paper)
+    assert 12 <= sum(kinds) <= 28 and not all(kinds)  # about half (binomial 40 x 0.5: 12-28 is beyond 3 SD)
+    with pytest.raises(ValueError, match="paper_share"):
+        TrainConfig(paper_share=1.5)
+    env.close()
+
+
 @pytest.mark.parametrize(
     ("ranges", "message"),
     [
