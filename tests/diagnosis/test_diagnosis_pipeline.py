@@ -114,6 +114,48 @@ def test_benchmark_scoring():
     assert summary["figures"]["top1_accuracy_single"] == 1.0 and summary["passed"]["top1_accuracy_single"]
 
 
+def test_benchmark_scores_a_named_effects_parameters_against_the_realitys_own_where_written_down():
+    case = Case("t", "single", "tracker_smoothing:tau_s=0.06", 0)
+    assert case.truth_values == {"tracker_latency": {"latency_s": 0.06}}
+    assert Case("d", "single", "density_layer:hardening=0.2", 0).truth_values == {}  # forms share no parameter
+
+    def result(low, high):
+        effect = {
+            "name": "tracker_latency",
+            "effects": ["tracker_latency"],
+            "named": True,
+            "shrink": 0.9,
+            "params": {"tracker_latency": {"latency_s": 0.0604}},
+            "param_intervals": {"tracker_latency": {"latency_s": {"low": low, "high": high}}},
+        }
+        return {
+            "verdict": "explained",
+            "named": ["tracker_latency"],
+            "location": None,
+            "effects": [effect],
+            "significance": {"gap": 3.0, "null": 0.5},
+            "timing": {"total_s": 1.0},
+        }
+
+    inside, outside = score_case(case, result(0.0593, 0.0612)), score_case(case, result(0.0601, 0.0612))
+    assert inside["params"] == [
+        {
+            "effect": "tracker_latency",
+            "param": "latency_s",
+            "truth": 0.06,
+            "fit": 0.0604,
+            "low": 0.0593,
+            "high": 0.0612,
+            "covered": True,
+        }
+    ]
+    assert outside["params"][0]["covered"] is False
+    figures = summarise([inside, outside])["figures"]
+    assert figures["interval_coverage"] == 0.5 and figures["parameters_scored"] == 2
+    unnamed = score_case(case, {**result(0.0, 1.0), "named": [], "verdict": "unexplained", "effects": []})
+    assert unnamed["params"] == []
+
+
 @pytest.mark.expensive
 def test_bench_diagnosis_quick_runs_end_to_end(tmp_path):
     from drillgym.eval.cli import main

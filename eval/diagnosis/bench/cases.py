@@ -31,6 +31,16 @@ class Case:
         return [e.explains for e in build_reality(self.spec) if e.explains]
 
     @property
+    def truth_values(self) -> dict[str, dict[str, float]]:
+        """Candidate name -> the parameters standing for its reality's own (``RealityEffect.candidate_values``)."""
+        out: dict[str, dict[str, float]] = {}
+        for e in build_reality(self.spec):
+            values = e.candidate_values()
+            if e.explains and values is not None:
+                out[e.explains] = values
+        return out
+
+    @property
     def expected_location(self) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
         """Channels and stages where an outside effect's gap should be found."""
         for e in build_reality(self.spec):

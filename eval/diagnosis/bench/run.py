@@ -114,6 +114,7 @@ def score_case(case: Case, res: dict[str, Any], gen_s: float = 0.0, skipped: lis
         "generate_s": gen_s,
         "skipped_logs": list(skipped or []),
     }
+    row["params"] = parameter_checks(case, res)
     if case.kind == "single":
         row["correct"] = res["verdict"] == "explained" and named == truth
         row["top1_ranked"] = top_single == truth[0]
@@ -128,6 +129,33 @@ def score_case(case: Case, res: dict[str, Any], gen_s: float = 0.0, skipped: lis
         row["located"] = located
         row["correct"] = res["verdict"] == "unexplained" and located
     return row
+
+
+def parameter_checks(case: Case, res: dict[str, Any]) -> list[dict[str, Any]]:
+    """For each rightly named effect with written-down true values: fitted value, 95 % interval, truth, covered."""
+    truth = case.truth_values
+    chosen = next((e for e in res["effects"] if e.get("named")), None)
+    if chosen is None:
+        return []
+    out = []
+    for name in chosen["effects"]:
+        for param, true in truth.get(name, {}).items():
+            fit = chosen["params"].get(name, {}).get(param)
+            ci = (chosen.get("param_intervals") or {}).get(name, {}).get(param)
+            low, high = (ci["low"], ci["high"]) if ci else (None, None)
+            covered = low is not None and high is not None and low <= true <= high
+            out.append(
+                {
+                    "effect": name,
+                    "param": param,
+                    "truth": true,
+                    "fit": fit,
+                    "low": low,
+                    "high": high,
+                    "covered": covered,
+                }
+            )
+    return out
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -149,9 +177,16 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "pair_both_named": rate("pair"),
         "outside_unexplained_and_located": rate("outside"),
         "outside_unexplained": _outside_unexplained(rows),
+        "interval_coverage": _coverage(rows),
+        "parameters_scored": sum(len(r.get("params") or []) for r in rows),
     }
     passed = {k: float(figures[k] or 0.0) >= v for k, v in ACCEPTANCE.items() if figures.get(k) is not None}
     return {"figures": figures, "acceptance": ACCEPTANCE, "passed": passed, "cases": len(rows)}
+
+
+def _coverage(rows: list[dict[str, Any]]) -> float | None:
+    checks = [p["covered"] for r in rows for p in (r.get("params") or [])]
+    return sum(checks) / len(checks) if checks else None
 
 
 def _outside_unexplained(rows: list[dict[str, Any]]) -> float | None:
@@ -227,6 +262,21 @@ def markdown(result: dict[str, Any]) -> str:
             f"| {r['case']} | {r['kind']} | {'+'.join(r['truth']) or '–'} | {r['verdict']} | {'+'.join(r['named']) or '–'} | "
             f"{r['top_single']} | {fmt(r['true_effect_shrink'])} | {loc} | {r['correct']} | {r['diagnose_s']:.0f} |"
         )
+    checks = [(r["case"], p) for r in result["rows"] for p in (r.get("params") or [])]
+    if checks:
+        g = lambda v: "–" if v is None else f"{v:.4g}"  # noqa: E731
+        lines += [
+            "",
+            "Parameters of rightly named effects against the reality's own (``RealityEffect.candidate_values``):",
+            "",
+            "| case | parameter | truth | fit | 95 % interval | covered |",
+            "|---|---|---|---|---|---|",
+        ]
+        for case, p in checks:
+            lines.append(
+                f"| {case} | {p['effect']}.{p['param']} | {g(p['truth'])} | {g(p['fit'])} | "
+                f"[{g(p['low'])}, {g(p['high'])}] | {p['covered']} |"
+            )
     lines.append("")
     return "\n".join(lines)
 

@@ -54,6 +54,10 @@ class JitteredLatency(RealityEffect):
         j = bisect.bisect_right(self.times, self.src)
         return self.targets[max(j - 1, 0)]
 
+    def candidate_values(self) -> dict[str, float] | None:
+        """``latency``'s delay is the mean one (the jitter's skew aside)."""
+        return {"extra_latency_s": self.values["mean_s"]}
+
 
 class StribeckFriction(RealityEffect):
     """Stribeck joint friction, as a servo position error per joint.
@@ -92,6 +96,10 @@ class StribeckFriction(RealityEffect):
         )
         err = level * (2.0 / math.pi) * np.arctan(self.qd / 2e-5) + p["viscous_s"] * self.qd
         self.servo_offset_task_m = cell.R_base_task.T @ (cell.J_tcp[:3] @ -err)
+
+    def candidate_values(self) -> dict[str, float] | None:
+        """``joint_friction``'s sliding and viscous terms are the curve's (it has no static peak)."""
+        return {"coulomb_rad": self.values["coulomb_rad"], "viscous_s": self.values["viscous_s"]}
 
 
 class JointZeroOffsets(RealityEffect):
@@ -160,3 +168,7 @@ class ChuckToolLength(RealityEffect):
         cell.set_tool_compliance(np.diag([lateral, lateral, axial]))
         shift_tool(env, self, np.array([0.0, 0.0, dl]), None, at_attach=True)
         cell.sensor_arm_m = cell.tcp_offset_m + dl
+
+    def candidate_values(self) -> dict[str, float] | None:
+        """``tool_length``'s stick-out error is this one (the chuck's tilt aside)."""
+        return {"dl_m": self.values["dl_m"]}

@@ -31,6 +31,15 @@ class RealityEffect(Effect):
         self.tool_share: tuple[np.ndarray, np.ndarray] = (np.zeros(3), np.zeros(3))
         """This effect's share of the tool and marker offsets (:func:`shift_tool`)."""
 
+    def candidate_values(self) -> dict[str, float] | None:
+        """The parameters of :attr:`explains` that stand for this reality's own, where the physics equates them.
+
+        Written from the two forms before any benchmark run (the benchmark scores parameter errors and interval
+        coverage against them): the value the candidate takes in steady state, not a fit. None where the forms
+        share no parameter (a sigmoid layer against a gradient, a heat balance against a work exponential).
+        """
+        return None
+
     def seed(self, rng: np.random.Generator) -> None:
         """Random stream of this episode (jitter, phases, states): set before the env's reset."""
         self.rng = rng

@@ -121,6 +121,10 @@ class WobblyRunout(RealityEffect):
         out[:, 4] += arm * fx
         return out
 
+    def candidate_values(self) -> dict[str, float] | None:
+        """``tool_runout``'s orbit radius is this one (at full engagement both laws give ``k e``)."""
+        return {"runout_m": self.values["runout_m"]}
+
 
 class FTLoadBias(RealityEffect):
     """An F/T offset loaded by the thrust: ``F_read = F + b tanh(|F_z| / F₀)`` on each force axis.
@@ -148,6 +152,11 @@ class FTLoadBias(RealityEffect):
         load = np.tanh(np.abs(out[:, 2]) / v["load_n"])
         out[:, :3] += load[:, None] * np.array([v["bx_n"], v["by_n"], v["bz_n"]])[None, :]
         return out
+
+    def candidate_values(self) -> dict[str, float] | None:
+        """``ft_contact_bias``'s bias at full engagement is the saturated one."""
+        v = self.values
+        return {"bx_n": v["bx_n"], "by_n": v["by_n"], "bz_n": v["bz_n"]}
 
 
 class TrackerSmoothing(RealityEffect):
@@ -189,3 +198,7 @@ class TrackerSmoothing(RealityEffect):
             self._filtered = x1 - ramp + (self._filtered - self._marker + ramp) * math.exp(-dt / tau)
         self._marker, self._stamp_s = x1, stamp_s
         return self._filtered.copy()
+
+    def candidate_values(self) -> dict[str, float] | None:
+        """``tracker_latency``'s delay is the filter's lag at a steady speed, its time constant."""
+        return {"latency_s": self.values["tau_s"]}
