@@ -32,13 +32,11 @@ EFFECTS: dict[str, type[Effect]] = {
 }
 """The unmodelled effects of the library, by name (``build_effects``, ``make-reality``, cells)."""
 
-OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias", "tracker_latency")
+OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias")
 """In the library, but tried only when asked for (``diagnose --candidates``). ``servo_deadband`` (added for
-``drillgym explain-paper``): the withheld-effect benchmark has not been run with it. ``ft_gain``: on the
-benchmark it named its own reality, but also served as a second effect patching a bone model's force level
-(``docs/diagnosis.md`` §6). ``ft_contact_bias``: named on its own reality (``ft_load_bias``) at two
-magnitudes, not yet run on the whole benchmark (``docs/diagnosis.md`` §3). ``tracker_latency``: likewise, on its
-reality ``tracker_smoothing``."""
+``drillgym explain-paper``): the withheld-effect benchmark has not been run with it. ``ft_gain`` and
+``ft_contact_bias``: on the benchmark each named its own reality, but also served as a second effect patching a
+bone model's force level (``docs/diagnosis.md`` §6)."""
 DIAGNOSIS_CANDIDATES: tuple[str, ...] = tuple(name for name in EFFECTS if name not in OPT_IN_CANDIDATES)
 """The candidates ``drillgym diagnose`` and ``bench-diagnosis`` try by default."""
 

@@ -33,8 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--opt-in",
         action="store_true",
-        help="also the cases of the opt-in candidates' realities (ft_load_bias, tracker_smoothing), with those "
-        "candidates added to the defaults",
+        help="also the cases of the opt-in candidates' realities (ft_load_bias), with those "
+        "candidates added to the defaults (unless --candidates names the list)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--ray", action="store_true", help="run the cases as Ray tasks (a local instance by default)")
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         cases = [dataclasses.replace(c, seed=c.seed + args.seed_offset) for c in cases]
     episodes = args.episodes or (6 if args.quick else 12)
     candidates = QUICK_CANDIDATES if args.quick else DIAGNOSIS_CANDIDATES
-    if args.opt_in:
+    if args.opt_in and not args.candidates:
         candidates = (*candidates, *opt_in_candidates())
     if args.candidates:
         candidates = tuple(c.strip() for c in args.candidates.split(",") if c.strip())

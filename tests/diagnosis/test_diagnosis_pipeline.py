@@ -78,7 +78,7 @@ def test_benchmark_cases_cover_the_acceptance():
     singles = [c for c in cases if c.kind == "single"]
     assert {c.truth[0] for c in singles} == {
         "ft_drift", "latency", "joint_friction", "kinematic_offset", "tool_length",
-        "density_gradient", "thermal_softening", "skid_friction", "tool_runout",
+        "density_gradient", "thermal_softening", "skid_friction", "tool_runout", "tracker_latency",
     }  # fmt: skip
     assert all(sum(c.truth == s.truth for c in singles) >= 2 for s in singles)  # two magnitudes each
     assert any(c.kind == "pair" for c in cases) and any(c.kind == "clean" for c in cases)
@@ -199,7 +199,7 @@ def test_opt_in_cases_come_after_the_default_singles_which_keep_their_seeds():
     assert len(with_opt_in) == len(default) + 2 * len(OPT_IN_SINGLES)
     seeds = {c.name: c.seed for c in with_opt_in}
     assert all(seeds[c.name] == c.seed for c in default)
-    assert set(opt_in_candidates()) == {"ft_contact_bias", "tracker_latency"}
+    assert set(opt_in_candidates()) == {"ft_contact_bias"}
 
 
 def test_an_ft_gain_error_is_named_with_an_interval_holding_its_gain_when_ft_gain_is_a_candidate(tmp_path):

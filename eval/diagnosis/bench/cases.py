@@ -65,13 +65,13 @@ SINGLES: dict[str, tuple[str, str]] = {
     "heat_softening": ("heat_softening:softening_per_k=0.002", "heat_softening:softening_per_k=0.005"),
     "entry_friction": ("entry_friction:mu=0.2", "entry_friction:mu=0.6"),
     "wobbly_runout": ("wobbly_runout:runout_m=2e-5", "wobbly_runout:runout_m=4e-5"),
+    "tracker_smoothing": ("tracker_smoothing:tau_s=0.06", "tracker_smoothing:tau_s=0.15"),
 }
 """Reality effect -> (moderate, strong) spec, for the default candidates."""
 OPT_IN_SINGLES: dict[str, tuple[str, str]] = {
     "ft_load_bias": ("ft_load_bias:bx_n=0.6,bz_n=-0.8", "ft_load_bias:bx_n=-1.5,by_n=1.0,bz_n=2.0"),
-    "tracker_smoothing": ("tracker_smoothing:tau_s=0.06", "tracker_smoothing:tau_s=0.15"),
 }
-"""Reality effects whose candidates are opt-in (``ft_contact_bias``, ``tracker_latency``): run (after the default
+"""Reality effects whose candidates are opt-in (``ft_contact_bias``): run (after the default
 single cases, which keep their seeds) with ``bench-diagnosis --opt-in``, which adds those candidates."""
 
 PAIRS: tuple[str, ...] = (
