@@ -38,10 +38,9 @@ def sleep_floor(seconds: float, period_s: float) -> dict[str, Any]:
 
     n_cycles = max(int(seconds / period_s), 1)
     wake_t: list[float] = []
-    t_next = time.perf_counter()
     for _ in range(n_cycles):
         wake_t.append(time.perf_counter())
-        t_next = max(t_next + period_s, wake_t[-1])  # a late wake-up does not bunch the next ones
+        t_next = wake_t[-1] + period_s  # each cycle from its own start, as the servo loop's init/waitPeriod
         rest = t_next - time.perf_counter()
         if rest > 0:
             time.sleep(rest)

@@ -317,7 +317,10 @@ def _sample_tracker(env: Any) -> None:
     stamp = latest_sample_time_s(env.t_s, TRACKER_RATE_HZ)
     if stamp != env.tracker_stamp:
         env.tracker_stamp = stamp
-        env.tracker_reading = _tracker_sample(env.tracker, _marker_base_m(cell))
+        marker = _marker_base_m(cell)
+        if env.effects is not None:  # effects that move what the tracker reports (e.g. a late tracker)
+            marker = env.effects.tracker_marker_base_m(env, marker, stamp)
+        env.tracker_reading = _tracker_sample(env.tracker, marker)
     planned = env.marker_start_base + cell.R_base_task @ np.array([0.0, 0.0, env.path.s_m - env.s_start_m])
     env.tracker_error_base = env.tracker_reading - planned
     lateral = cell.R_base_task.T @ env.tracker_error_base
