@@ -43,6 +43,7 @@ class EpisodeResult:
         sim_time_s: env time at the end (s).
         failure: ``""``, the env's failure (e.g. ``"force_limit"``) or ``"truncated"``.
         info: the last step's ``info`` (a real cell's ``error``, stop result, ...).
+        rewards: the env's reward of each step.
     """
 
     seed: int | None
@@ -52,6 +53,7 @@ class EpisodeResult:
     sim_time_s: float = math.nan
     failure: str = ""
     info: dict[str, Any] = field(default_factory=dict)
+    rewards: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def row(self) -> dict[str, Any]:
         """The metrics plus ``steps``, ``sim_time_s`` and ``failure``: one row of a benchmark table."""
@@ -59,25 +61,31 @@ class EpisodeResult:
 
 
 def run_episode(
-    env: gym.Env, policy: PolicyPredictor | None = None, seed: int | None = 0, keep_trace: bool = True
+    env: gym.Env,
+    policy: PolicyPredictor | None = None,
+    seed: int | None = 0,
+    keep_trace: bool = True,
+    options: dict[str, Any] | None = None,
 ) -> EpisodeResult:
-    """Reset with ``seed`` and run to the end; ``policy=None`` commands zero correction, nominal feed.
+    """Reset with ``seed`` (and ``options``) and run to the end; ``policy=None`` commands zero correction, nominal feed.
 
     A policy with a ``set_plan`` method (every :class:`drillgym.controllers.Controller`) is handed the
     episode's plan after the reset, as the benchmark does. ``seed=None`` leaves the seed to the env (a
     wrapper such as ``ScenarioCycle`` sets its own).
     """
-    obs, _ = env.reset(seed=seed)
+    obs, _ = env.reset(seed=seed, options=options)
     if policy is not None and hasattr(policy, "set_plan"):
         policy.set_plan(env.unwrapped.plan)  # type: ignore[attr-defined]
     state, start, steps = None, True, 0
+    rewards: list[float] = []
     zero = np.zeros(ACTION_DIM, dtype=np.float32)
     while True:
         if policy is None:
             action = zero
         else:
             action, state = policy.predict(obs, state=state, episode_start=np.array([start]), deterministic=True)
-        obs, _, terminated, truncated, info = env.step(action)
+        obs, reward, terminated, truncated, info = env.step(action)
+        rewards.append(float(reward))
         start, steps = False, steps + 1
         if terminated or truncated:
             break
@@ -95,4 +103,4 @@ def run_episode(
             "ft_force_n": np.asarray(rec.ft_force_n),
         }
     t_s = float(info.get("t_s", math.nan))
-    return EpisodeResult(seed, dict(metrics), trace, steps, t_s, str(failure), dict(info))
+    return EpisodeResult(seed, dict(metrics), trace, steps, t_s, str(failure), dict(info), np.asarray(rewards))

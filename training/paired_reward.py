@@ -23,6 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 from drillgym.controllers import make_controller
+from drillgym.controllers.rollout import run_episode
 
 SEED_HIGH = 2**31 - 1
 """Episode seeds are drawn in [0, SEED_HIGH)."""
@@ -30,16 +31,8 @@ SEED_HIGH = 2**31 - 1
 
 def base_step_rewards(twin: gym.Env, base: str, seed: int, scenario: dict[str, Any]) -> np.ndarray:
     """The base controller's step rewards on ``scenario`` reset with ``seed`` (one per agent step)."""
-    obs, _ = twin.reset(seed=seed, options={"scenario": scenario})
-    controller = make_controller(base)
-    controller.set_plan(twin.unwrapped.plan)  # type: ignore[attr-defined]
-    rewards: list[float] = []
-    while True:
-        action, _ = controller.predict(obs, deterministic=True)
-        obs, reward, terminated, truncated, _ = twin.step(action)
-        rewards.append(float(reward))
-        if terminated or truncated:
-            return np.asarray(rewards)
+    options = {"scenario": scenario}
+    return run_episode(twin, make_controller(base), seed, keep_trace=False, options=options).rewards
 
 
 class PairedReward(gym.Wrapper):
@@ -85,7 +78,7 @@ class PairedReward(gym.Wrapper):
         paired = float(reward) - (float(rest[0]) if len(rest) else 0.0)
         self._t += 1
         if terminated or truncated:
-            paired -= float(np.add.reduce(rest[1:])) if len(rest) > 1 else 0.0
+            paired -= float(np.add.reduce(rest[1:]))  # 0.0 when the base ended first
         return obs, paired, terminated, truncated, {**info, "reward_unpaired": float(reward)}
 
     def close(self) -> None:

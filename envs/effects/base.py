@@ -99,7 +99,6 @@ class TraceView:
         spindle_rpm: spindle speed (rpm).
         tracker_m: tracker readings (m, any fixed frame), (n, 3), one per F/T sample (the agent step's reading,
             held over its samples; NaN where the tracker was not tracking); None where the trace has none.
-        tracker_stamp_s: the time stamp of each row's tracker reading (s), (n,) (with ``tracker_m``).
     """
 
     t_s: np.ndarray
@@ -109,7 +108,6 @@ class TraceView:
     sensor_arm_m: float
     spindle_rpm: float
     tracker_m: np.ndarray | None = None
-    tracker_stamp_s: np.ndarray | None = None
 
 
 class Effect:

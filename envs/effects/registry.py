@@ -41,6 +41,15 @@ DIAGNOSIS_CANDIDATES: tuple[str, ...] = tuple(name for name in EFFECTS if name n
 """The candidates ``drillgym diagnose`` and ``bench-diagnosis`` try by default."""
 
 
+def parse_candidates(text: str) -> tuple[str, ...]:
+    """A comma-separated list of candidate names (``diagnose --candidates``); ``ValueError`` names unknown ones."""
+    candidates = tuple(c.strip() for c in text.split(",") if c.strip())
+    unknown = sorted(set(candidates) - set(EFFECTS))
+    if unknown:
+        raise ValueError(f"unknown candidate effect(s) {unknown}; choose from {sorted(EFFECTS)}")
+    return candidates
+
+
 def parse_effect_spec(spec: str) -> list[tuple[str, dict[str, float]]]:
     """Split ``"a:x=1,y=2+b"`` into ``[("a", {"x": 1.0, "y": 2.0}), ("b", {})]``.
 

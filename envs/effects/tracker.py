@@ -59,7 +59,7 @@ class TrackerLatency(Effect):
         delay = self.values["latency_s"]
         if delay <= 0.0 or trace.tracker_m is None:
             return
-        stamps = trace.tracker_stamp_s if trace.tracker_stamp_s is not None else step_tracker_stamps_s(trace.t_s)
+        stamps = step_tracker_stamps_s(trace.t_s)
         ok = np.isfinite(trace.tracker_m).all(axis=1)
         if not ok.any():
             return

@@ -45,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print its figures."""
-    from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS
+    from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, parse_candidates
     from drillgym.eval.diagnosis.bench.cases import QUICK_CANDIDATES, Case, full_cases, opt_in_candidates, quick_cases
     from drillgym.eval.diagnosis.bench.run import run_bench
 
@@ -69,10 +69,7 @@ def run(args: argparse.Namespace) -> int:
     if args.opt_in and not args.candidates:
         candidates = (*candidates, *opt_in_candidates())
     if args.candidates:
-        candidates = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
-        unknown = sorted(set(candidates) - set(EFFECTS))
-        if unknown:
-            raise ValueError(f"unknown candidate effect(s) {unknown}; choose from {sorted(EFFECTS)}")
+        candidates = parse_candidates(args.candidates)
     rows_of = None
     if args.ray or args.address:
         from drillgym.eval.scale.cluster import require_ray

@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS
+from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS, parse_candidates
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,10 +34,7 @@ def run(args: argparse.Namespace) -> int:
     from drillgym.eval.diagnosis.episodes import load_episodes
     from drillgym.eval.diagnosis.report import write_outputs
 
-    candidates = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
-    unknown = sorted(set(candidates) - set(EFFECTS))
-    if unknown:
-        raise ValueError(f"unknown candidate effect(s) {unknown}; choose from {sorted(EFFECTS)}")
+    candidates = parse_candidates(args.candidates)
     episodes, skipped = load_episodes(args.real, strict=args.strict)
     for s in skipped:
         print(f"skipped {s}", file=sys.stderr)

@@ -17,7 +17,6 @@ import numpy as np
 
 from drillgym.envs.drill_env import UR5BoneDrillEnv
 from drillgym.envs.effects.base import Effect, TraceView
-from drillgym.envs.effects.tracker import step_tracker_stamps_s
 from drillgym.eval.diagnosis.channels import FORCE, LF_CHANNELS, TORQUE, TRACKER, Q
 from drillgym.eval.diagnosis.episodes import EpisodeData
 
@@ -57,7 +56,6 @@ class SimTrace:
                 sensor_arm_m=self.sensor_arm_m,
                 spindle_rpm=self.spindle_rpm,
                 tracker_m=out.lf[:, TRACKER],
-                tracker_stamp_s=step_tracker_stamps_s(self.t_s),
             )
             for e in effects:
                 e.apply_to_trace(view)

@@ -89,7 +89,9 @@ CLEAN_TRIALS = 6
 
 def opt_in_candidates() -> tuple[str, ...]:
     """The candidates that model :data:`OPT_IN_SINGLES`' realities."""
-    return tuple(dict.fromkeys(n for specs in OPT_IN_SINGLES.values() for n in Case("", "single", specs[0], 0).truth))
+    return tuple(
+        dict.fromkeys(e.explains for specs in OPT_IN_SINGLES.values() for e in build_reality(specs[0]) if e.explains)
+    )
 
 
 def full_cases(opt_in: bool = False) -> list[Case]:

@@ -187,9 +187,9 @@ class TrackerSmoothing(RealityEffect):
         that ramp is exact (``y' = (x − y) / τ``), so the filter runs in continuous time whatever the reading rate.
         """
         tau = self.values["tau_s"]
-        x1 = np.asarray(marker_base_m, dtype=float)
         if tau <= 0.0:
             return marker_base_m
+        x1 = np.asarray(marker_base_m, dtype=float)
         if self._filtered is None:
             self._filtered = x1.copy()
         else:
