@@ -122,6 +122,12 @@ class Effect:
     channels_before_contact: ClassVar[frozenset[str]] = frozenset()
     """The groups it changes before the drill touches the bone (most effects act only through the cut)."""
     sensor_only: ClassVar[bool] = False
+    per_episode: ClassVar[bool] = False
+    """True if the diagnosis fits this effect's parameters per episode around a shared mean (a random effect,
+    :mod:`drillgym.eval.diagnosis.random_effects`); only sensor-only effects, whose fit needs no replay."""
+    variant_of: ClassVar[str | None] = None
+    """The effect whose physics this one models in another way (a per-episode form of a shared one): naming
+    either is naming the same physics."""
     compiled: ClassVar[bool] = False
     """True if the compiled step (:mod:`drillgym.envs.step_kernel`) runs this effect: it changes only what the
     kernel reads at ``reset`` (the tool's compliance and sensor arm, the geometry and marker offsets, the

@@ -5,7 +5,7 @@ from __future__ import annotations
 from drillgym.envs.effects.base import Effect
 from drillgym.envs.effects.bone import DensityGradient, SkidFriction, ThermalSoftening
 from drillgym.envs.effects.joints import JointFriction, KinematicOffset
-from drillgym.envs.effects.sensor import FTContactBias, FTDrift, FTGain, ToolRunout
+from drillgym.envs.effects.sensor import FTContactBias, FTDrift, FTEpisodeDrift, FTGain, ToolRunout
 from drillgym.envs.effects.servo import ServoDeadband
 from drillgym.envs.effects.timing import Latency
 from drillgym.envs.effects.tool import ToolLength
@@ -28,6 +28,7 @@ EFFECTS: dict[str, type[Effect]] = {
         FTGain,
         FTContactBias,
         TrackerLatency,
+        FTEpisodeDrift,
     )
 }
 """The unmodelled effects of the library, by name (``build_effects``, ``make-reality``, cells)."""
@@ -39,6 +40,12 @@ OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias")
 bone model's force level (``docs/diagnosis.md`` §6)."""
 DIAGNOSIS_CANDIDATES: tuple[str, ...] = tuple(name for name in EFFECTS if name not in OPT_IN_CANDIDATES)
 """The candidates ``drillgym diagnose`` and ``bench-diagnosis`` try by default."""
+
+
+def physics_of(name: str) -> str:
+    """The physics a candidate names: itself, or the effect it is a variant of (``ft_episode_drift`` -> ``ft_drift``)."""
+    cls = EFFECTS.get(name)
+    return name if cls is None or cls.variant_of is None else cls.variant_of
 
 
 def parse_candidates(text: str) -> tuple[str, ...]:

@@ -47,6 +47,21 @@ class FTDrift(Effect):
         trace.force_n += self._rates()[None, :] * trace.t_s[:, None]
 
 
+class FTEpisodeDrift(FTDrift):
+    """F/T force drift whose rate differs from episode to episode around a shared mean.
+
+    ``F_read = F + r_e · t`` as :class:`FTDrift`, with r_e the episode's own rates: a sensor re-powered or
+    re-tared between holes, or a cable that lies differently each time, starts each episode at another point
+    of its warm-up. In the simulator the parameters are one episode's rates; the diagnosis fits them per
+    episode as a random effect ``r_e ~ N(r̄, τ²)`` (:mod:`drillgym.eval.diagnosis.random_effects`).
+    """
+
+    name = "ft_episode_drift"
+    summary = "F/T force zero drifting linearly in time, at a rate of its own in each episode"
+    per_episode = True
+    variant_of = "ft_drift"
+
+
 class FTGain(Effect):
     """F/T gain error: a calibration that reads the lateral and the axial force too high or too low.
 

@@ -20,7 +20,7 @@ from typing import Any, NamedTuple
 
 from tqdm import tqdm
 
-from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
+from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS
 from drillgym.eval.diagnosis.context import DiagnosisData, split_episodes
 from drillgym.eval.diagnosis.episodes import EpisodeData
 from drillgym.eval.diagnosis.fit import FitResult
@@ -122,10 +122,11 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     if significance["significant"] and scores and scores[0].after >= PAIR_TRY_RESIDUAL * g_null:
         # Forward selection from the best singles: every other candidate is fitted on top of each.
         s0 = baseline_score(before)
-        seeds = [s for s in scores if s.score < s0][: opt.pair_seeds] or scores[:1]
-        jobs = [
-            ((s.fit.names[0], n), [s.fit.params[0], {}]) for s in seeds for n in opt.candidates if n != s.fit.names[0]
-        ]
+        # A random effect (fitted per episode) takes no part in pairs: it is fitted alone only.
+        shared = [n for n in opt.candidates if not EFFECTS[n].per_episode]
+        by_score = [s for s in scores if s.fit.names[0] in shared]
+        seeds = [s for s in by_score if s.score < s0][: opt.pair_seeds] or by_score[:1]
+        jobs = [((s.fit.names[0], n), [s.fit.params[0], {}]) for s in seeds for n in shared if n != s.fit.names[0]]
         if jobs:
             bar.total += len(jobs)
             bar.set_postfix_str("fitting pairs")
@@ -169,6 +170,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
         "named": named,
         "summary": _summary(verdict, chosen, location, alts, seconds, leftover),
         "leftover": leftover,
+        "per_episode": None if chosen is None else chosen.fit.per_episode,
         "single_guard": guard,
         "off_point_guard": off_point or None,
         "effects": [s.to_json() for s in scores],
@@ -224,7 +226,7 @@ def _name(
     effect whose intervals all contain its off point is not named (``off_point``).
     """
     verdict, chosen, location, guard = _decide(significance, scores, before, data, null)
-    if chosen is not None:
+    if chosen is not None and chosen.fit.per_episode is None:  # a random effect's fit is every episode's own
         bar.total += 1
         bar.set_postfix_str("refining the named model")
         fits = list(fits)
@@ -233,7 +235,7 @@ def _name(
         scores = score_models(fits, before, null, seed)
         verdict, chosen, location, guard = _decide(significance, scores, before, data, null)
     for s in scores:
-        s.intervals = parameter_intervals(s.fit.samples, seed)
+        s.intervals = s.fit.intervals if s.fit.intervals is not None else parameter_intervals(s.fit.samples, seed)
     off_point: list[str] = []
     if chosen is not None:
         off_point = off_point_inside(chosen.intervals, chosen.fit.names)

@@ -68,6 +68,13 @@ class FitResult:
     wall_s: float = 0.0
     error: str = ""
     samples: list[tuple[Spec, np.ndarray | None, np.ndarray | None]] = field(default_factory=list, repr=False)
+    penalty_params: float | None = None
+    """Parameters the held-out score's penalty counts, where not ``n_params`` (a random effect's effective count)."""
+    intervals: dict[str, dict[str, dict[str, Any] | None]] | None = None
+    """The parameters' 95 % intervals where the fit computes them itself (a random effect's); else they come
+    from ``samples`` (:func:`drillgym.eval.diagnosis.intervals.parameter_intervals`)."""
+    per_episode: dict[str, Any] | None = None
+    """A random effect's spread and each episode's parameters (:mod:`drillgym.eval.diagnosis.random_effects`)."""
 
 
 class ParamBox:
@@ -218,7 +225,7 @@ def fit_model(
         if start is None and not _worth_refining(values[0], values[int(order[0])], ev.data):
             starts = []
         total = budget or EVALS_PER_PARAM * free.size
-        ends = [_local_search(objective, u0, total // len(starts), free) for u0 in starts]
+        ends = [local_search(objective, u0, total // len(starts), free) for u0 in starts]
         u_best = min(ends, key=objective) if ends else points[int(np.argmin(values))]
         objective.finish(result, u_best)
     except Exception as e:  # a fit must not stop the diagnosis
@@ -249,7 +256,7 @@ def refit_jointly(
         points = [box.to_unit(s) for s in starts]
         points += _read_first_starts(ev, box, objective, starts[0])
         u0 = min(points, key=objective)
-        u_best = _local_search(objective, u0, budget or EVALS_PER_PARAM * box.size)
+        u_best = local_search(objective, u0, budget or EVALS_PER_PARAM * box.size)
         objective.finish(result, u_best)
     except Exception as e:  # a fit must not stop the diagnosis
         result.error = f"{type(e).__name__}: {e}"
@@ -279,12 +286,12 @@ def _read_first_starts(
             points = box.grid(around=u, effect=j)
             u = min(points, key=objective)
             free = box.indices(j)
-            u = _local_search(objective, u, EVALS_PER_PARAM * free.size, free)
+            u = local_search(objective, u, EVALS_PER_PARAM * free.size, free)
         out.append(u)
     return out
 
 
-def _local_search(
+def local_search(
     objective: Callable[[np.ndarray], float], u0: np.ndarray, budget: int, free: np.ndarray | None = None
 ) -> np.ndarray:
     """Bounded compass search in the unit box.

@@ -9,8 +9,10 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
+from drillgym.envs.effects.registry import EFFECTS
 from drillgym.eval.diagnosis.context import DiagnosisData, Evaluator, baseline_job
 from drillgym.eval.diagnosis.fit import FitResult, fit_model, refit_jointly
+from drillgym.eval.diagnosis.random_effects import fit_per_episode
 from drillgym.eval.diagnosis.replay import Replayer
 from drillgym.eval.pool import run_unordered
 
@@ -28,6 +30,8 @@ def _baseline(i: int) -> tuple[int, Any]:
 
 def _fit(job: tuple[int, tuple[str, ...], list[dict[str, float]] | None]) -> tuple[int, FitResult]:
     k, names, start = job
+    if len(names) == 1 and start is None and EFFECTS[names[0]].per_episode:
+        return k, fit_per_episode(_WORKER["evaluator"], names[0])
     return k, fit_model(_WORKER["evaluator"], names, start)
 
 

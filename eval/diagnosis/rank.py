@@ -103,6 +103,8 @@ class ModelScore:
             "params": {n: p for n, p in zip(self.fit.names, self.fit.params, strict=True)},
             "param_intervals": self.intervals,
             "n_params": self.fit.n_params,
+            "penalty_params": self.fit.penalty_params,
+            "per_episode": self.fit.per_episode,
             "heldout_gap_before": self.before,
             "heldout_gap_after": self.after,
             "shrink": self.shrink,
@@ -143,7 +145,8 @@ def score_models(fits: list[FitResult], before: list[Terms], null: list[Terms], 
         g_after = ja.sum() / na.sum()
         shrink = _shrink(g_before, g_after, g_null)
         b_shrink = _shrink(b_before, ja[idx].sum(1) / na[idx].sum(1), b_null)
-        penalty = f.n_params * math.log(max(na.sum(), 2.0))
+        counted = f.n_params if f.penalty_params is None else f.penalty_params  # a random effect's effective count
+        penalty = counted * math.log(max(na.sum(), 2.0))
         score = float(ja.sum() + penalty)
         lo, hi = np.nanquantile(b_shrink, [0.025, 0.975]) if np.isfinite(b_shrink).any() else (math.nan, math.nan)
         out.append(

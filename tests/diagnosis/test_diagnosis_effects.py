@@ -37,6 +37,7 @@ SETTINGS = {
     "ft_gain": "ft_gain:fxy_gain=0.2,fz_gain=-0.1",
     "ft_contact_bias": "ft_contact_bias:bx_n=0.5,bz_n=-0.8",
     "tracker_latency": "tracker_latency:latency_s=0.07",
+    "ft_episode_drift": "ft_episode_drift:fy_rate_n_s=0.015,fz_rate_n_s=-0.02",
 }
 
 

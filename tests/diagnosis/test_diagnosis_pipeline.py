@@ -79,6 +79,7 @@ def test_benchmark_cases_cover_the_acceptance():
     assert {c.truth[0] for c in singles} == {
         "ft_drift", "latency", "joint_friction", "kinematic_offset", "tool_length",
         "density_gradient", "thermal_softening", "skid_friction", "tool_runout", "tracker_latency",
+        "ft_episode_drift",
     }  # fmt: skip
     assert all(sum(c.truth == s.truth for c in singles) >= 2 for s in singles)  # two magnitudes each
     assert any(c.kind == "pair" for c in cases) and any(c.kind == "clean" for c in cases)

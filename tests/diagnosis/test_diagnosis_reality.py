@@ -28,6 +28,7 @@ SETTINGS = {
     "ft_lateral_gain": "ft_lateral_gain:gain=0.2,crosstalk=0.01",
     "ft_load_bias": "ft_load_bias:bx_n=0.6,bz_n=-0.8",
     "tracker_smoothing": "tracker_smoothing:tau_s=0.1",
+    "episode_warmup": "episode_warmup:fz_n=1,spread_n=3",
     "bone_void": "bone_void:length_m=0.001,depth_m=0.0015",
 }
 TOL = {"force": 1e-3, "torque": 1e-5, "tracker": 1e-6, "q": 1e-6, "tcp": 1e-6}

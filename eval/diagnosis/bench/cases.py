@@ -66,6 +66,7 @@ SINGLES: dict[str, tuple[str, str]] = {
     "entry_friction": ("entry_friction:mu=0.2", "entry_friction:mu=0.6"),
     "wobbly_runout": ("wobbly_runout:runout_m=2e-5", "wobbly_runout:runout_m=4e-5"),
     "tracker_smoothing": ("tracker_smoothing:tau_s=0.06", "tracker_smoothing:tau_s=0.15"),
+    "episode_warmup": ("episode_warmup:spread_n=2.5", "episode_warmup:fz_n=3,spread_n=5"),
 }
 """Reality effect -> (moderate, strong) spec, for the default candidates."""
 OPT_IN_SINGLES: dict[str, tuple[str, str]] = {

@@ -18,8 +18,10 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from tqdm import tqdm
 
+from drillgym.envs.effects.registry import EFFECTS, physics_of
 from drillgym.eval.diagnosis.bench.cases import Case
 from drillgym.eval.pool import run_unordered
 
@@ -75,11 +77,12 @@ def _run_case(job: CaseJob) -> dict[str, Any]:
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="drillgym-reality-") as tmp:
-        make_reality(case.spec, episodes, case.seed, Path(tmp) / "logs")
+        truth = make_reality(case.spec, episodes, case.seed, Path(tmp) / "logs")
         eps, skipped = load_episodes(Path(tmp) / "logs")
     gen_s = time.perf_counter() - t0
     diag = run_diagnosis(eps, DiagnoseOptions(workers=1, candidates=candidates, seed=case.seed, progress=False))
     row = score_case(case, diag.result, gen_s, skipped)
+    row["episode_params"] = episode_checks(diag.result, truth["episodes"])
     if keep:
         row[DIAGNOSIS_KEY] = _clean_json(diag.result)
     return row
@@ -92,9 +95,15 @@ def local_rows(jobs: list[CaseJob], workers: int) -> Iterator[dict[str, Any]]:
 
 
 def score_case(case: Case, res: dict[str, Any], gen_s: float = 0.0, skipped: list[str] | None = None) -> dict[str, Any]:
-    """Compare one diagnosis with its case's truth."""
+    """Compare one diagnosis with its case's truth.
+
+    A candidate counts as the physics it models (:func:`~drillgym.envs.effects.registry.physics_of`): a drift
+    fitted per episode names an F/T drift, as the shared drift does (``per_episode_named`` says which form).
+    """
     truth = case.truth
     named = res["named"]
+    truth_physics = [physics_of(n) for n in truth]
+    named_physics = [physics_of(n) for n in named]
     singles = [e for e in res["effects"] if len(e["effects"]) == 1]
     top_single = singles[0]["name"] if singles else None
     true_shrink = next((e["shrink"] for e in singles if truth and e["name"] == truth[0]), None)
@@ -113,13 +122,14 @@ def score_case(case: Case, res: dict[str, Any], gen_s: float = 0.0, skipped: lis
         "diagnose_s": res["timing"]["total_s"],
         "generate_s": gen_s,
         "skipped_logs": list(skipped or []),
+        "per_episode_named": any(EFFECTS[n].per_episode for n in named if n in EFFECTS),
     }
     row["params"] = parameter_checks(case, res)
     if case.kind == "single":
-        row["correct"] = res["verdict"] == "explained" and named == truth
-        row["top1_ranked"] = top_single == truth[0]
+        row["correct"] = res["verdict"] == "explained" and named_physics == truth_physics
+        row["top1_ranked"] = top_single is not None and physics_of(top_single) == truth_physics[0]
     elif case.kind == "pair":
-        row["correct"] = res["verdict"] == "explained" and set(truth) <= set(named)
+        row["correct"] = res["verdict"] == "explained" and set(truth_physics) <= set(named_physics)
     elif case.kind == "clean":
         row["correct"] = not named
     else:
@@ -133,13 +143,13 @@ def score_case(case: Case, res: dict[str, Any], gen_s: float = 0.0, skipped: lis
 
 def parameter_checks(case: Case, res: dict[str, Any]) -> list[dict[str, Any]]:
     """For each rightly named effect with written-down true values: fitted value, 95 % interval, truth, covered."""
-    truth = case.truth_values
+    truth = {physics_of(n): v for n, v in case.truth_values.items()}
     chosen = next((e for e in res["effects"] if e.get("named")), None)
     if chosen is None:
         return []
     out = []
     for name in chosen["effects"]:
-        for param, true in truth.get(name, {}).items():
+        for param, true in truth.get(physics_of(name), {}).items():
             fit = chosen["params"].get(name, {}).get(param)
             ci = (chosen.get("param_intervals") or {}).get(name, {}).get(param)
             low, high = (ci["low"], ci["high"]) if ci else (None, None)
@@ -158,6 +168,42 @@ def parameter_checks(case: Case, res: dict[str, Any]) -> list[dict[str, Any]]:
     return out
 
 
+def episode_checks(res: dict[str, Any], plans: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """For a named effect fitted per episode: each parameter's per-episode error against the reality's own.
+
+    ``plans``: the reality's episodes (``make_reality``'s truth), whose ``episode_values`` hold what the effect
+    was in each, in its candidate's terms. Per parameter: the RMS error over the episodes, the RMS of the true
+    values about their mean (the spread to be found), and their correlation.
+    """
+    per_episode = res.get("per_episode")
+    if not per_episode:
+        return []
+    name = res["named"][0]
+    fitted = per_episode["episodes"]
+    out = []
+    for param in per_episode["spread"]:
+        pairs = [
+            (fitted[f"episode_{i:03d}"][param], values[param])
+            for i, plan in enumerate(plans)
+            for n, values in (plan.get("episode_values") or {}).items()
+            if physics_of(n) == physics_of(name) and f"episode_{i:03d}" in fitted and param in values
+        ]
+        if len(pairs) < 2:
+            continue
+        est, true = np.array(pairs).T
+        out.append(
+            {
+                "effect": name,
+                "param": param,
+                "n": len(pairs),
+                "rms_error": float(np.sqrt(np.mean((est - true) ** 2))),
+                "truth_spread": float(np.std(true)),
+                "correlation": float(np.corrcoef(est, true)[0, 1]) if np.std(true) > 0 and np.std(est) > 0 else None,
+            }
+        )
+    return out
+
+
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Benchmark figures from the case rows."""
 
@@ -166,7 +212,11 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         return sum(bool(x) for x in sel) / len(sel) if sel else None
 
     shrinks = [r["true_effect_shrink"] for r in rows if r["kind"] == "single" and r["true_effect_shrink"] is not None]
-    wrong_named = [r for r in rows if r["kind"] in ("single", "pair") and set(r["named"]) - set(r["truth"])]
+    wrong_named = [
+        r
+        for r in rows
+        if r["kind"] in ("single", "pair") and {physics_of(n) for n in r["named"]} - {physics_of(n) for n in r["truth"]}
+    ]
     figures = {
         "top1_accuracy_single": rate("single"),
         "top1_ranked_single": rate("single", "top1_ranked"),
@@ -276,6 +326,21 @@ def markdown(result: dict[str, Any]) -> str:
             lines.append(
                 f"| {case} | {p['effect']}.{p['param']} | {g(p['truth'])} | {g(p['fit'])} | "
                 f"[{g(p['low'])}, {g(p['high'])}] | {p['covered']} |"
+            )
+    per_episode = [(r["case"], p) for r in result["rows"] for p in (r.get("episode_params") or [])]
+    if per_episode:
+        g = lambda v: "–" if v is None else f"{v:.3g}"  # noqa: E731
+        lines += [
+            "",
+            "Per-episode parameters of effects named as random effects, against each episode's own value:",
+            "",
+            "| case | parameter | episodes | RMS error | true spread (SD) | correlation |",
+            "|---|---|---|---|---|---|",
+        ]
+        for case, p in per_episode:
+            lines.append(
+                f"| {case} | {p['effect']}.{p['param']} | {p['n']} | {g(p['rms_error'])} | {g(p['truth_spread'])} | "
+                f"{g(p['correlation'])} |"
             )
     lines.append("")
     return "\n".join(lines)

@@ -40,6 +40,14 @@ class RealityEffect(Effect):
         """
         return None
 
+    def episode_candidate_values(self) -> dict[str, float] | None:
+        """This episode's values of :attr:`explains`'s parameters, for an effect that differs per episode.
+
+        Read after the episode (the draws are made at reset); the benchmark scores a per-episode fit against
+        them. None for an effect that is the same in every episode.
+        """
+        return None
+
     def seed(self, rng: np.random.Generator) -> None:
         """Random stream of this episode (jitter, phases, states): set before the env's reset."""
         self.rng = rng

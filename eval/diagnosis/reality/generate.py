@@ -88,6 +88,9 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
             # no seed: the episode continues the stream seeded above; the header keeps seed null
             run_episode(logger, controller, seed=None, keep_trace=False)
             logger.close_log()
+            own = {e.explains: v for e in effects if e.explains and (v := e.episode_candidate_values()) is not None}
+            if own:  # what an effect that differs per episode was in this one, in its candidate's terms
+                plan["episode_values"] = own
     finally:
         env.close()
     return {

@@ -6,6 +6,7 @@ from drillgym.eval.diagnosis.reality.arm import ChuckToolLength, JitteredLatency
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 from drillgym.eval.diagnosis.reality.bone import BoneVoid, DensityLayer, EntryFriction, HeatSoftening
 from drillgym.eval.diagnosis.reality.sensor import (
+    FTEpisodeWarmup,
     FTLateralGain,
     FTLoadBias,
     FTWarmup,
@@ -17,6 +18,7 @@ REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
     cls.name: cls
     for cls in (
         FTWarmup,
+        FTEpisodeWarmup,
         JitteredLatency,
         StribeckFriction,
         JointZeroOffsets,

@@ -7,6 +7,7 @@ engagement-proportional bias and pure tracker delay.
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 
@@ -25,7 +26,7 @@ class FTWarmup(RealityEffect):
     name = "ft_warmup"
     summary = "F/T zero settling exponentially after power-up"
     explains = "ft_drift"
-    params = (
+    params: ClassVar[tuple[Param, ...]] = (
         Param("fx_n", -10.0, 10.0, 0.0, "asymptotic drift of Fx (N)"),
         Param("fy_n", -10.0, 10.0, 0.0, "asymptotic drift of Fy (N)"),
         Param("fz_n", -10.0, 10.0, 0.0, "asymptotic drift of Fz (N)"),
@@ -36,17 +37,49 @@ class FTWarmup(RealityEffect):
     def attach(self, env: EffectHost) -> None:
         """Draw how long the sensor had been on."""
         self.on_s = float(self.rng.uniform(0.0, 60.0))
+        v = self.values
+        self.amp_n = np.array([v["fx_n"], v["fy_n"], v["fz_n"]])
 
     def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Add the settling drift."""
-        v = self.values
-        amp = np.array([v["fx_n"], v["fy_n"], v["fz_n"]])
-        tau = v["tau_s"]
+        tau = self.values["tau_s"]
         shape = math.exp(-self.on_s / tau) - np.exp(-(self.on_s + np.asarray(t_s)) / tau)
         out = np.array(wrenches, dtype=float)
-        out[:, :3] += shape[:, None] * amp[None, :]
-        out[:, 3:] += 0.02 * 0.005 * shape[:, None] * amp[None, :]
+        out[:, :3] += shape[:, None] * self.amp_n[None, :]
+        out[:, 3:] += 0.02 * 0.005 * shape[:, None] * self.amp_n[None, :]
         return out
+
+    def candidate_values(self) -> dict[str, float] | None:
+        """The linear drift's (mean) rates: the slope at the tare ``A/τ · e^{−t₀/τ}``, averaged over t₀ ~ U(0, 60 s)."""
+        v = self.values
+        tau = v["tau_s"]
+        mean_decay = tau / 60.0 * (1.0 - math.exp(-60.0 / tau))
+        return {f"f{a}_rate_n_s": v[f"f{a}_n"] / tau * mean_decay for a in "xyz"}
+
+
+class FTEpisodeWarmup(FTWarmup):
+    """F/T warm-up whose amount and sign differ from episode to episode.
+
+    The settling drift of :class:`FTWarmup`, with each episode's asymptotic drift per force axis drawn
+    around the mean: ``A_e = A + spread · N(0, 1)`` (a sensor re-powered between holes, a cable that lies
+    differently each time). With a zero mean a drift fitted once for all episodes comes out near zero;
+    the candidate ``ft_episode_drift`` fits a linear rate per episode around a shared mean.
+    """
+
+    name = "episode_warmup"
+    summary = "F/T zero settling after power-up, by an amount and sign of its own in each episode"
+    explains = "ft_episode_drift"
+    params = (*FTWarmup.params, Param("spread_n", 0.0, 10.0, 0.0, "episode-to-episode standard deviation of A (N)"))
+
+    def attach(self, env: EffectHost) -> None:
+        """Draw the sensor's time on and this episode's drift."""
+        super().attach(env)
+        self.amp_n = self.amp_n + self.values["spread_n"] * self.rng.standard_normal(3)
+
+    def episode_candidate_values(self) -> dict[str, float] | None:
+        """This episode's rates: the drift's slope at the tare, ``A_e / τ · e^{−t₀/τ}``."""
+        slope = self.amp_n / self.values["tau_s"] * math.exp(-self.on_s / self.values["tau_s"])
+        return {f"f{a}_rate_n_s": float(r) for a, r in zip("xyz", slope, strict=True)}
 
 
 class FTLateralGain(RealityEffect):
