@@ -113,6 +113,42 @@ def why_not_named(effect: dict[str, Any], res: dict[str, Any]) -> str:
     return "no: the named model scores better across resamples"
 
 
+def per_episode_lines(res: dict[str, Any]) -> list[str]:
+    """The per-episode section: each episode's role, specimen hardness and a random effect's own parameters."""
+    eps = res["episodes"]
+    hardness = eps.get("specimen_hardness_sigma") or {}
+    own = res.get("per_episode") or {}
+    params = list(own.get("spread") or {})
+    lines = ["", "## Per episode", ""]
+    if own:
+        effect = res["named"][0]
+        chosen: dict[str, Any] = next((e["param_intervals"] for e in res["effects"] if e["named"]), {})
+        intervals = chosen.get(effect) or {}
+        spread = []
+        for p in params:
+            ci = intervals.get(p + "_spread")
+            spread.append(f"{p} {own['spread'][p]:.3g}" + (f" [{ci['low']:.3g}, {ci['high']:.3g}]" if ci else ""))
+        lines += [
+            f"`{effect}` differs per episode (a random effect around its mean). Spread between episodes (SD, "
+            f"95 % CI): {'; '.join(spread)}. The held-out score counts {own['effective_params']:.3g} parameters "
+            "for it (mean and spread of each, plus each held-out episode's effective share).",
+            "",
+        ]
+    lines += [
+        "| episode | half | specimen hardness (σ) | " + " | ".join(params) + (" |" if params else ""),
+        "|---|---|---|" + "---|" * len(params),
+    ]
+    cal = set(eps["calibration"])
+    for name in [*eps["calibration"], *eps["heldout"]]:
+        values = own.get("episodes", {}).get(name, {})
+        cells = "".join(f" {values[p]:.3g} |" if p in values else " – |" for p in params)
+        h = hardness.get(name)
+        lines.append(
+            f"| {name} | {'calibration' if name in cal else 'held-out'} | {'–' if h is None else f'{h:+.2f}'} |{cells}"
+        )
+    return lines
+
+
 def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
     sig = res["significance"]
     lines = [
@@ -132,16 +168,27 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
         "Rows are ordered by the penalised held-out score (best first); a row above the named model says why "
         "it was not named.",
         "",
-        "| rank | model | parameters | held-out gap before | after | shrink (95 % CI) | P(best) | named |",
-        "|---|---|---|---|---|---|---|---|",
+        "| rank | model | parameters (95 % CI) | held-out gap before | after | left (× sim) | shrink (95 % CI) | "
+        "P(best) | named |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for k, e in enumerate(res["effects"][:12], 1):
         params = param_text(e)
+        left = e.get("leftover_ratio")
         lines.append(
             f"| {k} | {e['name']} | {params} | {e['heldout_gap_before']:.3g} | {e['heldout_gap_after']:.3g} | "
+            f"{'–' if left is None or not math.isfinite(left) else f'{left:.3g}'} | "
             f"{_pct(e['shrink'])} ({_pct(e['ci_low'])} to {_pct(e['ci_high'])}) | {e['p_best']:.2f} | "
             f"{'**yes**' if e['named'] else why_not_named(e, res)} |"
         )
+    left = res.get("leftover")
+    if left:
+        cells = ", ".join(f"{c['channel']} in {c['stage']} ({_pct(c['share'])})" for c in left["cells"])
+        lines += [
+            "",
+            f"Left after the named model: **{left['ratio']:.3g}× the simulator's own level** on the held-out "
+            f"episodes, most of it at {cells or '–'}.",
+        ]
     ev = res.get("second_effect_evidence")
     if ev:
         how = ["it explains alone what it adds"] if ev["alone"] else []
@@ -152,6 +199,7 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
                 f"(simulator: {ev['own_gap_null']:.3g})"
             )
         lines += ["", f"Second effect `{ev['second']}`: " + "; ".join(how or ["–"]) + "."]
+    lines += per_episode_lines(res)
     lines += ["", "## Where", ""]
     for cell in res["where"]["largest_excess"]:
         lines.append(f"* {cell['channel']} in stage {cell['stage']}: {_pct(cell['share'])} of the excess gap")
