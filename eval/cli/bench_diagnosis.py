@@ -36,6 +36,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="also the cases of the opt-in candidates' realities (ft_load_bias), with those "
         "candidates added to the defaults (unless --candidates names the list)",
     )
+    parser.add_argument(
+        "--pseudo-truth",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="also score the parameter intervals against each candidate's best equivalent of its reality (its fit "
+        "on 36 fresh episodes): read from FILE, the missing ones computed first and written there (reuse FILE "
+        "across --seed-offset runs)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--ray", action="store_true", help="run the cases as Ray tasks (a local instance by default)")
     parser.add_argument(
@@ -78,8 +87,20 @@ def run(args: argparse.Namespace) -> int:
         from drillgym.eval.diagnosis.bench.on_ray import ray_rows
 
         rows_of = lambda jobs: ray_rows(jobs, args.address, args.workers)  # noqa: E731
+    best = None
+    if args.pseudo_truth is not None:
+        from drillgym.eval.diagnosis.bench.pseudo_truth import load_or_compute
+
+        best = load_or_compute(args.pseudo_truth, cases, args.workers)
     result = run_bench(  # a Ray cluster that cannot be reached raises ConnectionError: the CLI's one-line error
-        cases, episodes, candidates, args.out, args.workers, progress=not args.no_progress, rows_of=rows_of
+        cases,
+        episodes,
+        candidates,
+        args.out,
+        args.workers,
+        progress=not args.no_progress,
+        rows_of=rows_of,
+        best_equivalent=best,
     )
     for k, v in result["summary"]["figures"].items():
         print(f"{k}: {v}")

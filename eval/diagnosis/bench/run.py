@@ -204,6 +204,27 @@ def episode_checks(res: dict[str, Any], plans: list[dict[str, Any]]) -> list[dic
     return out
 
 
+def add_best_equivalent(rows: list[dict[str, Any]], table: dict[str, Any]) -> None:
+    """Score each parameter check against the candidate's best equivalent of the reality, where there is one.
+
+    ``table``: :func:`~drillgym.eval.diagnosis.bench.pseudo_truth.load_or_compute`'s pseudo-true values, by reality
+    spec (single-effect cases). A random effect's mean has the written-down population mean as its own. Adds
+    ``best_equivalent`` and ``covered_best_equivalent`` (None where there is no reference).
+    """
+    for r in rows:
+        entry = table.get(r["spec"])
+        for p in r.get("params") or []:
+            ref = None
+            if entry and not entry.get("error") and physics_of(entry["candidate"]) == physics_of(p["effect"]):
+                ref = entry["params"].get(p["param"])
+            elif p["effect"] in EFFECTS and EFFECTS[p["effect"]].per_episode:
+                ref = p["truth"]
+            p["best_equivalent"] = ref
+            p["covered_best_equivalent"] = (
+                None if ref is None or p["low"] is None or p["high"] is None else bool(p["low"] <= ref <= p["high"])
+            )
+
+
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Benchmark figures from the case rows."""
 
@@ -229,13 +250,17 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "outside_unexplained": _outside_unexplained(rows),
         "interval_coverage": _coverage(rows),
         "parameters_scored": sum(len(r.get("params") or []) for r in rows),
+        "interval_coverage_best_equivalent": _coverage(rows, "covered_best_equivalent"),
+        "parameters_scored_best_equivalent": sum(
+            p.get("covered_best_equivalent") is not None for r in rows for p in (r.get("params") or [])
+        ),
     }
     passed = {k: float(figures[k] or 0.0) >= v for k, v in ACCEPTANCE.items() if figures.get(k) is not None}
     return {"figures": figures, "acceptance": ACCEPTANCE, "passed": passed, "cases": len(rows)}
 
 
-def _coverage(rows: list[dict[str, Any]]) -> float | None:
-    checks = [p["covered"] for r in rows for p in (r.get("params") or [])]
+def _coverage(rows: list[dict[str, Any]], key: str = "covered") -> float | None:
+    checks = [p[key] for r in rows for p in (r.get("params") or []) if p.get(key) is not None]
     return sum(checks) / len(checks) if checks else None
 
 
@@ -252,11 +277,14 @@ def run_bench(
     workers: int,
     progress: bool = True,
     rows_of: Callable[[list[CaseJob]], Iterable[dict[str, Any]]] | None = None,
+    best_equivalent: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run every case and write ``bench.json``, ``bench.md`` and ``cases/NAME/diagnosis.json`` into ``out``.
 
     ``rows_of`` runs the jobs and yields their rows as they finish (default: :func:`local_rows` with
     ``workers`` processes; :func:`drillgym.eval.diagnosis.bench.on_ray.ray_rows` for a Ray cluster).
+    ``best_equivalent``: pseudo-true values by reality spec (:mod:`~drillgym.eval.diagnosis.bench.pseudo_truth`),
+    to score the intervals against them too.
     """
     out.mkdir(parents=True, exist_ok=True)
     jobs: list[CaseJob] = [(c, episodes, candidates, True) for c in cases]
@@ -276,6 +304,8 @@ def run_bench(
     bar.close()
     order = {c.name: k for k, c in enumerate(cases)}
     rows.sort(key=lambda r: order[r["case"]])
+    if best_equivalent is not None:
+        add_best_equivalent(rows, best_equivalent)
     summary = summarise(rows)
     summary.update(
         wall_s=time.perf_counter() - t0, workers=workers, episodes_per_case=episodes, candidates=list(candidates)
@@ -319,13 +349,14 @@ def markdown(result: dict[str, Any]) -> str:
             "",
             "Parameters of rightly named effects against the reality's own (``RealityEffect.candidate_values``):",
             "",
-            "| case | parameter | truth | fit | 95 % interval | covered |",
-            "|---|---|---|---|---|---|",
+            "| case | parameter | truth | fit | 95 % interval | covered | best equivalent | covered |",
+            "|---|---|---|---|---|---|---|---|",
         ]
         for case, p in checks:
             lines.append(
                 f"| {case} | {p['effect']}.{p['param']} | {g(p['truth'])} | {g(p['fit'])} | "
-                f"[{g(p['low'])}, {g(p['high'])}] | {p['covered']} |"
+                f"[{g(p['low'])}, {g(p['high'])}] | {p['covered']} | {g(p.get('best_equivalent'))} | "
+                f"{'' if p.get('covered_best_equivalent') is None else p['covered_best_equivalent']} |"
             )
     per_episode = [(r["case"], p) for r in result["rows"] for p in (r.get("episode_params") or [])]
     if per_episode:
