@@ -36,6 +36,7 @@ from drillgym.eval.diagnosis.rank import (
     locate,
     nameable,
     pair_beats,
+    pair_roles,
     pooled,
     possible_second_effects,
     score_models,
@@ -161,7 +162,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
         alts = alternatives(scores, chosen, baseline_score(before))
         seconds = possible_second_effects(scores, chosen, pooled(null), null)
         if len(chosen.fit.names) == 2:
-            first, second = (singles_by_name(scores).get(n) for n in chosen.fit.names)
+            first, second = pair_roles(chosen, singles_by_name(scores))
             if first is not None:
                 evidence = second_effect_evidence(chosen, first, second, null)
     timings["total_s"] = time.perf_counter() - t0
@@ -359,7 +360,7 @@ def _verdict(
     by_name = singles_by_name(singles)
     g_null = pooled(null)
     for p in (s for s in scores if len(s.fit.names) == 2):
-        first, second = (by_name.get(n) for n in p.fit.names)
+        first, second = pair_roles(p, by_name)
         if best_single is None or first is None:
             continue
         if nameable(p, s0) and pair_beats(p, best_single, first, second, g_null, null):

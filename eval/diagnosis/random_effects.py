@@ -19,7 +19,8 @@ replay.
    of freedom of a ridge estimate), as a conditional information criterion does.
 
 Intervals (95 %): a bootstrap over the calibration episodes of ``μ`` and ``τ`` (the per-episode estimates are
-resampled, nothing is refitted). A spread's off value is 0: an effect whose mean and spread intervals all
+resampled, nothing is refitted), expanded for the few episodes as every interval of the diagnosis is
+(:func:`~drillgym.eval.diagnosis.intervals.expanded_tail`). A spread's off value is 0: an effect whose mean and spread intervals all
 contain their off values is not told apart from its absence, and is not named.
 """
 
@@ -36,15 +37,14 @@ import numpy as np
 from drillgym.eval.diagnosis.context import Evaluator
 from drillgym.eval.diagnosis.fit import FitResult, ParamBox, local_search
 from drillgym.eval.diagnosis.gap import Terms, pooled
+from drillgym.eval.diagnosis.intervals import expanded_tail
 
 EVALS_PER_PARAM = 20
 """Compass-search budget per parameter for one episode's fit (evaluations)."""
 CURVATURE_STEP = 1 / 64
 """Step (fraction of each parameter's range) of the finite differences for the curvature of ``J_e``."""
-BOOTSTRAP = 1000
+BOOTSTRAP = 4000
 """Bootstrap resamples of the calibration episodes for the intervals."""
-LEVEL = 0.95
-"""Coverage of the intervals."""
 SPREAD_SUFFIX = "_spread"
 """Interval key of a parameter's episode-to-episode standard deviation (``fx_rate_n_s_spread``)."""
 
@@ -176,7 +176,7 @@ def _intervals(theta: np.ndarray, curv: np.ndarray, box: ParamBox, seed: int) ->
     draws = [_mean_spread(theta[r], curv[r]) for r in idx]
     mus = np.array([a for a, _ in draws])
     taus = np.sqrt(np.array([b for _, b in draws]))
-    tail = (1.0 - LEVEL) / 2.0
+    tail = expanded_tail(m)
     out: dict[str, dict[str, Any] | None] = {}
     for p, (_, param) in enumerate(box.entries):
         span = param.high - param.low

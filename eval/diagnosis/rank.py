@@ -240,6 +240,25 @@ def singles_by_name(scores: list[ModelScore]) -> dict[str, ModelScore]:
     return {s.fit.names[0]: s for s in scores if len(s.fit.names) == 1}
 
 
+def pair_roles(pair: ModelScore, singles: dict[str, ModelScore]) -> tuple[ModelScore | None, ModelScore | None]:
+    """The pair's first and second effects as singles: the better-scoring single first.
+
+    A pair is named instead of a single effect, so what has to be shown is the effect it adds to the stronger
+    of its two: forward selection may have built it the other way round (a weak first effect with the real one
+    fitted on top, which then "adds" everything it explains alone). Missing singles are None (first stays the
+    pair's own first then).
+    """
+    a, b = (singles.get(n) for n in pair.fit.names)
+    if a is not None and b is not None and b.score < a.score:
+        return b, a
+    return a, b
+
+
+def _other(pair: ModelScore, first: ModelScore) -> str:
+    """The pair's effect that is not ``first``'s."""
+    return next((n for n in pair.fit.names if n != first.fit.names[0]), pair.fit.names[-1])
+
+
 @dataclass
 class _OwnCellGaps:
     """Held-out gaps on a pair's own cells: pooled values and their bootstrap draws (first, pair, null)."""
@@ -270,7 +289,7 @@ def _own_cell_gaps(
 ) -> _OwnCellGaps | None:
     """Gaps on ``mask`` (default: the :func:`own_cells` of the pair's second effect); None without cells."""
     if mask is None and len(pair.fit.names) == 2:
-        mask = own_cells(first.fit.names[0], pair.fit.names[-1])
+        mask = own_cells(first.fit.names[0], _other(pair, first))
     return _cell_gaps(first.fit.ho_terms, pair.fit.ho_terms, null, mask, seed)
 
 
@@ -378,11 +397,11 @@ def second_effect_evidence(
         with the held-out gap there of the first effect alone, of the pair and of the simulator
         (``own_gap_first``, ``own_gap_pair``, ``own_gap_null``; None without such cells).
     """
-    mask = own_cells(first.fit.names[0], pair.fit.names[-1])
+    mask = own_cells(first.fit.names[0], _other(pair, first))
     g = None if mask is None else _own_cell_gaps(pair, first, null, mask)
     groups = sorted({GROUP_OF[ALL_CHANNELS[c]] for c in np.flatnonzero(mask.any(axis=0))}) if mask is not None else []
     return {
-        "second": pair.fit.names[-1],
+        "second": _other(pair, first),
         "alone": second_stands_alone(pair, first, second),
         "own_cells": g is not None and g.removed(),
         "contradicted": g is not None and g.worsened(),

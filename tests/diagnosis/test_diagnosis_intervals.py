@@ -1,9 +1,12 @@
 """Parameter intervals: a bootstrap over calibration episodes of the points a fit evaluated."""
 
+import math
+
 import numpy as np
+import pytest
 
 from drillgym.eval.diagnosis.context import make_spec
-from drillgym.eval.diagnosis.intervals import off_point_inside, parameter_intervals
+from drillgym.eval.diagnosis.intervals import expanded_tail, off_point_inside, parameter_intervals
 
 
 def _samples(optima: np.ndarray, grid: np.ndarray, param: str = "extra_latency_s", effect: str = "latency"):
@@ -18,11 +21,22 @@ def test_the_interval_of_a_mean_covers_what_a_bootstrap_of_the_episodes_optima_g
     grid = np.linspace(0.0, 0.3, 3001)
     ci = parameter_intervals(_samples(optima, grid))["latency"]["extra_latency_s"]
     assert ci is not None
-    # The pooled fit of a resample is its mean optimum: the interval is the bootstrap of the mean.
-    means = [optima[rng.integers(0, 8, 8)].mean() for _ in range(4000)]
-    low, high = np.quantile(means, [0.025, 0.975])
+    # The pooled fit of a resample is its mean optimum: the interval is the bootstrap of the mean, with the
+    # expanded tails of 8 episodes (those of a t interval on 7 degrees of freedom).
+    means = [optima[rng.integers(0, 8, 8)].mean() for _ in range(20000)]
+    tail = expanded_tail(8)
+    low, high = np.quantile(means, [tail, 1 - tail])
     assert abs(ci["low"] - low) < 0.003 and abs(ci["high"] - high) < 0.003
+    plain = np.quantile(means, [0.025, 0.975])
+    assert ci["low"] < plain[0] and ci["high"] > plain[1]  # wider than the plain percentiles
     assert ci["low"] < optima.mean() < ci["high"] and not ci["contains_off"] and not ci["at_search_edge"]
+
+
+def test_the_expanded_tails_are_a_t_intervals_on_the_resampled_episodes():
+    # Hesterberg (2015): Φ(-sqrt(n/(n-1)) t_{n-1, 0.975}); t_{5, 0.975} = 2.5706 (tables).
+    assert expanded_tail(6) == pytest.approx(0.5 * math.erfc(math.sqrt(6 / 5) * 2.5706 / math.sqrt(2)), rel=1e-3)
+    assert expanded_tail(6) < expanded_tail(12) < expanded_tail(100) < 0.025
+    assert expanded_tail(10**6) == pytest.approx(0.025, abs=1e-4)
 
 
 def test_an_effect_the_episodes_cannot_tell_from_off_has_the_off_point_inside():

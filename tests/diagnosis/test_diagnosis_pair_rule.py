@@ -58,3 +58,23 @@ def test_a_second_effect_hidden_behind_the_first_is_reported_as_possible_not_nam
     possible = possible_second_effects([ah, ab, a, useless, hidden, real], a, NULL_GAP)
     assert [x["second"] for x in possible] == ["h"] and possible[0]["p_better"] > 0.95
     assert possible_second_effects([ah, a, hidden], ah, NULL_GAP) == []  # a named pair has no "second"
+
+
+def test_the_effect_a_pair_adds_to_its_stronger_single_must_be_shown_whichever_came_first():
+    from drillgym.eval.diagnosis.rank import pair_roles, singles_by_name
+
+    # Forward selection built (weak, strong): a weak first effect with the real one fitted on top, which then
+    # "adds" all it explains alone. Judged that way round it passes; what the pair adds to the strong single is
+    # the weak one, which alone removes 0.3 of the 2.5 it adds there (a patch on the strong effect's form).
+    weak = _score(("w",), 11.0, 10.7, 1070.0)
+    strong = _score(("s",), 11.0, 4.0, 400.0)
+    pair = _score(("w", "s"), 11.0, 1.5, 150.0)
+    assert pair_beats(pair, best=strong, first=weak, second=strong, null_gap=NULL_GAP)
+    first, second = pair_roles(pair, singles_by_name([strong, weak, pair]))
+    assert (first, second) == (strong, weak)
+    assert not pair_beats(pair, best=strong, first=first, second=second, null_gap=NULL_GAP)
+    # Two real effects pass either way round.
+    a, b = _score(("a",), 11.0, 5.0, 500.0), _score(("b",), 11.0, 7.0, 700.0)
+    ba = _score(("b", "a"), 11.0, 1.2, 120.0)
+    assert pair_roles(ba, singles_by_name([a, b])) == (a, b)
+    assert pair_beats(ba, best=a, first=a, second=b, null_gap=NULL_GAP)
