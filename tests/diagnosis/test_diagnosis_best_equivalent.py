@@ -35,6 +35,8 @@ def test_intervals_are_scored_against_the_best_equivalent_where_there_is_one():
     table = {
         "tracker_smoothing:tau_s=0.15": {"candidate": "tracker_latency", "params": {"latency_s": 0.137}},
         "wobbly_runout:runout_m=4e-5": {"candidate": "tool_runout", "params": {"runout_m": 4.9e-5}},
+        # the shared drift's best equivalent is not the random effect's mean: that is the written population mean
+        "episode_warmup:fz_n=3,spread_n=5": {"candidate": "ft_drift", "params": {"fz_rate_n_s": 0.02}},
     }
     add_best_equivalent(rows, table)
     checks = [r["params"][0] for r in rows]

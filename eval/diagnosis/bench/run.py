@@ -215,10 +215,10 @@ def add_best_equivalent(rows: list[dict[str, Any]], table: dict[str, Any]) -> No
         entry = table.get(r["spec"])
         for p in r.get("params") or []:
             ref = None
-            if entry and not entry.get("error") and physics_of(entry["candidate"]) == physics_of(p["effect"]):
+            if p["effect"] in EFFECTS and EFFECTS[p["effect"]].per_episode:
+                ref = p["truth"]  # the population mean, whatever a shared form of the same physics converges to
+            elif entry and not entry.get("error") and physics_of(entry["candidate"]) == physics_of(p["effect"]):
                 ref = entry["params"].get(p["param"])
-            elif p["effect"] in EFFECTS and EFFECTS[p["effect"]].per_episode:
-                ref = p["truth"]
             p["best_equivalent"] = ref
             p["covered_best_equivalent"] = (
                 None if ref is None or p["low"] is None or p["high"] is None else bool(p["low"] <= ref <= p["high"])
