@@ -117,3 +117,13 @@ def test_the_named_model_is_refitted_from_its_values_in_the_other_fits_and_keeps
     worse = _fit(["latency"], [{"extra_latency_s": 0.2}], 3.0, [(p(0.2), 3 * n, n)])
     kept = _polish(_Runner(worse), None, single, [single, pair], _Bar())
     assert kept is single and len(kept.samples) == 2  # a worse refit does not replace the fit
+
+
+def test_the_refined_minimum_lies_between_the_evaluated_points():
+    from drillgym.eval.diagnosis.intervals import refined_minimum
+
+    optima = np.array([0.1031, 0.1029, 0.1033, 0.1027])  # all episodes agree on 0.103
+    grid = np.linspace(0.0, 0.3, 31)  # evaluated every 0.01 only
+    fit = refined_minimum(_samples(optima, grid))["latency"]["extra_latency_s"]
+    assert fit == pytest.approx(0.103, abs=1e-6)  # the parabola through 0.09, 0.10, 0.11
+    assert refined_minimum([]) == {}
