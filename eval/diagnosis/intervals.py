@@ -62,8 +62,11 @@ def parameter_intervals(
     values = np.array([[v for _, vals in spec for _, v in vals] for spec, _, _ in points])  # (P, K)
     j = np.array([p[1] for p in points])  # (P, E)
     n = np.array([p[2] for p in points])
-    idx = np.random.default_rng(seed).integers(0, j.shape[1], size=(BOOTSTRAP, j.shape[1]))
-    objective = (j[:, idx].sum(axis=2) / n[:, idx].sum(axis=2)).T  # (B, P)
+    m = j.shape[1]
+    idx = np.random.default_rng(seed).integers(0, m, size=(BOOTSTRAP, m))
+    counts = np.zeros((BOOTSTRAP, m))  # how often each episode is drawn in each resample
+    np.add.at(counts, (np.arange(BOOTSTRAP)[:, None], idx), 1.0)
+    objective = (counts @ j.T) / (counts @ n.T)  # (B, P)
     best = np.argmin(objective, axis=1)
     chosen = _refined(values, objective, best)
     tail = expanded_tail(j.shape[1])

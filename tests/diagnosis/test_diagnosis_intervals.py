@@ -74,7 +74,7 @@ def test_an_interval_narrower_than_the_evaluated_spacing_is_found_between_the_po
     rng = np.random.default_rng(5)
     optima = 0.1 + 0.002 * rng.standard_normal(8)
     coarse = parameter_intervals(_samples(optima, np.linspace(0.0, 0.3, 31)))["latency"]["extra_latency_s"]
-    fine = parameter_intervals(_samples(optima, np.linspace(0.0, 0.3, 30001)))["latency"]["extra_latency_s"]
+    fine = parameter_intervals(_samples(optima, np.linspace(0.0, 0.3, 3001)))["latency"]["extra_latency_s"]
     # 0.01 between evaluated points; a parabola through a quadratic misfit puts each resample at its exact fit
     assert coarse["high"] - coarse["low"] > 0.001
     assert abs(coarse["low"] - fine["low"]) < 2e-5 and abs(coarse["high"] - fine["high"]) < 2e-5
