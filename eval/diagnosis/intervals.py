@@ -55,7 +55,7 @@ def parameter_intervals(
 
     ``samples``: a fit's evaluated points with each calibration episode's ``J`` and ``N`` there.
     """
-    points = [(spec, j, n) for spec, j, n in samples if j is not None and n is not None and np.isfinite(j).all()]
+    points = _usable(samples)
     if not points:
         return {}
     keys = [(name, param) for name, values in points[0][0] for param, _ in values]
@@ -95,7 +95,7 @@ def refined_minimum(
     The point estimate the intervals' resamples are made of, on all episodes at once: finer than the search's
     last step (1/1024 of each range), where it stopped. Per effect and parameter (SI); empty without points.
     """
-    points = [(spec, j, n) for spec, j, n in samples if j is not None and n is not None and np.isfinite(j).all()]
+    points = _usable(samples)
     if not points:
         return {}
     keys = [(name, param) for name, values in points[0][0] for param, _ in values]
@@ -106,6 +106,21 @@ def refined_minimum(
     for (name, param), v in zip(keys, chosen, strict=True):
         out.setdefault(name, {})[param] = float(v)
     return out
+
+
+def _usable(
+    samples: Sequence[tuple[Spec, np.ndarray | None, np.ndarray | None]],
+) -> list[tuple[Spec, np.ndarray, np.ndarray]]:
+    """The evaluated points with every episode's terms, each point once.
+
+    Two searches may share points (a fit and its refit): a point listed twice has no neighbour on one side of its
+    copy, so no parabola through it.
+    """
+    unique: dict[Spec, tuple[Spec, np.ndarray, np.ndarray]] = {}
+    for spec, j, n in samples:
+        if j is not None and n is not None and np.isfinite(j).all():
+            unique[spec] = (spec, j, n)
+    return list(unique.values())
 
 
 def _refined(values: np.ndarray, objective: np.ndarray, best: np.ndarray) -> np.ndarray:

@@ -127,3 +127,6 @@ def test_the_refined_minimum_lies_between_the_evaluated_points():
     fit = refined_minimum(_samples(optima, grid))["latency"]["extra_latency_s"]
     assert fit == pytest.approx(0.103, abs=1e-6)  # the parabola through 0.09, 0.10, 0.11
     assert refined_minimum([]) == {}
+    # Points evaluated twice (a fit and its refit share them) are counted once.
+    samples = _samples(optima, grid)
+    assert refined_minimum([*samples, *samples])["latency"]["extra_latency_s"] == pytest.approx(0.103, abs=1e-6)
