@@ -16,6 +16,7 @@ EFFECTS: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (
         FTDrift,
+        FTEpisodeDrift,  # early: the longest sensor-side fit, so it does not start last on its worker
         Latency,
         JointFriction,
         KinematicOffset,
@@ -28,7 +29,6 @@ EFFECTS: dict[str, type[Effect]] = {
         FTGain,
         FTContactBias,
         TrackerLatency,
-        FTEpisodeDrift,
     )
 }
 """The unmodelled effects of the library, by name (``build_effects``, ``make-reality``, cells)."""
