@@ -342,39 +342,52 @@ def markdown(result: dict[str, Any]) -> str:
             f"| {r['case']} | {r['kind']} | {'+'.join(r['truth']) or '–'} | {r['verdict']} | {'+'.join(r['named']) or '–'} | "
             f"{r['top_single']} | {fmt(r['true_effect_shrink'])} | {loc} | {r['correct']} | {r['diagnose_s']:.0f} |"
         )
-    checks = [(r["case"], p) for r in result["rows"] for p in (r.get("params") or [])]
-    if checks:
-        g = lambda v: "–" if v is None else f"{v:.4g}"  # noqa: E731
-        lines += [
-            "",
-            "Parameters of rightly named effects against the reality's own (``RealityEffect.candidate_values``):",
-            "",
-            "| case | parameter | truth | fit | 95 % interval | covered | best equivalent | covered |",
-            "|---|---|---|---|---|---|---|---|",
-        ]
-        for case, p in checks:
-            lines.append(
-                f"| {case} | {p['effect']}.{p['param']} | {g(p['truth'])} | {g(p['fit'])} | "
-                f"[{g(p['low'])}, {g(p['high'])}] | {p['covered']} | {g(p.get('best_equivalent'))} | "
-                f"{'' if p.get('covered_best_equivalent') is None else p['covered_best_equivalent']} |"
-            )
-    per_episode = [(r["case"], p) for r in result["rows"] for p in (r.get("episode_params") or [])]
-    if per_episode:
-        g = lambda v: "–" if v is None else f"{v:.3g}"  # noqa: E731
-        lines += [
-            "",
-            "Per-episode parameters of effects named as random effects, against each episode's own value:",
-            "",
-            "| case | parameter | episodes | RMS error | true spread (SD) | correlation |",
-            "|---|---|---|---|---|---|",
-        ]
-        for case, p in per_episode:
-            lines.append(
-                f"| {case} | {p['effect']}.{p['param']} | {p['n']} | {g(p['rms_error'])} | {g(p['truth_spread'])} | "
-                f"{g(p['correlation'])} |"
-            )
+    g = lambda v: "–" if v is None else f"{v:.4g}"  # noqa: E731
+    lines += _table(
+        "Parameters of rightly named effects against the reality's own (``RealityEffect.candidate_values``) and "
+        "against the candidate's best equivalent (``--pseudo-truth``):",
+        ["case", "parameter", "truth", "fit", "95 % interval", "covered", "best equivalent", "covered"],
+        [
+            [
+                r["case"],
+                f"{p['effect']}.{p['param']}",
+                g(p["truth"]),
+                g(p["fit"]),
+                f"[{g(p['low'])}, {g(p['high'])}]",
+                str(p["covered"]),
+                g(p.get("best_equivalent")),
+                "" if p.get("covered_best_equivalent") is None else str(p["covered_best_equivalent"]),
+            ]
+            for r in result["rows"]
+            for p in (r.get("params") or [])
+        ],
+    )
+    lines += _table(
+        "Per-episode parameters of effects named as random effects, against each episode's own value:",
+        ["case", "parameter", "episodes", "RMS error", "true spread (SD)", "correlation"],
+        [
+            [
+                r["case"],
+                f"{p['effect']}.{p['param']}",
+                str(p["n"]),
+                g(p["rms_error"]),
+                g(p["truth_spread"]),
+                g(p["correlation"]),
+            ]
+            for r in result["rows"]
+            for p in (r.get("episode_params") or [])
+        ],
+    )
     lines.append("")
     return "\n".join(lines)
+
+
+def _table(intro: str, columns: list[str], rows: list[list[str]]) -> list[str]:
+    """A Markdown table with a line above it; nothing without rows."""
+    if not rows:
+        return []
+    out = ["", intro, "", "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    return out + ["| " + " | ".join(row) + " |" for row in rows]
 
 
 def _clean_json(v: Any) -> Any:
