@@ -62,3 +62,15 @@ def test_best_equivalents_are_fitted_once_per_reality_and_kept_in_the_file(tmp_p
     assert json.loads(path.read_text()) == json.loads(json.dumps(table))
     again = load_or_compute(path, [*strong, Case("x", "clean", "none", 0)], workers=1, episodes=6)
     assert again == json.loads(path.read_text())  # read back, nothing refitted
+
+
+def test_a_file_that_is_not_a_table_is_a_one_line_error_before_any_work(tmp_path, capsys):
+    from drillgym.eval.cli import main
+
+    bad = tmp_path / "pt.json"
+    for text in ("{not json", '{"spec": {"params": {}}}', "[1, 2]"):
+        bad.write_text(text)
+        code = main(["bench-diagnosis", "--quick", "--out", str(tmp_path / "out"), "--pseudo-truth", str(bad)])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and err.startswith("drillgym bench-diagnosis: error: ") and "not a pseudo-truth table" in err
+        assert bad.read_text() == text and not (tmp_path / "out").exists()  # nothing overwritten, nothing run

@@ -83,10 +83,25 @@ def load_or_compute(path: Path, cases: list[Case], workers: int, episodes: int =
     """The pseudo-true values of ``cases``' realities: read from ``path``, the missing ones computed and added."""
     from drillgym.eval.pool import run_unordered
 
-    table: dict[str, Any] = json.loads(path.read_text()) if path.is_file() else {}
+    table = _read(path) if path.is_file() else {}
     todo = [j for j in jobs_for(cases, episodes) if j[0] not in table]
     for _, (spec, entry) in run_unordered(pseudo_truth, todo, max(1, workers)):
         table[spec] = entry
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(table, indent=2))  # written as each finishes: an interruption loses nothing
+    return table
+
+
+def _read(path: Path) -> dict[str, Any]:
+    """A table written by :func:`load_or_compute`; ``ValueError`` naming the file if it is not one."""
+    try:
+        table = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise ValueError(f"{path}: not a pseudo-truth table ({e}); name another file or delete it") from e
+    entries = table.values() if isinstance(table, dict) else []
+    if not isinstance(table, dict) or not all(
+        isinstance(v, dict) and isinstance(v.get("candidate"), str) and isinstance(v.get("params"), dict)
+        for v in entries
+    ):
+        raise ValueError(f"{path}: not a pseudo-truth table (entries need 'candidate' and 'params')")
     return table
