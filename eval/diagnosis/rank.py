@@ -431,10 +431,12 @@ def pair_beats(
 def possible_second_effects(
     scores: list[ModelScore], named: ModelScore, null_gap: float, null: list[Terms] | None = None
 ) -> list[dict[str, Any]]:
-    """Pairs on the named single effect that improve on it but whose second effect is not shown to be one.
+    """Pairs with the named single effect that improve on it but whose second effect is not shown to be one.
 
     Such a second effect may be real but hidden behind a much larger first one, or a patch on the first
-    one's form: the data cannot tell, so it is reported, not named.
+    one's form: the data cannot tell, so it is reported, not named. The second effect is the pair's other one,
+    whichever order forward selection built the pair in (:func:`pair_roles`); each is listed once, with its
+    best-scoring pair.
 
     Returns:
         ``{"name", "second", "heldout_gap_after", "p_better"}`` per pair, best score first.
@@ -442,14 +444,15 @@ def possible_second_effects(
     if len(named.fit.names) != 1:
         return []
     singles = singles_by_name(scores)
-    out = []
+    out: list[dict[str, Any]] = []
     for s in scores:
-        if len(s.fit.names) != 2 or s.fit.names[0] != named.fit.names[0]:
+        if len(s.fit.names) != 2 or named.fit.names[0] not in s.fit.names:
             continue
-        second = singles.get(s.fit.names[1])
-        if pair_improves(s, named, null_gap) and not second_is_real(s, named, second, null):
-            p = p_better(s, named)
-            out.append({"name": s.name, "second": s.fit.names[1], "heldout_gap_after": s.after, "p_better": p})
+        other = _other(s, named)
+        if any(x["second"] == other for x in out):
+            continue
+        if pair_improves(s, named, null_gap) and not second_is_real(s, named, singles.get(other), null):
+            out.append({"name": s.name, "second": other, "heldout_gap_after": s.after, "p_better": p_better(s, named)})
     return out
 
 

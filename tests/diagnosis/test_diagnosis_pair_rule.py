@@ -78,3 +78,14 @@ def test_the_effect_a_pair_adds_to_its_stronger_single_must_be_shown_whichever_c
     ba = _score(("b", "a"), 11.0, 1.2, 120.0)
     assert pair_roles(ba, singles_by_name([a, b])) == (a, b)
     assert pair_beats(ba, best=a, first=a, second=b, null_gap=NULL_GAP)
+
+
+def test_a_possible_second_effect_is_found_whichever_order_its_pair_was_built_in():
+    from drillgym.eval.diagnosis.rank import possible_second_effects
+
+    a = _score(("a",), 11.0, 5.0, 500.0)
+    hidden = _score(("h",), 11.0, 10.9, 1090.0)
+    ha = _score(("h", "a"), 11.0, 1.2, 120.0)  # built on h, with the named a fitted on top
+    ah = _score(("a", "h"), 11.0, 1.3, 130.0)  # the same pair the other way round, a little worse
+    possible = possible_second_effects([ha, ah, a, hidden], a, NULL_GAP)
+    assert [(x["name"], x["second"]) for x in possible] == [("h+a", "h")]  # once, with its better pair
