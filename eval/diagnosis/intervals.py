@@ -58,10 +58,7 @@ def parameter_intervals(
     points = _usable(samples)
     if not points:
         return {}
-    keys = [(name, param) for name, values in points[0][0] for param, _ in values]
-    values = np.array([[v for _, vals in spec for _, v in vals] for spec, _, _ in points])  # (P, K)
-    j = np.array([p[1] for p in points])  # (P, E)
-    n = np.array([p[2] for p in points])
+    keys, values, j, n = _arrays(points)
     m = j.shape[1]
     idx = np.random.default_rng(seed).integers(0, m, size=(BOOTSTRAP, m))
     counts = np.zeros((BOOTSTRAP, m))  # how often each episode is drawn in each resample
@@ -98,9 +95,8 @@ def refined_minimum(
     points = _usable(samples)
     if not points:
         return {}
-    keys = [(name, param) for name, values in points[0][0] for param, _ in values]
-    values = np.array([[v for _, vals in spec for _, v in vals] for spec, _, _ in points])
-    objective = (np.array([p[1].sum() for p in points]) / np.array([p[2].sum() for p in points]))[None, :]
+    keys, values, j, n = _arrays(points)
+    objective = (j.sum(axis=1) / n.sum(axis=1))[None, :]
     chosen = _refined(values, objective, np.argmin(objective, axis=1))[0]
     out: dict[str, dict[str, float]] = {}
     for (name, param), v in zip(keys, chosen, strict=True):
@@ -121,6 +117,15 @@ def _usable(
         if j is not None and n is not None and np.isfinite(j).all():
             unique[spec] = (spec, j, n)
     return list(unique.values())
+
+
+def _arrays(
+    points: list[tuple[Spec, np.ndarray, np.ndarray]],
+) -> tuple[list[tuple[str, str]], np.ndarray, np.ndarray, np.ndarray]:
+    """``(effect, parameter)`` keys, the points' values (P, K), and each episode's ``J`` and ``N`` there (P, E)."""
+    keys = [(name, param) for name, values in points[0][0] for param, _ in values]
+    values = np.array([[v for _, vals in spec for _, v in vals] for spec, _, _ in points])
+    return keys, values, np.array([p[1] for p in points]), np.array([p[2] for p in points])
 
 
 def _refined(values: np.ndarray, objective: np.ndarray, best: np.ndarray) -> np.ndarray:

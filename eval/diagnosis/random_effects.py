@@ -72,7 +72,7 @@ def fit_per_episode(ev: Evaluator, name: str, seed: int = 0) -> FitResult:
     try:
         d = ev.data
         n = len(d.episodes)
-        own = [_own_fit(_episode_gap(terms, i), box) for i in range(n)]
+        own = [_own_fit(partial(terms, i), box) for i in range(n)]
         theta = np.array([u for u, _ in own])  # (episodes, k) unit box
         curv = np.array([h for _, h in own])
         cal = np.asarray(d.cal)
@@ -104,13 +104,12 @@ def fit_per_episode(ev: Evaluator, name: str, seed: int = 0) -> FitResult:
     return result
 
 
-def _episode_gap(terms: Callable[[int, np.ndarray], Terms], i: int) -> Callable[[np.ndarray], float]:
-    """Episode ``i``'s gap ``J`` as a function of the unit-box parameters."""
-    return lambda u: terms(i, u).j
-
-
-def _own_fit(objective: Callable[[np.ndarray], float], box: ParamBox) -> tuple[np.ndarray, np.ndarray]:
+def _own_fit(terms: Callable[[np.ndarray], Terms], box: ParamBox) -> tuple[np.ndarray, np.ndarray]:
     """One episode's own fit (unit box) and the curvature of its gap there along each parameter."""
+
+    def objective(u: np.ndarray) -> float:
+        return terms(u).j
+
     points = box.grid()
     u = local_search(objective, min(points, key=objective), EVALS_PER_PARAM * box.size)
     return u, _curvature(objective, u)
@@ -181,20 +180,18 @@ def _intervals(theta: np.ndarray, curv: np.ndarray, box: ParamBox, seed: int) ->
     for p, (_, param) in enumerate(box.entries):
         span = param.high - param.low
         lo, hi = (param.low + span * float(np.quantile(mus[:, p], q)) for q in (tail, 1.0 - tail))
-        out[param.name] = {
-            "low": lo,
-            "high": hi,
-            "contains_off": bool(lo <= param.default <= hi),
-            "at_search_edge": False,
-        }
+        out[param.name] = _entry(lo, hi, param.default)
         slo, shi = (span * float(np.quantile(taus[:, p], q)) for q in (tail, 1.0 - tail))
-        out[param.name + SPREAD_SUFFIX] = {
-            "low": slo,
-            "high": shi,
-            "contains_off": bool(slo <= 0.0),
-            "at_search_edge": False,
-        }
+        out[param.name + SPREAD_SUFFIX] = _entry(slo, shi, 0.0)
     return out
+
+
+def _entry(low: float, high: float, off: float) -> dict[str, Any]:
+    """An interval entry as :func:`~drillgym.eval.diagnosis.intervals.parameter_intervals` writes them.
+
+    No search edge: nothing is searched for it.
+    """
+    return {"low": low, "high": high, "contains_off": bool(low <= off <= high), "at_search_edge": False}
 
 
 __all__ = ["fit_per_episode"]

@@ -23,6 +23,7 @@ from tqdm import tqdm
 
 from drillgym.envs.effects.registry import EFFECTS, physics_of
 from drillgym.eval.diagnosis.bench.cases import Case
+from drillgym.eval.diagnosis.reality.generate import episode_name
 from drillgym.eval.pool import run_unordered
 
 ACCEPTANCE = {
@@ -183,10 +184,10 @@ def episode_checks(res: dict[str, Any], plans: list[dict[str, Any]]) -> list[dic
     out = []
     for param in per_episode["spread"]:
         pairs = [
-            (fitted[f"episode_{i:03d}"][param], values[param])
+            (fitted[episode_name(i)][param], values[param])
             for i, plan in enumerate(plans)
             for n, values in (plan.get("episode_values") or {}).items()
-            if physics_of(n) == physics_of(name) and f"episode_{i:03d}" in fitted and param in values
+            if physics_of(n) == physics_of(name) and episode_name(i) in fitted and param in values
         ]
         if len(pairs) < 2:
             continue

@@ -41,6 +41,11 @@ def build_reality(spec: str) -> list[RealityEffect]:
     return out
 
 
+def episode_name(index: int) -> str:
+    """Name of episode ``index``'s log (its file stem, which the diagnosis reports episodes by)."""
+    return f"episode_{index:03d}"
+
+
 def episode_plan(index: int, rng: np.random.Generator) -> dict[str, Any]:
     """Scenario, controller and seed of episode ``index``."""
     return {
@@ -84,7 +89,7 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
             env.unwrapped.set_effects(stack)  # type: ignore[attr-defined]
             env.reset(seed=plan["seed"], options={"scenario": plan["scenario"]})
             header = build_header(env, controller.describe(), seed=None, source="real")
-            logger = EpisodeLogger(env, out / f"episode_{i:03d}.parquet", header, overwrite=overwrite)
+            logger = EpisodeLogger(env, out / f"{episode_name(i)}.parquet", header, overwrite=overwrite)
             # no seed: the episode continues the stream seeded above; the header keeps seed null
             run_episode(logger, controller, seed=None, keep_trace=False)
             logger.close_log()
