@@ -125,10 +125,12 @@ class SimCell:
         The effect state of the cell: ``geometry_offset_task_m`` (the physical tip and the tool sit this
         far from where the controller's kinematic model puts them, task frame, m; the encoders and the
         RTDE TCP do not see it), ``marker_offset_base_m`` (the same for the tracker marker, base frame, m),
-        ``sensor_arm_m`` (F/T origin to the real drill tip, m), the drill compliance ``C_tool`` and the
-        tip balance's ``depth_profile`` and ``guidance_hook``.
+        ``sensor_arm_m`` (F/T origin to the real drill tip, m), ``spindle_rpm`` (the spindle's speed now,
+        rpm; it sets the chip thickness), the drill compliance ``C_tool`` and the tip balance's
+        ``depth_profile`` and ``guidance_hook``.
         """
         self.geometry_offset_task_m: np.ndarray | None = None
+        self.spindle_rpm = self.scenario.spindle_rpm
         self.marker_offset_base_m: np.ndarray | None = None
         self.sensor_arm_m = self.tcp_offset_m
         self.set_tool_compliance(self.tool.compliance_tool_m_n())

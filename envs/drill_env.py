@@ -536,8 +536,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return max(per_step / SUBSTEPS_PER_STEP, 0.0)
 
     def _chip_m(self) -> float:
+        """Chip thickness per lip (m) at the feed in force and the spindle's speed now (``cell.spindle_rpm``)."""
         sc = self.scenario
-        return sc.geometry.chip_thickness_m(sc.feed_m_s * self.feed_scale, sc.spindle_rpm)
+        return sc.geometry.chip_thickness_m(sc.feed_m_s * self.feed_scale, self.cell.spindle_rpm)
 
     def _sample_tracker(self) -> None:
         stamp = latest_sample_time_s(self.t_s, TRACKER_RATE_HZ)

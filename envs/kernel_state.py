@@ -26,6 +26,7 @@ from drillgym.envs.drilling.force_model import EngagementTable
 from drillgym.envs.effects.base import Effect
 from drillgym.envs.effects.bone import ThermalSoftening
 from drillgym.envs.effects.joints import JointFriction
+from drillgym.envs.effects.spindle import SpindleSag
 from drillgym.envs.effects.timing import Latency
 from drillgym.envs.task import Phase
 
@@ -117,13 +118,19 @@ def _latency(effect: Effect, par: np.ndarray) -> None:
     par[sk.EXTRA_LATENCY] = effect.values["extra_latency_s"]
 
 
+def _spindle_sag(effect: Effect, par: np.ndarray) -> None:
+    par[sk.SPINDLE_SAG] = effect.values["sag_per_nm"]
+
+
 STEP_EFFECTS: dict[str, Callable[[Effect, np.ndarray], None]] = {
     ThermalSoftening.name: _thermal_softening,
     JointFriction.name: _joint_friction,
     Latency.name: _latency,
+    SpindleSag.name: _spindle_sag,
 }
 """The effects with a step hook the compiled step runs, by name: each writes its parameters into ``par``
-(the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._friction_lag``, ``step_kernel._delayed``)."""
+(the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._friction_lag``, ``step_kernel._delayed``,
+the spindle share in ``step_kernel.advance``)."""
 
 
 def tracker_sample_is_new(t_s: Any, stamp_s: Any) -> Any:
@@ -284,6 +291,7 @@ class KernelState:
         fs[sk.C_ROBOT : sk.C_ROBOT + 9] = cell.C_robot.ravel()
         self.par[sk.FORCE_SCALE] = solver.force_scale
         fs[sk.FORCE_SCALE_NOW] = solver.force_scale
+        fs[sk.SPINDLE_SHARE] = cell.spindle_rpm / cell.scenario.spindle_rpm
         fs[sk.TARGET_OFFSET : sk.TARGET_OFFSET + 3] = self.par[sk.GEOMETRY_OFFSET : sk.GEOMETRY_OFFSET + 3]
         smp = cell.sample
         o = sk.SAMPLE
@@ -344,6 +352,7 @@ class KernelState:
         cell.C_robot = fs[sk.C_ROBOT : sk.C_ROBOT + 9].copy().reshape(3, 3)
         cell.C_total = cell.C_robot + cell.C_tool
         solver.force_scale = v[sk.FORCE_SCALE_NOW]
+        cell.spindle_rpm = cell.scenario.spindle_rpm * v[sk.SPINDLE_SHARE]
         if self._thermal is not None:
             self._thermal.work_j = v[sk.WORK_J]
         if i[sk.FAILURE] and env.failure is None:

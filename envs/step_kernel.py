@@ -3,7 +3,7 @@
 :meth:`UR5BoneDrillEnv.advance <drillgym.envs.drill_env.UR5BoneDrillEnv.advance>` without unmodelled
 effects or with the compiled ones (:attr:`Effect.compiled <drillgym.envs.effects.base.Effect.compiled>`: a
 depth profile of the forces, the tool's length, a kinematic offset, skid friction, thermal softening, joint
-friction), in one call: the command queue
+friction, spindle sag), in one call: the command queue
 (latency), the nominal path, the tip balance of the five F/T samples (:func:`~drillgym.envs.drilling.contact_kernel.run_samples`), the F/T readings, the RTDE TCP,
 the arm's inverse kinematics and compliance, and the tracker. The single env calls :func:`advance`
 for its own state; the batched env (:mod:`drillgym.envs.batched`) calls :func:`advance_batch` for N
@@ -46,6 +46,7 @@ from drillgym.envs.constants import (
 from drillgym.envs.drilling.contact_kernel import run_samples
 from drillgym.envs.effects.bone import MIN_HARDNESS
 from drillgym.envs.effects.joints import SIGN_SMOOTHING_RAD_S
+from drillgym.envs.effects.spindle import MIN_SPEED_SHARE
 from drillgym.envs.robot.ur5_kernel import frame_pose, ik_step, jacobian_and_compliance, joint_deflection
 
 # ---------------------------------------------------------------- float state ``fs``
@@ -96,7 +97,9 @@ WORK_J = 108
 """Cutting work done so far (J; thermal softening)."""
 FORCE_SCALE_NOW = 109
 """The force scale in effect: the specimen's (``par[FORCE_SCALE]``), after thermal softening if on."""
-FLOAT_STATE_SIZE = 110
+SPINDLE_SHARE = 110
+"""The spindle's speed as a share of the scenario's (1 without spindle sag)."""
+FLOAT_STATE_SIZE = 111
 
 # ---------------------------------------------------------------- integer state ``ist``
 PHASE = 0
@@ -188,7 +191,9 @@ FRICTION_ON = 76
 """1 if the joint friction is on."""
 EXTRA_LATENCY = 77
 """Extra delay of the whole servo target (s; 0: off; :class:`~drillgym.envs.effects.timing.Latency`)."""
-PARAM_SIZE = 78
+SPINDLE_SAG = 78
+"""Spindle speed loss per N·m of cutting torque (1/(N·m); 0: off; :class:`~drillgym.envs.effects.spindle.SpindleSag`)."""
+PARAM_SIZE = 79
 
 DELAY_ROWS = 1024
 """Capacity of the delay line ``delay`` (rows ``t_s, target (3, m, task frame)``, one per sample); when full,
@@ -285,7 +290,7 @@ def _prepare(
 ) -> tuple[np.ndarray, float]:  # pragma: no cover (compiled)
     """``cell.begin_step``: the force rows for the chip in effect and the guided lateral stiffness (N/m)."""
     n = int(par[N_GRID])
-    chip = par[FEED_M_S] * fs[FEED_SCALE] / (par[N_LIPS] * par[REV_PER_S]) * par[SIN_KAPPA]
+    chip = par[FEED_M_S] * fs[FEED_SCALE] / (par[N_LIPS] * par[REV_PER_S] * fs[SPINDLE_SHARE]) * par[SIN_KAPPA]
     scale = fs[FORCE_SCALE_NOW]
     if chip != fs[KEY_CHIP] or scale != fs[KEY_SCALE]:
         fs[KEY_CHIP], fs[KEY_SCALE] = chip, scale
@@ -482,6 +487,8 @@ def advance(  # noqa: C901 (one step, in the env's order)
         _soften(fs, ist, par)
     if par[FRICTION_ON] == 1.0:
         _friction_lag(fs, ist, pend, par)
+    if par[SPINDLE_SAG] > 0.0:  # SpindleSag.begin_step: the speed from the last sample's cutting torque
+        fs[SPINDLE_SHARE] = max(1.0 - par[SPINDLE_SAG] * abs(fs[SAMPLE + 9]), MIN_SPEED_SHARE)
     rtde_time = math.floor((fs[T_S] + CONTROL_DT_S) * RTDE_RATE_HZ + 1e-9) / RTDE_RATE_HZ
     c_total = _c_total(fs, par)
     nb = int(par[N_BINS])

@@ -16,6 +16,7 @@ from drillgym.envs.effects.joints import JointFriction, KinematicOffset, add_geo
 from drillgym.envs.effects.registry import EFFECTS, build_effects, parse_effect_spec
 from drillgym.envs.effects.sensor import FTDrift, ToolRunout
 from drillgym.envs.effects.servo import ServoDeadband
+from drillgym.envs.effects.spindle import SpindleSag
 from drillgym.envs.effects.timing import DelayLine, Latency
 from drillgym.envs.effects.tool import ToolLength
 from drillgym.envs.effects.tracker import TrackerLatency
@@ -34,6 +35,7 @@ __all__ = [
     "Param",
     "ServoDeadband",
     "SkidFriction",
+    "SpindleSag",
     "ThermalSoftening",
     "ToolLength",
     "ToolRunout",

@@ -7,6 +7,7 @@ from drillgym.envs.effects.bone import DensityGradient, SkidFriction, ThermalSof
 from drillgym.envs.effects.joints import JointFriction, KinematicOffset
 from drillgym.envs.effects.sensor import FTContactBias, FTDrift, FTEpisodeDrift, FTGain, ToolRunout
 from drillgym.envs.effects.servo import ServoDeadband
+from drillgym.envs.effects.spindle import SpindleSag
 from drillgym.envs.effects.timing import Latency
 from drillgym.envs.effects.tool import ToolLength
 from drillgym.envs.effects.tracker import TrackerLatency
@@ -24,6 +25,7 @@ EFFECTS: dict[str, type[Effect]] = {
         DensityGradient,
         ThermalSoftening,
         SkidFriction,
+        SpindleSag,
         ToolRunout,
         ServoDeadband,
         FTGain,

@@ -304,8 +304,8 @@ def _advance_m(env: Any) -> float:
 
 
 def _chip_m(env: Any) -> float:
-    sc = env.scenario
-    return sc.geometry.chip_thickness_m(sc.feed_m_s * env.feed_scale, sc.spindle_rpm)
+    sc = env.scenario  # the spindle's speed now: the scenario's unless an effect (spindle sag) changed it
+    return sc.geometry.chip_thickness_m(sc.feed_m_s * env.feed_scale, env.cell.spindle_rpm)
 
 
 def _begin_step(env: Any) -> None:

@@ -13,6 +13,7 @@ from drillgym.eval.diagnosis.reality.sensor import (
     TrackerSmoothing,
     WobblyRunout,
 )
+from drillgym.eval.diagnosis.reality.spindle import SpindleMotor
 
 REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
     cls.name: cls
@@ -26,6 +27,7 @@ REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
         DensityLayer,
         HeatSoftening,
         EntryFriction,
+        SpindleMotor,
         WobblyRunout,
         FTLateralGain,
         FTLoadBias,
