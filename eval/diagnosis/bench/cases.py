@@ -67,8 +67,10 @@ SINGLES: dict[str, tuple[str, str]] = {
     "wobbly_runout": ("wobbly_runout:runout_m=2e-5", "wobbly_runout:runout_m=4e-5"),
     "tracker_smoothing": ("tracker_smoothing:tau_s=0.06", "tracker_smoothing:tau_s=0.15"),
     "episode_warmup": ("episode_warmup:spread_n=2.5", "episode_warmup:fz_n=3,spread_n=5"),
+    "spindle_motor": ("spindle_motor:sag_per_nm=100", "spindle_motor:sag_per_nm=250,time_constant_s=0.5"),
 }
-"""Reality effect -> (moderate, strong) spec, for the default candidates."""
+"""Reality effect -> (moderate, strong) spec, for the default candidates (a new reality goes last, so the
+earlier cases keep their seeds)."""
 OPT_IN_SINGLES: dict[str, tuple[str, str]] = {
     "ft_load_bias": ("ft_load_bias:bx_n=0.6,bz_n=-0.8", "ft_load_bias:bx_n=-1.5,by_n=1.0,bz_n=2.0"),
 }
