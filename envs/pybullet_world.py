@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import hashlib
 import importlib
 import math
 import os
@@ -78,9 +79,15 @@ def pybullet_ur5_urdf(visual_meshes: bool = True) -> str:
     text = text.replace("package://example-robot-data/robots/", f"{robots_dir.as_posix()}/")
     if not visual_meshes:
         text = text.replace("/visual/", "/collision/").replace(".dae", ".stl")
-    out = Path(tempfile.gettempdir()) / f"drillgym_ur5_{abs(hash(text)) & 0xFFFFFFFF:08x}.urdf"
+    # Named by the content's digest (not ``hash``, which is salted per process): every process and run shares one
+    # file per content, written once, atomically (a concurrent reader never sees half of it).
+    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    out = Path(tempfile.gettempdir()) / f"drillgym_ur5_{digest}.urdf"
     if not out.exists():
-        out.write_text(text)
+        fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=out.stem, suffix=".part")
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, out)
     return str(out)
 
 

@@ -206,3 +206,17 @@ def test_the_servo_gain_is_a_first_order_lag_per_physics_update():
     tau = 0.02
     remaining = (1.0 - servo_gain(tau)) ** 10  # ten updates
     assert remaining == pytest.approx(np.exp(-10 * PHYSICS_DT_S / tau), rel=1e-12)
+
+
+def test_the_pybullet_urdf_copy_is_one_file_per_content_across_processes():
+    # Its name must not depend on the process (``hash`` of a str is salted per interpreter): a file per process
+    # would pile up in the temp folder, one per env-creating process of every run.
+    import subprocess
+    import sys
+
+    code = "from drillgym.envs.pybullet_world import pybullet_ur5_urdf; print(pybullet_ur5_urdf(False))"
+    paths = {
+        subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+        for _ in range(2)
+    }
+    assert len(paths) == 1
