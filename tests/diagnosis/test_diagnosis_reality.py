@@ -54,6 +54,17 @@ def baseline():
     return run(None)
 
 
+def test_reality_effects_are_separate_classes_mapped_to_candidates():
+    assert set(SETTINGS) == set(REALITY_EFFECTS)
+    for name, cls in REALITY_EFFECTS.items():
+        assert cls not in EFFECTS.values() and name not in EFFECTS
+        assert cls.explains is None or cls.explains in EFFECTS
+        assert (cls.explains is None) == (cls.location is not None)
+    # each default candidate of the diagnosis has a truth among the reality effects (opt-in ones may too)
+    assert {c.explains for c in REALITY_EFFECTS.values()} - {None} >= set(DIAGNOSIS_CANDIDATES)
+    assert any(c.explains is None for c in REALITY_EFFECTS.values())  # and one effect is outside the library
+
+
 def test_spindle_motor_settles_on_the_candidates_torque_speed_line_and_lags_it_on_the_way():
     # The written-down equivalence (candidate_values): once the cut is steady, the motor with inertia sits where
     # spindle_sag puts the speed at once; while the torque rises at entry it is still faster (smaller forces).
