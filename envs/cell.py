@@ -8,6 +8,7 @@ Pure numpy + Pinocchio: no PyBullet here.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 
@@ -100,6 +101,7 @@ class SimCell:
         self.table = _engagement_table(
             self.geometry, self.bone, scenario.beta_rad, scenario.cortical_thickness_m, max_depth
         )
+        self._tables = {scenario.beta_rad: self.table}
         self.hole = Hole(max_depth)
         self.solver = TipContactSolver(
             self.table,
@@ -127,7 +129,7 @@ class SimCell:
         RTDE TCP do not see it), ``marker_offset_base_m`` (the same for the tracker marker, base frame, m),
         ``sensor_arm_m`` (F/T origin to the real drill tip, m), ``spindle_rpm`` (the spindle's speed now,
         rpm; it sets the chip thickness), the drill compliance ``C_tool`` and the tip balance's
-        ``depth_profile`` and ``guidance_hook``.
+        ``depth_profile`` and ``guidance_hook``, and the surface's inclination (:meth:`set_surface_angle`).
         """
         self.geometry_offset_task_m: np.ndarray | None = None
         self.spindle_rpm = self.scenario.spindle_rpm
@@ -135,6 +137,28 @@ class SimCell:
         self.sensor_arm_m = self.tcp_offset_m
         self.set_tool_compliance(self.tool.compliance_tool_m_n())
         self.solver.clear_effects()
+        if self.solver.beta_rad != self.scenario.beta_rad:
+            self.set_surface_angle(self.scenario.beta_rad)
+
+    def set_surface_angle(self, beta_rad: float) -> None:
+        """The bone surface's real inclination β (rad, about the task y axis), whatever the plan says.
+
+        The force table is rebuilt for it (kept per angle: a fit tries the same angles on every episode), the tip
+        balance reads its slope and stage bounds, and the tip's local depth is updated where it stands.
+        """
+        table = self._tables.get(beta_rad)
+        if table is None:
+            sc = self.scenario
+            table = _engagement_table(self.geometry, self.bone, beta_rad, sc.cortical_thickness_m, sc.depth_m + 2e-3)
+            if len(self._tables) > 64:
+                self._tables = {sc.beta_rad: self._tables[sc.beta_rad]}
+            self._tables[beta_rad] = table
+        self.table = table
+        s = self.solver
+        s.set_surface(table, beta_rad)
+        s.depth_local = s.tip[2] + s.tip[0] * s.tan_beta
+        if hasattr(self, "sample"):
+            self.sample = dataclasses.replace(self.sample, depth_local=s.depth_local)
 
     def set_tool_compliance(self, compliance_tool_m_n: np.ndarray) -> None:
         """Replace the drill's tip compliance (3x3, m/N, tool frame) from now on."""

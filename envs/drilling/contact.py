@@ -68,10 +68,9 @@ class TipContactSolver:
         wall_guidance_floor: float = 1.0,
         wall_length_m: float = 0.5e-3,
     ) -> None:
-        self.table = table
         self.geometry = geometry
-        self.beta_rad = beta_rad
-        self.tan_beta = skid_relief * math.tan(beta_rad)
+        self.skid_relief = skid_relief
+        self.set_surface(table, beta_rad)
         self.hole = hole
         self.k_lat_n = lateral_cut_resistance_n
         self.guidance_exponent = guidance_exponent
@@ -81,13 +80,26 @@ class TipContactSolver:
             )
         self.wall_floor = wall_guidance_floor
         self.wall_length_m = wall_length_m
-        self.grid = np.ascontiguousarray(table.depth_m, dtype=float)
-        self._bounds = stage_bounds(geometry, beta_rad)
         self._key: tuple[float, float] = (math.nan, math.nan)
         self.force_scale = 1.0
         """Per-specimen multiplier on every cutting force (bone variability), set before an episode."""
         self.clear_effects()
         self.reset((0.0, 0.0, -3e-3))
+
+    def set_surface(self, table: EngagementTable, beta_rad: float) -> None:
+        """The bone surface's inclination β (rad) and its force table (built for that β, on the same depth grid).
+
+        Sets the slope the tip's local depth reads (``tan β`` times the skid relief) and the stage bounds; the tip
+        state is left where it is (:meth:`reset` or the caller recomputes ``depth_local``).
+        """
+        if hasattr(self, "grid") and table.depth_m.shape != self.grid.shape:
+            raise ValueError(f"table grid has shape {table.depth_m.shape}; the solver's has {self.grid.shape}")
+        self.table = table
+        self.beta_rad = beta_rad
+        self.tan_beta = self.skid_relief * math.tan(beta_rad)
+        self.grid = np.ascontiguousarray(table.depth_m, dtype=float)
+        self._bounds = stage_bounds(self.geometry, beta_rad)
+        self._key = (math.nan, math.nan)
 
     def clear_effects(self) -> None:
         """No depth profile, nominal side guidance (see :meth:`set_depth_profile`, ``entry_guidance``, ``guidance_hook``)."""

@@ -13,6 +13,7 @@ logs. Switch effects on with ``env.unwrapped.set_effects([...])`` or ``reset(opt
 from drillgym.envs.effects.base import CHANNEL_GROUPS, Effect, EffectStack, Param, TraceView
 from drillgym.envs.effects.bone import DensityGradient, SkidFriction, ThermalSoftening
 from drillgym.envs.effects.joints import JointFriction, KinematicOffset, add_geometry_offset
+from drillgym.envs.effects.registration import Registration
 from drillgym.envs.effects.registry import EFFECTS, build_effects, parse_effect_spec
 from drillgym.envs.effects.sensor import FTDrift, ToolRunout
 from drillgym.envs.effects.servo import ServoDeadband
@@ -33,6 +34,7 @@ __all__ = [
     "KinematicOffset",
     "Latency",
     "Param",
+    "Registration",
     "ServoDeadband",
     "SkidFriction",
     "SpindleSag",

@@ -33,6 +33,7 @@ SETTINGS = {
     "thermal_softening": "thermal_softening:softening=0.3,work_j=5",
     "skid_friction": "skid_friction:mu=0.2",
     "spindle_sag": "spindle_sag:sag_per_nm=150",
+    "registration": "registration:surface_dz_m=4e-4,slope_error_rad=0.08",
     "tool_runout": "tool_runout:runout_m=3e-5",
     "servo_deadband": "servo_deadband:band_m=2e-4",
     "ft_gain": "ft_gain:fxy_gain=0.2,fz_gain=-0.1",

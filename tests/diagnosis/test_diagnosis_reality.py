@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -25,6 +26,7 @@ SETTINGS = {
     "heat_softening": "heat_softening:softening_per_k=0.004",
     "entry_friction": "entry_friction:mu=0.3",
     "spindle_motor": "spindle_motor:sag_per_nm=150,time_constant_s=0.2",
+    "bone_registration": "bone_registration:ex_m=1e-3,tilt_rad=0.08",
     "wobbly_runout": "wobbly_runout:runout_m=3e-5",
     "ft_lateral_gain": "ft_lateral_gain:gain=0.2,crosstalk=0.01",
     "ft_load_bias": "ft_load_bias:bx_n=0.6,bz_n=-0.8",
@@ -63,6 +65,29 @@ def test_reality_effects_are_separate_classes_mapped_to_candidates():
     # each default candidate of the diagnosis has a truth among the reality effects (opt-in ones may too)
     assert {c.explains for c in REALITY_EFFECTS.values()} - {None} >= set(DIAGNOSIS_CANDIDATES)
     assert any(c.explains is None for c in REALITY_EFFECTS.values())  # and one effect is outside the library
+
+
+@pytest.mark.parametrize("beta_deg", [15.0, 35.0])
+def test_bone_registration_is_the_candidates_offset_and_tilt_with_its_slope_share_per_episode(beta_deg):
+    # candidate_values: along the axis and tilted, the reality is the candidate; displaced along the slope by ex,
+    # it is the candidate at dz = ex tan β of the episode's own β.
+    import gymnasium as gym
+
+    from drillgym.envs.effects import build_effects
+
+    dz = 4e-4 + 1e-3 * math.tan(math.radians(beta_deg))
+    forces = []
+    for effects in (
+        build_reality("bone_registration:ex_m=1e-3,ez_m=4e-4,tilt_rad=0.08"),
+        build_effects(f"registration:surface_dz_m={dz},slope_error_rad=0.08"),
+    ):
+        env = gym.make("drillgym/UR5BoneDrill-v1", **(QUIET | {"beta_deg": beta_deg}))
+        env.reset(seed=1, options={"effects": effects})
+        while not any(env.step(np.zeros(4, np.float32))[2:4]):
+            pass
+        forces.append(np.asarray(env.unwrapped.recorder.ft_force_n))
+        env.close()
+    np.testing.assert_allclose(forces[0], forces[1], rtol=0, atol=1e-9)
 
 
 def test_spindle_motor_settles_on_the_candidates_torque_speed_line_and_lags_it_on_the_way():

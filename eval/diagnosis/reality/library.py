@@ -5,6 +5,7 @@ from __future__ import annotations
 from drillgym.eval.diagnosis.reality.arm import ChuckToolLength, JitteredLatency, JointZeroOffsets, StribeckFriction
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 from drillgym.eval.diagnosis.reality.bone import BoneVoid, DensityLayer, EntryFriction, HeatSoftening
+from drillgym.eval.diagnosis.reality.registration import BoneRegistration
 from drillgym.eval.diagnosis.reality.sensor import (
     FTEpisodeWarmup,
     FTLateralGain,
@@ -32,6 +33,7 @@ REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
         FTLateralGain,
         FTLoadBias,
         TrackerSmoothing,
+        BoneRegistration,
         BoneVoid,
     )
 }
