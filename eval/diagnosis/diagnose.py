@@ -224,7 +224,8 @@ def _name(
 
     The named model's parameters come from the best fit found anywhere in the search; every model gets
     its parameters' 95 % intervals (:mod:`drillgym.eval.diagnosis.intervals`), and a named model with an
-    effect whose intervals all contain its off point is not named (``off_point``).
+    effect whose intervals all contain its off point is not named (``off_point``). A pair refused so for one of
+    its effects falls back to its other effect alone, refined and decided on again without the pair.
     """
     verdict, chosen, location, guard = _decide(significance, scores, before, data, null)
     if chosen is not None and chosen.fit.per_episode is None:  # a random effect's fit is every episode's own
@@ -235,15 +236,39 @@ def _name(
         fits[k] = _polish(runner, data, chosen.fit, fits, bar)
         scores = score_models(fits, before, null, seed)
         verdict, chosen, location, guard = _decide(significance, scores, before, data, null)
-    for s in scores:
-        s.intervals = s.fit.intervals if s.fit.intervals is not None else parameter_intervals(s.fit.samples, seed)
+    _bound(scores, seed)
     off_point: list[str] = []
     if chosen is not None:
         off_point = off_point_inside(chosen.intervals, chosen.fit.names)
-        if off_point:  # not told apart from its absence: not named
+        refused = chosen.fit
+        keep = [n for n in refused.names if n not in off_point]
+        single = next((i for i, f in enumerate(fits) if len(keep) == 1 and f.names == tuple(keep)), None)
+        if off_point and len(refused.names) == 2 and single is not None:
+            # A pair whose second effect is not told apart from its absence is its other effect alone: that
+            # single is decided on again, refined from the pair's values for it (which may be better than its
+            # own fit's, as the pair's are refined and the single's are not).
+            bar.total += 1
+            fits = list(fits)
+            fits[single] = _polish(runner, data, fits[single], fits, bar)
+            scores = score_models(fits, before, null, seed)
+            rest = [s for s in scores if s.fit is not refused]
+            verdict, chosen, location, guard = _decide(significance, rest, before, data, null)
+            _bound(scores, seed)
+            if chosen is not None and chosen.fit is not fits[single]:  # the fallback is the single or nothing
+                chosen.named = False
+                chosen, verdict, location = None, "unexplained", _location(data)
+        if chosen is not None and off_point_inside(chosen.intervals, chosen.fit.names):
             chosen.named = False
+        if chosen is not None and not chosen.named:  # not told apart from its absence: not named
             chosen, verdict, location = None, "unexplained", _location(data)
     return _Decision(verdict, chosen, location, guard, off_point, scores)
+
+
+def _bound(scores: list[ModelScore], seed: int) -> None:
+    """Every model's parameter intervals (a random effect's come with its fit)."""
+    for s in scores:
+        if not s.intervals:
+            s.intervals = s.fit.intervals if s.fit.intervals is not None else parameter_intervals(s.fit.samples, seed)
 
 
 def _decide(

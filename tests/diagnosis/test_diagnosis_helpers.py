@@ -156,5 +156,5 @@ def test_the_diagnosis_tries_every_library_effect_but_the_opt_in_ones_by_default
     from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS
     from drillgym.eval.diagnosis.diagnose import DiagnoseOptions
 
-    assert set(DIAGNOSIS_CANDIDATES) == set(EFFECTS) - {"servo_deadband", "ft_gain", "ft_contact_bias"}
+    assert set(DIAGNOSIS_CANDIDATES) == set(EFFECTS) - {"servo_deadband", "ft_gain", "ft_contact_bias", "registration"}
     assert DiagnoseOptions().candidates == DIAGNOSIS_CANDIDATES

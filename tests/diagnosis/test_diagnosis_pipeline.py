@@ -79,7 +79,7 @@ def test_benchmark_cases_cover_the_acceptance():
     assert {c.truth[0] for c in singles} == {
         "ft_drift", "latency", "joint_friction", "kinematic_offset", "tool_length",
         "density_gradient", "thermal_softening", "skid_friction", "tool_runout", "tracker_latency",
-        "ft_episode_drift",
+        "ft_episode_drift", "spindle_sag",
     }  # fmt: skip
     assert all(sum(c.truth == s.truth for c in singles) >= 2 for s in singles)  # two magnitudes each
     assert any(c.kind == "pair" for c in cases) and any(c.kind == "clean" for c in cases)
@@ -200,7 +200,7 @@ def test_opt_in_cases_come_after_the_default_singles_which_keep_their_seeds():
     assert len(with_opt_in) == len(default) + 2 * len(OPT_IN_SINGLES)
     seeds = {c.name: c.seed for c in with_opt_in}
     assert all(seeds[c.name] == c.seed for c in default)
-    assert set(opt_in_candidates()) == {"ft_contact_bias"}
+    assert set(opt_in_candidates()) == {"ft_contact_bias", "registration"}
 
 
 def test_an_ft_gain_error_is_named_with_an_interval_holding_its_gain_when_ft_gain_is_a_candidate(tmp_path):
@@ -225,3 +225,19 @@ def test_a_smoothing_tracker_is_named_as_a_late_tracker_with_its_lag_when_tracke
     assert named["shrink"] > 0.8
     ci = named["param_intervals"]["tracker_latency"]["latency_s"]
     assert 0.055 <= ci["low"] <= ci["high"] <= 0.065 and not ci["contains_off"]
+
+
+def test_a_pair_refused_for_an_effect_at_its_off_point_falls_back_to_its_other_effect_refined(tmp_path):
+    # A registration error (the bone 0.6 mm further along the axis, tilted 0.08 rad): the stick-out error fitted on
+    # top of it takes a few µm, its interval holding 0, so the pair is refused; the registration alone is then
+    # decided on again from the pair's (refined) values for it, instead of the whole diagnosis saying unexplained.
+    make_reality("bone_registration:ez_m=6e-4,tilt_rad=0.08", 12, 11, tmp_path / "logs")
+    eps, _ = load_episodes(tmp_path / "logs")
+    res = diagnose(eps, DiagnoseOptions(workers=1, candidates=("tool_length", "registration"), progress=False))
+    assert res["off_point_guard"] == ["tool_length"]
+    assert res["verdict"] == "explained" and res["named"] == ["registration"]
+    named = next(e for e in res["effects"] if e["named"])
+    assert named["shrink"] > 0.95
+    assert abs(named["params"]["registration"]["surface_dz_m"] - 6e-4) < 5e-5
+    tilt = named["param_intervals"]["registration"]["slope_error_rad"]
+    assert tilt["low"] <= 0.08 <= tilt["high"] and not tilt["contains_off"]
