@@ -117,6 +117,8 @@ class SimCell:
         self.C_tool = self.tool.compliance_tool_m_n()
         self.servo_gain = servo_gain(scenario.servo_time_constant_s)
         self.specimen_hardness = 1.0
+        self.sample: ContactSample
+        """The latest update of the tip balance (set by :meth:`reset`)."""
         self._q_start = self._ik_cached(0.0)
         self.clear_effects()
         self.reset()
@@ -157,8 +159,7 @@ class SimCell:
         s = self.solver
         s.set_surface(table, beta_rad)
         s.depth_local = s.tip[2] + s.tip[0] * s.tan_beta
-        if hasattr(self, "sample"):
-            self.sample = dataclasses.replace(self.sample, depth_local=s.depth_local)
+        self.sample = dataclasses.replace(self.sample, depth_local=s.depth_local)
 
     def set_tool_compliance(self, compliance_tool_m_n: np.ndarray) -> None:
         """Replace the drill's tip compliance (3x3, m/N, tool frame) from now on."""

@@ -70,6 +70,7 @@ class TipContactSolver:
     ) -> None:
         self.geometry = geometry
         self.skid_relief = skid_relief
+        self.grid = np.ascontiguousarray(table.depth_m, dtype=float)
         self.set_surface(table, beta_rad)
         self.hole = hole
         self.k_lat_n = lateral_cut_resistance_n
@@ -92,7 +93,7 @@ class TipContactSolver:
         Sets the slope the tip's local depth reads (``tan β`` times the skid relief) and the stage bounds; the tip
         state is left where it is (:meth:`reset` or the caller recomputes ``depth_local``).
         """
-        if hasattr(self, "grid") and table.depth_m.shape != self.grid.shape:
+        if table.depth_m.shape != self.grid.shape:
             raise ValueError(f"table grid has shape {table.depth_m.shape}; the solver's has {self.grid.shape}")
         self.table = table
         self.beta_rad = beta_rad
