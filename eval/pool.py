@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import functools
 import multiprocessing as mp
+import os
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from typing import Any, TypeVar
@@ -38,7 +41,9 @@ def run_unordered(
         on_error: turns a job whose worker failed (it raised, or its process died) into a result; without
             it the error is raised here.
 
-    A ``KeyboardInterrupt`` cancels the jobs that have not started and is raised again.
+    A ``KeyboardInterrupt`` cancels the jobs that have not started and is raised again. A worker whose parent is
+    gone (killed, say, by a scheduler's ``SIGTERM``, which skips the pool's shutdown) exits within a second
+    instead of finishing its job for nobody.
     """
     if workers < 1:
         raise ValueError(f"workers={workers} must be >= 1")
@@ -50,7 +55,10 @@ def run_unordered(
         return
     ctx = mp.get_context("spawn")
     with ProcessPoolExecutor(
-        max_workers=min(workers, len(jobs)), mp_context=ctx, initializer=initializer, initargs=initargs
+        max_workers=min(workers, len(jobs)),
+        mp_context=ctx,
+        initializer=_worker_start,
+        initargs=(os.getpid(), initializer, initargs),
     ) as pool:
         futures: dict[Future, int] = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
         try:
@@ -60,6 +68,24 @@ def run_unordered(
         except BaseException:
             pool.shutdown(cancel_futures=True)
             raise
+
+
+PARENT_POLL_S = 1.0
+"""How often a worker checks that the process that started it is still there (s)."""
+
+
+def _worker_start(parent_pid: int, initializer: Callable[..., None] | None, initargs: tuple[Any, ...]) -> None:
+    """In each worker: watch the parent (a daemon thread), then the caller's initializer."""
+    threading.Thread(target=_exit_when_orphaned, args=(parent_pid,), daemon=True).start()
+    if initializer is not None:
+        initializer(*initargs)
+
+
+def _exit_when_orphaned(parent_pid: int) -> None:
+    """Exit this worker at once when its parent has died (it is re-parented: the parent id changes)."""
+    while os.getppid() == parent_pid:
+        time.sleep(PARENT_POLL_S)
+    os._exit(1)
 
 
 def run_ordered(fn: Callable[[Job], Result], jobs: Sequence[Job], workers: int, **kwargs: Any) -> list[Result]:

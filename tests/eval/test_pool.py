@@ -35,3 +35,47 @@ def test_the_initializer_runs_before_in_process_jobs():
 def test_zero_workers_is_an_error():
     with pytest.raises(ValueError, match="workers"):
         list(run_unordered(math.sqrt, [1.0], 0))
+
+
+def _running(pid: int) -> bool:
+    """Whether ``pid`` is a live process (a zombie waiting to be reaped counts as gone)."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            return not any(line.startswith("State:") and "Z" in line.split()[1] for line in f)
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not __import__("os").path.isdir("/proc"), reason="reads /proc")
+def test_workers_exit_when_the_parent_is_killed_instead_of_running_on():
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = (
+        "import multiprocessing, threading, time\n"
+        "from drillgym.eval.pool import run_unordered\n"
+        "threading.Thread(target=lambda: list(run_unordered(time.sleep, [60.0, 60.0], 2)), daemon=True).start()\n"
+        "while len(multiprocessing.active_children()) < 2: time.sleep(0.05)\n"
+        "print(*[p.pid for p in multiprocessing.active_children()], flush=True)\n"
+        "time.sleep(60)\n"
+    )
+    parent = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    workers: list[int] = []
+    try:
+        workers = [int(p) for p in parent.stdout.readline().split()]
+        assert len(workers) == 2 and all(_running(p) for p in workers)
+        time.sleep(1.0)  # the workers are in their 60 s jobs
+        parent.send_signal(signal.SIGTERM)  # no shutdown of the pool: the parent just dies
+        parent.wait(10)
+        deadline = time.monotonic() + 10.0
+        while any(_running(p) for p in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not any(_running(p) for p in workers)
+    finally:
+        parent.kill()
+        for p in workers:
+            if _running(p):
+                os.kill(p, signal.SIGKILL)
