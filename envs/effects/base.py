@@ -186,7 +186,8 @@ class Effect:
         """Parameters read directly off the data, where the physics allows (a starting point for a fit).
 
         ``evidence`` holds ``tracker_offset_task_m`` (mean real-minus-sim tracker position before contact,
-        m, task frame) and ``R_base_task`` (3x3). None: no direct reading.
+        m, task frame), ``R_base_task`` (3x3) and ``excess_peak_hz`` (the frequency where the force residuals'
+        power most exceeds the simulator's own, Hz, or None). None: no direct reading.
         """
         return None
 

@@ -334,7 +334,8 @@ def _guess(ev: Evaluator, names: Sequence[str]) -> list[dict[str, float]] | None
 
     The evidence is the tracker's offset from the nominal replay before contact, which the effects that
     act only through the cut (force, bone, tool bending) leave alone, so it also serves an effect fitted
-    on top of another.
+    on top of another; and where the force residuals ring most above the simulator's own (calibration
+    episodes only).
     """
     if len(names) != 1:
         return None
@@ -347,7 +348,11 @@ def _guess(ev: Evaluator, names: Sequence[str]) -> list[dict[str, float]] | None
             offsets.append(np.nanmean(r, axis=0))
     if not offsets:
         return None
-    evidence = {"tracker_offset_task_m": np.mean(offsets, axis=0), "R_base_task": d.episodes[d.cal[0]].r_base_task}
+    evidence = {
+        "tracker_offset_task_m": np.mean(offsets, axis=0),
+        "R_base_task": d.episodes[d.cal[0]].r_base_task,
+        "excess_peak_hz": d.excess_peak_hz,
+    }
     guess = EFFECTS[names[0]].initial_guess(evidence)
     return None if guess is None else [guess]
 

@@ -51,3 +51,33 @@ def spectrum_summary(real: list[np.ndarray], null: list[np.ndarray]) -> dict[str
         "null_n2": n.T.tolist(),
         "ratio": ratio.T.tolist(),
     }
+
+
+PEAK_BAND_HZ = (5.0, 45.0)
+"""Where :func:`excess_peak_hz` looks for a ringing (Hz): above the feed's time scale, below the F/T's Nyquist limit."""
+
+
+def excess_peak_hz(real: list[np.ndarray], null: list[np.ndarray]) -> float | None:
+    """The frequency (Hz) where the real force residuals' power most exceeds the simulator's own, in :data:`PEAK_BAND_HZ`.
+
+    Welch spectra of each force axis, summed over the axes and averaged over episodes (``real`` and ``null`` as in
+    :func:`spectrum_summary`). None where the real power nowhere exceeds twice the null's (no ringing to read).
+    """
+
+    def mean_psd(residuals: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
+        spectra = []
+        for x in residuals:
+            x = x[np.all(np.isfinite(x), axis=1)]
+            if x.shape[0] >= SEGMENT:
+                f, p = signal.welch(x, fs=FT_RATE_HZ, nperseg=SEGMENT, axis=0)
+                spectra.append(p.sum(axis=1))
+        return (f, np.mean(spectra, axis=0)) if spectra else None
+
+    r, n = mean_psd(real), mean_psd(null)
+    if r is None or n is None:
+        return None
+    f, pr = r
+    pn = n[1]
+    band = (f >= PEAK_BAND_HZ[0]) & (f <= PEAK_BAND_HZ[1])
+    excess = np.where(band & (pr > 2.0 * pn), pr - pn, 0.0)
+    return float(f[int(np.argmax(excess))]) if excess.max() > 0.0 else None

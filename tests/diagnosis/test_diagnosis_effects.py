@@ -34,6 +34,7 @@ SETTINGS = {
     "skid_friction": "skid_friction:mu=0.2",
     "spindle_sag": "spindle_sag:sag_per_nm=150",
     "registration": "registration:surface_dz_m=4e-4,slope_error_rad=0.08",
+    "ft_resonance": "ft_resonance:amplitude=1,freq_hz=15,damping=0.05",
     "tool_runout": "tool_runout:runout_m=3e-5",
     "servo_deadband": "servo_deadband:band_m=2e-4",
     "ft_gain": "ft_gain:fxy_gain=0.2,fz_gain=-0.1",
@@ -183,14 +184,29 @@ def test_sensor_only_effect_on_a_trace_matches_the_simulated_one(name):
     t_s = (np.arange(n) + 1) * 0.01
     tracker = np.repeat(base["tracker"], SUBSTEPS_PER_STEP, axis=0)[:n]  # held over each step's samples
     view = TraceView(t_s, base["force"].copy(), base["torque"].copy(), share, arm, 20000.0, tracker.copy())
-    EFFECTS[name](**parse_effect_spec(SETTINGS[name])[0][1]).apply_to_trace(view)
-    assert np.all(
-        np.max(np.abs(view.force_n - sim["force"]), axis=0) <= [0.0101, 0.0101, 0.0201]
-    )  # one resolution step
-    assert np.max(np.abs(view.torque_nm - sim["torque"])) <= 2e-4
+    effect = EFFECTS[name](**parse_effect_spec(SETTINGS[name])[0][1])
+    effect.apply_to_trace(view)
+    # One resolution step, or for a filter the reading's rounding (half a step) through the filter (at most
+    # its impulse response's l1 norm times it) plus the simulated reading's own rounding.
+    steps = 0.5 * _rounding_gain(effect) + 0.5 if name == "ft_resonance" else 1.0
+    assert np.all(np.max(np.abs(view.force_n - sim["force"]), axis=0) <= steps * np.array([0.0101, 0.0101, 0.0201]))
+    assert np.max(np.abs(view.torque_nm - sim["torque"])) <= steps * 2e-4
     # the env reads the tracker once per step: the trace holds every reading the simulated delay line had
     assert view.tracker_m is not None
     assert max_diff(view.tracker_m[SUBSTEPS_PER_STEP - 1 :: SUBSTEPS_PER_STEP], sim["tracker"]) <= 1e-9
+
+
+def _rounding_gain(effect) -> float:
+    """l1 norm of the impulse response of ``W -> W + a (H W − W)``: the most it can amplify a bounded error."""
+    from scipy import signal
+
+    from drillgym.envs.effects.resonance import mode_filter
+
+    impulse = np.zeros(2000)
+    impulse[0] = 1.0
+    b, a = mode_filter(effect.values["freq_hz"], effect.values["damping"])
+    h = impulse + effect.values["amplitude"] * (signal.lfilter(b, a, impulse) - impulse)
+    return float(np.abs(h).sum())
 
 
 def test_effect_specs_and_parameters_are_validated():

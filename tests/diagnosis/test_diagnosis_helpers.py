@@ -9,6 +9,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pandas as pd
+import pytest
 
 from drillgym import envs  # noqa: F401
 from drillgym.controllers import make_controller
@@ -156,5 +157,25 @@ def test_the_diagnosis_tries_every_library_effect_but_the_opt_in_ones_by_default
     from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS
     from drillgym.eval.diagnosis.diagnose import DiagnoseOptions
 
-    assert set(DIAGNOSIS_CANDIDATES) == set(EFFECTS) - {"servo_deadband", "ft_gain", "ft_contact_bias", "registration"}
+    assert set(DIAGNOSIS_CANDIDATES) == set(EFFECTS) - {
+        "servo_deadband",
+        "ft_gain",
+        "ft_contact_bias",
+        "registration",
+        "ft_resonance",
+    }
     assert DiagnoseOptions().candidates == DIAGNOSIS_CANDIDATES
+
+
+def test_the_excess_peak_is_where_the_real_residuals_ring_above_the_null_ones():
+    from drillgym.eval.diagnosis.spectrum import excess_peak_hz
+
+    rng = np.random.default_rng(3)
+    t = np.arange(1500) * 0.01
+    null = [0.02 * rng.standard_normal((1500, 3)) for _ in range(4)]
+    ringing = [
+        x + 0.05 * np.sin(2 * np.pi * 25.0 * t)[:, None]
+        for x in (0.02 * rng.standard_normal((1500, 3)) for _ in range(4))
+    ]
+    assert excess_peak_hz(ringing, null) == pytest.approx(25.0, abs=100.0 / 128)  # one Welch bin
+    assert excess_peak_hz(null[:2], null[2:]) is None  # noise against noise: nothing to read

@@ -74,8 +74,12 @@ earlier cases keep their seeds)."""
 OPT_IN_SINGLES: dict[str, tuple[str, str]] = {
     "ft_load_bias": ("ft_load_bias:bx_n=0.6,bz_n=-0.8", "ft_load_bias:bx_n=-1.5,by_n=1.0,bz_n=2.0"),
     "bone_registration": ("bone_registration:ex_m=1e-3", "bone_registration:ez_m=6e-4,tilt_rad=0.08"),
+    "mount_resonance": (
+        "mount_resonance:freq_xy_hz=25,freq_z_hz=25,damping=0.08",
+        "mount_resonance:freq_xy_hz=15,freq_z_hz=30,damping=0.05",
+    ),
 }
-"""Reality effects whose candidates are opt-in (``ft_contact_bias``, ``registration``): run (after the default
+"""Reality effects whose candidates are opt-in (``ft_contact_bias``, ``registration``, ``ft_resonance``): run (after the default
 single cases, which keep their seeds) with ``bench-diagnosis --opt-in``, which adds those candidates."""
 
 PAIRS: tuple[str, ...] = (

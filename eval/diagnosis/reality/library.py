@@ -6,6 +6,7 @@ from drillgym.eval.diagnosis.reality.arm import ChuckToolLength, JitteredLatency
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 from drillgym.eval.diagnosis.reality.bone import BoneVoid, DensityLayer, EntryFriction, HeatSoftening
 from drillgym.eval.diagnosis.reality.registration import BoneRegistration
+from drillgym.eval.diagnosis.reality.resonance import MountResonance
 from drillgym.eval.diagnosis.reality.sensor import (
     FTEpisodeWarmup,
     FTLateralGain,
@@ -30,6 +31,7 @@ REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
         EntryFriction,
         SpindleMotor,
         WobblyRunout,
+        MountResonance,
         FTLateralGain,
         FTLoadBias,
         TrackerSmoothing,
