@@ -164,9 +164,15 @@ def test_effects_at_their_defaults_leave_the_episode_bit_identical(baseline):
 
 def test_switching_effects_off_again_restores_the_default_cell(baseline):
     env = gym.make("drillgym/UR5BoneDrill-v1", **QUIET)
-    env.reset(seed=1, options={"effects": build_effects(SETTINGS["tool_length"] + "+" + SETTINGS["kinematic_offset"])})
+    on = "+".join(SETTINGS[n] for n in ("tool_length", "kinematic_offset", "registration", "spindle_sag"))
+    env.reset(seed=1, options={"effects": build_effects(on)})
+    slowest = env.unwrapped.scenario.spindle_rpm
+    while not any(env.step(scripted_action(0))[2:4]):  # the spindle sags in the cut
+        slowest = min(slowest, env.unwrapped.cell.spindle_rpm)
+    assert slowest < 0.95 * env.unwrapped.scenario.spindle_rpm
     env.reset(seed=1, options={"effects": None})
     cell = env.unwrapped.cell
+    assert cell.spindle_rpm == cell.scenario.spindle_rpm and cell.solver.beta_rad == cell.scenario.beta_rad
     assert cell.geometry_offset_task_m is None and cell.marker_offset_base_m is None
     assert cell.sensor_arm_m == cell.tcp_offset_m
     np.testing.assert_array_equal(cell.C_tool, cell.tool.compliance_tool_m_n())
