@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from drillgym.envs.effects.backlash import JointBacklash
 from drillgym.envs.effects.base import Effect
 from drillgym.envs.effects.bone import DensityGradient, SkidFriction, ThermalSoftening
 from drillgym.envs.effects.joints import JointFriction, KinematicOffset
@@ -35,17 +36,19 @@ EFFECTS: dict[str, type[Effect]] = {
         FTContactBias,
         TrackerLatency,
         FTResonance,
+        JointBacklash,
     )
 }
 """The unmodelled effects of the library, by name (``build_effects``, ``make-reality``, cells)."""
 
-OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias", "registration", "ft_resonance")
+OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias", "registration", "ft_resonance", "joint_backlash")
 """In the library, but tried only when asked for (``diagnose --candidates``). ``servo_deadband`` (added for
 ``drillgym explain-paper``): the withheld-effect benchmark has not been run with it. ``ft_gain`` and
 ``ft_contact_bias``: on the benchmark each named its own reality, but also served as a second effect patching a
 bone model's force level (``docs/diagnosis.md`` §6). ``registration``: one more replayed candidate with two
 parameters would make every diagnosis longer than the time it must keep. ``ft_resonance``: its fit reads the
-frequency but not yet the amplitude and damping (``docs/diagnosis.md`` §3). Their realities run with
+frequency but not yet the amplitude and damping (``docs/diagnosis.md`` §3). ``joint_backlash``: it steps in
+Python (no compiled counterpart yet), so its replays are several times slower. Their realities run with
 ``bench-diagnosis --opt-in``."""
 DIAGNOSIS_CANDIDATES: tuple[str, ...] = tuple(name for name in EFFECTS if name not in OPT_IN_CANDIDATES)
 """The candidates ``drillgym diagnose`` and ``bench-diagnosis`` try by default."""

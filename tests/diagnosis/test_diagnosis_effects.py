@@ -35,6 +35,7 @@ SETTINGS = {
     "spindle_sag": "spindle_sag:sag_per_nm=150",
     "registration": "registration:surface_dz_m=4e-4,slope_error_rad=0.08",
     "ft_resonance": "ft_resonance:amplitude=1,freq_hz=15,damping=0.05",
+    "joint_backlash": "joint_backlash:play_rad=3e-4",
     "tool_runout": "tool_runout:runout_m=3e-5",
     "servo_deadband": "servo_deadband:band_m=2e-4",
     "ft_gain": "ft_gain:fxy_gain=0.2,fz_gain=-0.1",

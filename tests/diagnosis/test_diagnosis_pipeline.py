@@ -200,7 +200,7 @@ def test_opt_in_cases_come_after_the_default_singles_which_keep_their_seeds():
     assert len(with_opt_in) == len(default) + 2 * len(OPT_IN_SINGLES)
     seeds = {c.name: c.seed for c in with_opt_in}
     assert all(seeds[c.name] == c.seed for c in default)
-    assert set(opt_in_candidates()) == {"ft_contact_bias", "registration", "ft_resonance"}
+    assert set(opt_in_candidates()) == {"ft_contact_bias", "registration", "ft_resonance", "joint_backlash"}
 
 
 def test_an_ft_gain_error_is_named_with_an_interval_holding_its_gain_when_ft_gain_is_a_candidate(tmp_path):

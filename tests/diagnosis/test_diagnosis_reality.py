@@ -28,6 +28,7 @@ SETTINGS = {
     "spindle_motor": "spindle_motor:sag_per_nm=150,time_constant_s=0.2",
     "bone_registration": "bone_registration:ex_m=1e-3,tilt_rad=0.08",
     "mount_resonance": "mount_resonance:freq_xy_hz=15,freq_z_hz=30,damping=0.05",
+    "gear_backlash": "gear_backlash:play0_rad=2e-4,play1_rad=4e-4,play2_rad=3e-4",
     "wobbly_runout": "wobbly_runout:runout_m=3e-5",
     "ft_lateral_gain": "ft_lateral_gain:gain=0.2,crosstalk=0.01",
     "ft_load_bias": "ft_load_bias:bx_n=0.6,bz_n=-0.8",

@@ -78,8 +78,13 @@ OPT_IN_SINGLES: dict[str, tuple[str, str]] = {
         "mount_resonance:freq_xy_hz=25,freq_z_hz=25,damping=0.08",
         "mount_resonance:freq_xy_hz=15,freq_z_hz=30,damping=0.05",
     ),
+    "gear_backlash": (
+        "gear_backlash:play0_rad=2e-4,play1_rad=2e-4,play2_rad=2e-4",
+        "gear_backlash:play0_rad=2e-4,play1_rad=5e-4,play2_rad=3e-4",
+    ),
 }
-"""Reality effects whose candidates are opt-in (``ft_contact_bias``, ``registration``, ``ft_resonance``): run (after the default
+"""Reality effects whose candidates are opt-in (``ft_contact_bias``, ``registration``, ``ft_resonance``,
+``joint_backlash``): run (after the default
 single cases, which keep their seeds) with ``bench-diagnosis --opt-in``, which adds those candidates."""
 
 PAIRS: tuple[str, ...] = (

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from drillgym.eval.diagnosis.reality.arm import ChuckToolLength, JitteredLatency, JointZeroOffsets, StribeckFriction
+from drillgym.eval.diagnosis.reality.backlash import GearBacklash
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 from drillgym.eval.diagnosis.reality.bone import BoneVoid, DensityLayer, EntryFriction, HeatSoftening
 from drillgym.eval.diagnosis.reality.registration import BoneRegistration
@@ -25,6 +26,7 @@ REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
         JitteredLatency,
         StribeckFriction,
         JointZeroOffsets,
+        GearBacklash,
         ChuckToolLength,
         DensityLayer,
         HeatSoftening,

@@ -1,0 +1,73 @@
+"""Reality: gear backlash of its own size in each of the first three joints."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drillgym.envs.effects.base import EffectHost, Param
+from drillgym.envs.robot import ur5_kernel
+from drillgym.eval.diagnosis.reality.base import RealityEffect
+
+
+class GearBacklash(RealityEffect):
+    """Play ``b_j`` in joint j (0–2): the link angle stays put until the motor reaches either end of the play.
+
+    The tool and the marker follow the links; the encoders, on the motors, read the command. The links start at
+    a random place inside their play (the last motion before the episode is unknown). The candidate
+    (``joint_backlash``) has one play for the three joints, its links centred at the start.
+    """
+
+    name = "gear_backlash"
+    summary = "per-joint gear play between motor (encoder) and link"
+    explains = "joint_backlash"
+    params = (
+        Param("play0_rad", 0.0, 1e-3, 0.0, "play of the base joint (rad)"),
+        Param("play1_rad", 0.0, 1e-3, 0.0, "play of the shoulder (rad)"),
+        Param("play2_rad", 0.0, 1e-3, 0.0, "play of the elbow (rad)"),
+    )
+    channels = frozenset({"force", "torque", "tracker"})
+
+    def _plays(self) -> np.ndarray:
+        return np.array([self.values["play0_rad"], self.values["play1_rad"], self.values["play2_rad"]])
+
+    def attach(self, env: EffectHost) -> None:
+        """Links somewhere inside their play."""
+        self.lag = (self.rng.uniform(-0.5, 0.5, 3) * self._plays()) if np.any(self._plays() > 0.0) else np.zeros(3)
+        """Link minus motor angle of joints 0–2 (rad)."""
+        self.q_link_prev = np.asarray(env.cell.q_motor_rad, dtype=float)[:3] + self.lag
+        """Link angles of joints 0–2 after the last step (rad)."""
+        self.offsets = (np.zeros(3), np.zeros(3))
+        self._move(env, at_attach=True)
+
+    def begin_step(self, env: EffectHost) -> None:
+        """Links dragged by the motors' last motion."""
+        if np.any(self._plays() > 0.0):
+            self._move(env, at_attach=False)
+
+    def _move(self, env: EffectHost, at_attach: bool) -> None:
+        cell = env.cell
+        half = 0.5 * self._plays()
+        q = np.asarray(cell.q_motor_rad, dtype=float)
+        if not at_attach:  # the link angle holds while the motor moves inside the play
+            self.lag = np.clip(self.q_link_prev - q[:3], -half, half)
+        self.q_link_prev = q[:3] + self.lag
+        q_link = q.copy()
+        q_link[:3] = self.q_link_prev
+        tip_base = ur5_kernel.frame_pose(q_link, cell._tcp_chain)[1] - ur5_kernel.frame_pose(q, cell._tcp_chain)[1]
+        tip = cell.R_base_task.T @ tip_base
+        marker = ur5_kernel.frame_pose(q_link, cell._marker_chain)[1] - ur5_kernel.frame_pose(q, cell._marker_chain)[1]
+        old_tip, old_marker = self.offsets
+        self.offsets = (tip, marker)
+        geo = np.zeros(3) if cell.geometry_offset_task_m is None else cell.geometry_offset_task_m
+        mk = np.zeros(3) if cell.marker_offset_base_m is None else cell.marker_offset_base_m
+        cell.geometry_offset_task_m = geo - old_tip + tip
+        cell.marker_offset_base_m = mk - old_marker + marker
+        s = cell.solver
+        s.rigid = [a + b for a, b in zip(s.rigid, (tip - old_tip).tolist(), strict=True)]
+        if at_attach:  # the tool starts where the links put it
+            s.tip = [a + b for a, b in zip(s.tip, (tip - old_tip).tolist(), strict=True)]
+
+    def candidate_values(self) -> dict[str, float] | None:
+        """One play for the three joints where they are one (the start's random place aside)."""
+        b = self._plays()
+        return {"play_rad": float(b[0])} if b[0] == b[1] == b[2] else None
