@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from drillgym.envs.effects.base import Effect, EffectHost, Param
-from drillgym.envs.robot import ur5_kernel
+from drillgym.envs.effects.joints import link_offsets, move_links
 
 JOINTS = 3
 """The joints with play: base, shoulder and elbow (the wrist's lever to the tip is short)."""
@@ -42,17 +42,6 @@ class JointBacklash(Effect):
         q_m = np.asarray(cell.q_motor_rad, dtype=float)
         self.q_link[:JOINTS] = np.clip(self.q_link[:JOINTS], q_m[:JOINTS] - half, q_m[:JOINTS] + half)
         self.q_link[JOINTS:] = q_m[JOINTS:]
-        tcp_chain, marker_chain = cell._tcp_chain, cell._marker_chain
-        tip = cell.R_base_task.T @ (
-            ur5_kernel.frame_pose(self.q_link, tcp_chain)[1] - ur5_kernel.frame_pose(q_m, tcp_chain)[1]
-        )
-        marker = ur5_kernel.frame_pose(self.q_link, marker_chain)[1] - ur5_kernel.frame_pose(q_m, marker_chain)[1]
-        old_tip, old_marker = self.share
-        self.share = (tip, marker)
-        geometry = np.zeros(3) if cell.geometry_offset_task_m is None else cell.geometry_offset_task_m
-        markers = np.zeros(3) if cell.marker_offset_base_m is None else cell.marker_offset_base_m
-        cell.geometry_offset_task_m = geometry - old_tip + tip
-        cell.marker_offset_base_m = markers - old_marker + marker
-        # The link moved the servo-held point itself (not its target): no servo transient, the encoders unaware.
-        s = cell.solver
-        s.rigid = [r + d for r, d in zip(s.rigid, (tip - old_tip).tolist(), strict=True)]
+        new = link_offsets(cell, self.q_link, q_m)
+        move_links(cell, self.share, new)
+        self.share = new

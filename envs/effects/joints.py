@@ -9,6 +9,7 @@ import numpy as np
 
 from drillgym.envs.constants import CONTROL_DT_S
 from drillgym.envs.effects.base import Effect, EffectHost, Param
+from drillgym.envs.robot import ur5_kernel
 
 SIGN_SMOOTHING_RAD_S = 1e-5
 """Joint speed below which Coulomb friction fades out (rad/s): a joint at rest holds its position."""
@@ -35,6 +36,37 @@ def add_geometry_offset(cell: Any, offset_task_m: np.ndarray, marker_base_m: np.
     if marker_base_m is not None:
         m = np.asarray(marker_base_m, dtype=float)
         cell.marker_offset_base_m = m if cell.marker_offset_base_m is None else cell.marker_offset_base_m + m
+
+
+def link_offsets(cell: Any, q_link_rad: np.ndarray, q_motor_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Offsets of the tool tip (task frame, m) and the marker (base frame, m) of links at ``q_link_rad``.
+
+    Against where motors at ``q_motor_rad`` (what the encoders read) would put them.
+    """
+    tcp, marker = cell._tcp_chain, cell._marker_chain
+    tip = cell.R_base_task.T @ (ur5_kernel.frame_pose(q_link_rad, tcp)[1] - ur5_kernel.frame_pose(q_motor_rad, tcp)[1])
+    mark = ur5_kernel.frame_pose(q_link_rad, marker)[1] - ur5_kernel.frame_pose(q_motor_rad, marker)[1]
+    return tip, mark
+
+
+def move_links(
+    cell: Any, old: tuple[np.ndarray, np.ndarray], new: tuple[np.ndarray, np.ndarray], with_tip: bool = False
+) -> None:
+    """Replace one effect's share ``old`` of the tool's and the marker's offsets (:func:`link_offsets`) by ``new``.
+
+    The links carry the servo-held point itself, not its target, so the servo has nothing to catch up and the
+    encoders see nothing; ``with_tip`` moves the drill tip too (at attach: the tool starts where the links put it).
+    """
+    (old_tip, old_marker), (tip, marker) = old, new
+    geometry = np.zeros(3) if cell.geometry_offset_task_m is None else cell.geometry_offset_task_m
+    markers = np.zeros(3) if cell.marker_offset_base_m is None else cell.marker_offset_base_m
+    cell.geometry_offset_task_m = geometry - old_tip + tip
+    cell.marker_offset_base_m = markers - old_marker + marker
+    step = (tip - old_tip).tolist()
+    s = cell.solver
+    s.rigid = [r + d for r, d in zip(s.rigid, step, strict=True)]
+    if with_tip:
+        s.tip = [r + d for r, d in zip(s.tip, step, strict=True)]
 
 
 def commanded_velocity_task_m_s(env: EffectHost) -> np.ndarray:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from drillgym.envs.effects.base import EffectHost, Param
-from drillgym.envs.robot import ur5_kernel
+from drillgym.envs.effects.joints import link_offsets, move_links
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 
 
@@ -53,19 +53,9 @@ class GearBacklash(RealityEffect):
         self.q_link_prev = q[:3] + self.lag
         q_link = q.copy()
         q_link[:3] = self.q_link_prev
-        tip_base = ur5_kernel.frame_pose(q_link, cell._tcp_chain)[1] - ur5_kernel.frame_pose(q, cell._tcp_chain)[1]
-        tip = cell.R_base_task.T @ tip_base
-        marker = ur5_kernel.frame_pose(q_link, cell._marker_chain)[1] - ur5_kernel.frame_pose(q, cell._marker_chain)[1]
-        old_tip, old_marker = self.offsets
-        self.offsets = (tip, marker)
-        geo = np.zeros(3) if cell.geometry_offset_task_m is None else cell.geometry_offset_task_m
-        mk = np.zeros(3) if cell.marker_offset_base_m is None else cell.marker_offset_base_m
-        cell.geometry_offset_task_m = geo - old_tip + tip
-        cell.marker_offset_base_m = mk - old_marker + marker
-        s = cell.solver
-        s.rigid = [a + b for a, b in zip(s.rigid, (tip - old_tip).tolist(), strict=True)]
-        if at_attach:  # the tool starts where the links put it
-            s.tip = [a + b for a, b in zip(s.tip, (tip - old_tip).tolist(), strict=True)]
+        new = link_offsets(cell, q_link, q)
+        move_links(cell, self.offsets, new, with_tip=at_attach)  # at attach the tool starts where the links put it
+        self.offsets = new
 
     def candidate_values(self) -> dict[str, float] | None:
         """One play for the three joints where they are one (the start's random place aside)."""
