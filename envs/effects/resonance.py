@@ -56,8 +56,9 @@ class FTResonance(Effect):
         return mode_filter(self.values["freq_hz"], self.values["damping"])
 
     def attach(self, env: EffectHost) -> None:
-        """The mode at rest."""
+        """The mode at rest, its filter made once for the episode's steps."""
         self.state = np.zeros((2, 6))
+        self.ba = self._filter()
 
     def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """The step's samples through the mode, its state carried to the next step."""
@@ -65,7 +66,7 @@ class FTResonance(Effect):
         w = np.asarray(wrenches, dtype=float)
         if amp == 0.0:
             return w
-        b, a = self._filter()
+        b, a = self.ba
         y, self.state = signal.lfilter(b, a, w, axis=0, zi=self.state)
         return w + amp * (y - w)
 

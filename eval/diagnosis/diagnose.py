@@ -237,30 +237,29 @@ def _name(
         scores = score_models(fits, before, null, seed)
         verdict, chosen, location, guard = _decide(significance, scores, before, data, null)
     _bound(scores, seed)
-    off_point: list[str] = []
-    if chosen is not None:
-        off_point = off_point_inside(chosen.intervals, chosen.fit.names)
-        refused = chosen.fit
-        keep = [n for n in refused.names if n not in off_point]
-        single = next((i for i, f in enumerate(fits) if len(keep) == 1 and f.names == tuple(keep)), None)
-        if off_point and len(refused.names) == 2 and single is not None:
-            # A pair whose second effect is not told apart from its absence is its other effect alone: that
-            # single is decided on again, refined from the pair's values for it (which may be better than its
-            # own fit's, as the pair's are refined and the single's are not).
+    off_point = [] if chosen is None else off_point_inside(chosen.intervals, chosen.fit.names)
+    if chosen is not None and off_point:  # not told apart from its absence: not named as it is
+        refused, chosen.named, chosen = chosen.fit, False, None
+        keep = tuple(n for n in refused.names if n not in off_point)
+        single = next((i for i, f in enumerate(fits) if f.names == keep), None) if len(keep) == 1 else None
+        if single is not None:
+            # A pair whose other effect is not told apart from its absence is its first effect alone: that single
+            # is decided on again, refined from the pair's values for it (which may be better than its own fit's,
+            # as the pair's are refined and the single's are not).
             bar.total += 1
             fits = list(fits)
             fits[single] = _polish(runner, data, fits[single], fits, bar)
             scores = score_models(fits, before, null, seed)
-            rest = [s for s in scores if s.fit is not refused]
-            verdict, chosen, location, guard = _decide(significance, rest, before, data, null)
+            verdict, chosen, location, guard = _decide(
+                significance, [s for s in scores if s.fit is not refused], before, data, null
+            )
             _bound(scores, seed)
-            if chosen is not None and chosen.fit is not fits[single]:  # the fallback is the single or nothing
-                chosen.named = False
-                chosen, verdict, location = None, "unexplained", _location(data)
-        if chosen is not None and off_point_inside(chosen.intervals, chosen.fit.names):
-            chosen.named = False
-        if chosen is not None and not chosen.named:  # not told apart from its absence: not named
-            chosen, verdict, location = None, "unexplained", _location(data)
+            if chosen is not None and (
+                chosen.fit is not fits[single] or off_point_inside(chosen.intervals, chosen.fit.names)
+            ):  # the fallback is the single, nameable on its own, or nothing
+                chosen.named, chosen = False, None
+        if chosen is None:
+            verdict, location = "unexplained", _location(data)
     return _Decision(verdict, chosen, location, guard, off_point, scores)
 
 

@@ -32,10 +32,9 @@ class GearBacklash(RealityEffect):
 
     def attach(self, env: EffectHost) -> None:
         """Links somewhere inside their play."""
-        self.lag = (self.rng.uniform(-0.5, 0.5, 3) * self._plays()) if np.any(self._plays() > 0.0) else np.zeros(3)
-        """Link minus motor angle of joints 0–2 (rad)."""
-        self.q_link_prev = np.asarray(env.cell.q_motor_rad, dtype=float)[:3] + self.lag
-        """Link angles of joints 0–2 after the last step (rad)."""
+        lag = (self.rng.uniform(-0.5, 0.5, 3) * self._plays()) if np.any(self._plays() > 0.0) else np.zeros(3)
+        self.q_link = np.asarray(env.cell.q_motor_rad, dtype=float)[:3] + lag
+        """Link angles of joints 0–2 (rad)."""
         self.offsets = (np.zeros(3), np.zeros(3))
         self._move(env, at_attach=True)
 
@@ -49,10 +48,9 @@ class GearBacklash(RealityEffect):
         half = 0.5 * self._plays()
         q = np.asarray(cell.q_motor_rad, dtype=float)
         if not at_attach:  # the link angle holds while the motor moves inside the play
-            self.lag = np.clip(self.q_link_prev - q[:3], -half, half)
-        self.q_link_prev = q[:3] + self.lag
+            self.q_link = q[:3] + np.clip(self.q_link - q[:3], -half, half)
         q_link = q.copy()
-        q_link[:3] = self.q_link_prev
+        q_link[:3] = self.q_link
         new = link_offsets(cell, q_link, q)
         move_links(cell, self.offsets, new, with_tip=at_attach)  # at attach the tool starts where the links put it
         self.offsets = new
