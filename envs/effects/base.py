@@ -187,7 +187,8 @@ class Effect:
 
         ``evidence`` holds ``tracker_offset_task_m`` (mean real-minus-sim tracker position before contact,
         m, task frame), ``R_base_task`` (3x3) and ``excess_peak_hz`` (the frequency where the force residuals'
-        power most exceeds the simulator's own, Hz, or None). None: no direct reading.
+        power most exceeds the simulator's own, Hz, or None: over all force axes ``all``, the ``lateral`` ones and
+        the ``axial`` one). None: no direct reading.
         """
         return None
 

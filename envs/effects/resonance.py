@@ -15,66 +15,102 @@ from drillgym.envs.effects.base import Effect, EffectHost, Param, TraceView
 def mode_filter(freq_hz: float, damping: float, dt_s: float = PHYSICS_DT_S) -> tuple[np.ndarray, np.ndarray]:
     """``(b, a)`` of the unit-gain mode ``ω² / (s² + 2ζω s + ω²)`` sampled every ``dt_s`` with the input held.
 
-    The zero-order-hold discretisation: exact for a wrench constant between samples, which is how the cell's
-    100 Hz samples are meant (one quasi-static balance per sample).
+    Exact for a wrench held over the interval that *ends* at its sample, which is how the cell's 100 Hz samples
+    are meant (the balance the drill reaches over the interval): the reading at a sample already holds its
+    wrench's first response. This is the zero-order-hold discretisation advanced by one sample (its numerator
+    shifted one tap earlier); the plain one reads each wrench one sample late, a 10 ms delay of its own.
     """
     w = 2.0 * math.pi * freq_hz
     b, a, _ = signal.cont2discrete(([w * w], [1.0, 2.0 * damping * w, w * w]), dt_s, method="zoh")
-    return np.ravel(b), np.ravel(a)
+    b = np.ravel(b)
+    return np.append(b[1:], 0.0), np.ravel(a)
+
+
+LATERAL = np.array([True, True, False, True, True, False])
+"""Wrench axes (Fx, Fy, Fz, Tx, Ty, Tz) the bending mode carries; the others (Fz, Tz) the axial one."""
 
 
 class FTResonance(Effect):
-    """A structural mode between the wrench and the sensor: the reading rings after every change of the load.
+    """Structural modes between the wrench and the sensor: the reading rings after every change of the load.
 
-    ``W_read = W + a (H W − W)`` on all six axes, ``H`` a second-order mode of frequency f and damping ζ
-    (unit gain at rest, so a steady wrench reads true) and ``a`` its share of the reading (1: the sensor sees
-    the wrench only through the mode). A tool and spindle on a compliant mount, an arm link or a clamp ring at
-    10–40 Hz with ζ ~ 0.02–0.2: the contact, a stage change or a feed step then reads as a ringing force, and a
+    ``W_read = W + a (H W − W)``, ``H`` a second-order mode of unit gain at rest (a steady wrench reads true):
+    of frequency ``f_lat`` on the lateral axes (Fx, Fy, Tx, Ty: the mount bending) and ``f_ax`` on the axial
+    ones (Fz, Tz: the mount stretching and twisting), both with damping ζ; ``a`` is the modes' share of the
+    reading (1: the sensor sees the wrench only through them). A tool and spindle on a compliant mount, an arm
+    link or a clamp ring at 10–40 Hz with ζ ~ 0.02–0.2, its bending and axial modes apart (a beam is far
+    stiffer along its axis): the contact, a stage change or a feed step then reads as a ringing force, and a
     fast change as a lagging one. Nothing before contact (no load, nothing to ring).
     """
 
     name = "ft_resonance"
-    summary = "F/T readings ring through a lightly damped structural mode after each change of the load"
+    summary = "F/T readings ring through a lightly damped bending and axial mode after each change of the load"
     params = (
-        Param("amplitude", 0.0, 1.0, 0.0, "share of the reading that passes through the mode (-)"),
-        Param("freq_hz", 5.0, 45.0, 20.0, "frequency of the mode (Hz), below the 50 Hz Nyquist limit of the F/T"),
-        Param("damping", 0.02, 0.7, 0.1, "damping ratio of the mode (-)"),
+        Param("amplitude", 0.0, 1.0, 0.0, "share of the reading that passes through the modes (-)"),
+        Param("freq_lateral_hz", 5.0, 45.0, 20.0, "bending mode (Hz; Fx, Fy, Tx, Ty), below the F/T's 50 Hz Nyquist"),
+        Param("freq_axial_hz", 5.0, 45.0, 20.0, "axial mode (Hz; Fz, Tz), below the F/T's 50 Hz Nyquist"),
+        Param("damping", 0.02, 0.7, 0.1, "damping ratio of both modes (-)"),
     )
     channels = frozenset({"force", "torque"})
     sensor_only = True
 
     @classmethod
     def initial_guess(cls, evidence: dict[str, Any]) -> dict[str, float] | None:
-        """The mode at the frequency where the force residuals ring most (half the reading through it)."""
-        peak = evidence.get("excess_peak_hz")
-        if peak is None:
+        """Each mode at the frequency where its force residuals ring most (half the reading through them).
+
+        A group with no ringing of its own starts where all three axes ring most.
+        """
+        peaks = evidence.get("excess_peak_hz") or {}
+        every = peaks.get("all")
+        if every is None:
             return None
         low, high = cls.params[1].low, cls.params[1].high
-        return {"amplitude": 0.5, "freq_hz": min(max(float(peak), low), high), "damping": 0.1}
 
-    def _filter(self) -> tuple[np.ndarray, np.ndarray]:
-        return mode_filter(self.values["freq_hz"], self.values["damping"])
+        def at(group: str) -> float:
+            f = peaks.get(group)
+            return min(max(float(every if f is None else f), low), high)
+
+        return {"amplitude": 0.5, "freq_lateral_hz": at("lateral"), "freq_axial_hz": at("axial"), "damping": 0.1}
+
+    def _filters(self) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        v = self.values
+        return mode_filter(v["freq_lateral_hz"], v["damping"]), mode_filter(v["freq_axial_hz"], v["damping"])
 
     def attach(self, env: EffectHost) -> None:
-        """The mode at rest, its filter made once for the episode's steps."""
+        """The modes at rest, their filters made once for the episode's steps."""
         self.state = np.zeros((2, 6))
-        self.ba = self._filter()
+        self.filters = self._filters()
+
+    def _ring(self, w: np.ndarray, state: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+        """``H w`` of wrench rows (n, 6), from ``state`` (or rest), and the state after them."""
+        y = np.empty_like(w)
+        out_state = None if state is None else np.empty_like(state)
+        for (b, a), cols in zip(self.filters, (LATERAL, ~LATERAL), strict=True):
+            if state is None:
+                y[:, cols] = signal.lfilter(b, a, w[:, cols], axis=0)
+            else:
+                assert out_state is not None
+                y[:, cols], out_state[:, cols] = signal.lfilter(b, a, w[:, cols], axis=0, zi=state[:, cols])
+        return y, out_state
 
     def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-        """The step's samples through the mode, its state carried to the next step."""
+        """The step's samples through the modes, their state carried to the next step."""
         amp = self.values["amplitude"]
         w = np.asarray(wrenches, dtype=float)
         if amp == 0.0:
             return w
-        b, a = self.ba
-        y, self.state = signal.lfilter(b, a, w, axis=0, zi=self.state)
+        y, state = self._ring(w, self.state)
+        assert state is not None
+        self.state = state
         return w + amp * (y - w)
 
     def apply_to_trace(self, trace: TraceView) -> None:
-        """The recorded wrench through the mode, from rest at the first sample."""
+        """The recorded wrench through the modes, from rest at the first sample."""
         amp = self.values["amplitude"]
         if amp == 0.0:
             return
-        b, a = self._filter()
-        for arr in (trace.force_n, trace.torque_nm):
-            arr += amp * (signal.lfilter(b, a, arr, axis=0) - arr)
+        self.filters = self._filters()
+        w = np.concatenate([trace.force_n, trace.torque_nm], axis=1)
+        y, _ = self._ring(w, None)
+        w += amp * (y - w)
+        trace.force_n[:] = w[:, :3]
+        trace.torque_nm[:] = w[:, 3:]

@@ -57,17 +57,21 @@ PEAK_BAND_HZ = (5.0, 45.0)
 """Where :func:`excess_peak_hz` looks for a ringing (Hz): above the feed's time scale, below the F/T's Nyquist limit."""
 
 
-def excess_peak_hz(real: list[np.ndarray], null: list[np.ndarray]) -> float | None:
+AXIS_GROUPS = {"lateral": (0, 1), "axial": (2,)}
+"""Force axes whose residual spectra :func:`excess_peak_hz` reads together: a mount bends and stretches apart."""
+
+
+def excess_peak_hz(real: list[np.ndarray], null: list[np.ndarray], axes: tuple[int, ...] = (0, 1, 2)) -> float | None:
     """The frequency (Hz) where the real force residuals' power most exceeds the simulator's own, in :data:`PEAK_BAND_HZ`.
 
-    Welch spectra of each force axis, summed over the axes and averaged over episodes (``real`` and ``null`` as in
+    Welch spectra of the force ``axes``, summed over them and averaged over episodes (``real`` and ``null`` as in
     :func:`spectrum_summary`). None where the real power nowhere exceeds twice the null's (no ringing to read).
     """
 
     def mean_psd(residuals: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
         spectra = []
         for x in residuals:
-            x = x[np.all(np.isfinite(x), axis=1)]
+            x = x[np.all(np.isfinite(x), axis=1)][:, list(axes)]
             if x.shape[0] >= SEGMENT:
                 f, p = signal.welch(x, fs=FT_RATE_HZ, nperseg=SEGMENT, axis=0)
                 spectra.append(p.sum(axis=1))
@@ -81,3 +85,8 @@ def excess_peak_hz(real: list[np.ndarray], null: list[np.ndarray]) -> float | No
     band = (f >= PEAK_BAND_HZ[0]) & (f <= PEAK_BAND_HZ[1])
     excess = np.where(band & (pr > 2.0 * pn), pr - pn, 0.0)
     return float(f[int(np.argmax(excess))]) if excess.max() > 0.0 else None
+
+
+def excess_peaks_hz(real: list[np.ndarray], null: list[np.ndarray]) -> dict[str, float | None]:
+    """:func:`excess_peak_hz` of all three force axes (``all``) and of each of :data:`AXIS_GROUPS`."""
+    return {"all": excess_peak_hz(real, null)} | {g: excess_peak_hz(real, null, a) for g, a in AXIS_GROUPS.items()}

@@ -34,7 +34,7 @@ SETTINGS = {
     "skid_friction": "skid_friction:mu=0.2",
     "spindle_sag": "spindle_sag:sag_per_nm=150",
     "registration": "registration:surface_dz_m=4e-4,slope_error_rad=0.08",
-    "ft_resonance": "ft_resonance:amplitude=1,freq_hz=15,damping=0.05",
+    "ft_resonance": "ft_resonance:amplitude=1,freq_lateral_hz=15,freq_axial_hz=30,damping=0.05",
     "joint_backlash": "joint_backlash:play_rad=3e-4",
     "tool_runout": "tool_runout:runout_m=3e-5",
     "servo_deadband": "servo_deadband:band_m=2e-4",
@@ -211,9 +211,12 @@ def _rounding_gain(effect) -> float:
 
     impulse = np.zeros(2000)
     impulse[0] = 1.0
-    b, a = mode_filter(effect.values["freq_hz"], effect.values["damping"])
-    h = impulse + effect.values["amplitude"] * (signal.lfilter(b, a, impulse) - impulse)
-    return float(np.abs(h).sum())
+    gains = []
+    for key in ("freq_lateral_hz", "freq_axial_hz"):
+        b, a = mode_filter(effect.values[key], effect.values["damping"])
+        h = impulse + effect.values["amplitude"] * (signal.lfilter(b, a, impulse) - impulse)
+        gains.append(float(np.abs(h).sum()))
+    return max(gains)
 
 
 def test_effect_specs_and_parameters_are_validated():

@@ -169,7 +169,7 @@ def test_the_diagnosis_tries_every_library_effect_but_the_opt_in_ones_by_default
 
 
 def test_the_excess_peak_is_where_the_real_residuals_ring_above_the_null_ones():
-    from drillgym.eval.diagnosis.spectrum import excess_peak_hz
+    from drillgym.eval.diagnosis.spectrum import excess_peak_hz, excess_peaks_hz
 
     rng = np.random.default_rng(3)
     t = np.arange(1500) * 0.01
@@ -180,3 +180,7 @@ def test_the_excess_peak_is_where_the_real_residuals_ring_above_the_null_ones():
     ]
     assert excess_peak_hz(ringing, null) == pytest.approx(25.0, abs=100.0 / 128)  # one Welch bin
     assert excess_peak_hz(null[:2], null[2:]) is None  # noise against noise: nothing to read
+    lateral = [x + 0.1 * np.sin(2 * np.pi * 15.0 * t)[:, None] * [1, 1, 0] for x in ringing]
+    peaks = excess_peaks_hz(lateral, null)  # the axial axis rings at 25 Hz, the lateral ones most at 15
+    assert peaks["axial"] == pytest.approx(25.0, abs=100.0 / 128)
+    assert peaks["lateral"] == pytest.approx(15.0, abs=100.0 / 128)

@@ -18,8 +18,8 @@ class MountResonance(RealityEffect):
     """Two mount modes: the lateral axes (Fx, Fy, Tx, Ty) ring at one frequency, the axial ones (Fz, Tz) at another.
 
     Each axis reads ``x`` of ``x'' + 2ζω x' + ω² x = ω² W``, integrated in :data:`SUBSTEPS` semi-implicit Euler
-    steps per sample. The candidate (``ft_resonance``) has one mode for all six axes, discretised exactly: the two
-    agree where the frequencies do.
+    steps per sample. The candidate (``ft_resonance``) has the same two groups of axes, its modes discretised
+    exactly for a wrench held over each sample, and a share of the reading through them (here the whole).
     """
 
     name = "mount_resonance"
@@ -55,8 +55,11 @@ class MountResonance(RealityEffect):
         return out
 
     def candidate_values(self) -> dict[str, float] | None:
-        """One mode for all axes where the two frequencies are one (the whole reading through it)."""
+        """The candidate's two modes, the whole reading through them."""
         v = self.values
-        if v["freq_xy_hz"] != v["freq_z_hz"]:
-            return None
-        return {"amplitude": 1.0, "freq_hz": v["freq_xy_hz"], "damping": v["damping"]}
+        return {
+            "amplitude": 1.0,
+            "freq_lateral_hz": v["freq_xy_hz"],
+            "freq_axial_hz": v["freq_z_hz"],
+            "damping": v["damping"],
+        }
