@@ -23,6 +23,7 @@ import numpy as np
 from drillgym.envs.effects.base import Param
 from drillgym.envs.effects.registry import EFFECTS
 from drillgym.eval.diagnosis.context import Evaluator, Spec
+from drillgym.eval.diagnosis.evidence import evidence
 from drillgym.eval.diagnosis.gap import Terms, pooled
 
 GRID_FRACTIONS = (1 / 16, 1 / 4, 1.0)
@@ -332,28 +333,17 @@ def local_search(
 def _guess(ev: Evaluator, names: Sequence[str]) -> list[dict[str, float]] | None:
     """Starting point read off the data for one effect (only effects that offer one, e.g. a kinematic offset).
 
-    The evidence is the tracker's offset from the nominal replay before contact, which the effects that
-    act only through the cut (force, bone, tool bending) leave alone, so it also serves an effect fitted
-    on top of another; and where the force residuals ring most above the simulator's own (calibration
-    episodes only).
+    The readings (:func:`~drillgym.eval.diagnosis.evidence.evidence`) compare the calibration episodes with
+    their nominal replays where one kind of effect shows alone: the tracker before contact, which the effects
+    that act only through the cut leave alone (so it also serves an effect fitted on top of another), where
+    the force residuals ring, and where the drill first touches.
     """
     if len(names) != 1:
         return None
-    d = ev.data
-    offsets = []
-    for i in d.cal:
-        rows = d.blocks[i].stage == 0
-        r = d.real[i].lf[rows, 6:9] - d.nominal_features[i].lf[rows, 6:9]
-        if np.isfinite(r).any():
-            offsets.append(np.nanmean(r, axis=0))
-    if not offsets:
+    found = evidence(ev.data)
+    if found is None:
         return None
-    evidence = {
-        "tracker_offset_task_m": np.mean(offsets, axis=0),
-        "R_base_task": d.episodes[d.cal[0]].r_base_task,
-        "excess_peak_hz": d.excess_peak_hz,
-    }
-    guess = EFFECTS[names[0]].initial_guess(evidence)
+    guess = EFFECTS[names[0]].initial_guess(found)
     return None if guess is None else [guess]
 
 

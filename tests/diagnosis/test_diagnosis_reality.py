@@ -70,9 +70,9 @@ def test_reality_effects_are_separate_classes_mapped_to_candidates():
 
 
 @pytest.mark.parametrize("beta_deg", [15.0, 35.0])
-def test_bone_registration_is_the_candidates_offset_and_tilt_with_its_slope_share_per_episode(beta_deg):
-    # candidate_values: along the axis and tilted, the reality is the candidate; displaced along the slope by ex,
-    # it is the candidate at dz = ex tan β of the episode's own β.
+def test_bone_registration_is_the_candidates_displacements_and_tilt_its_slope_share_per_episode(beta_deg):
+    # candidate_values: the reality is the candidate at its displacements and tilt (its axis offset read at 25°);
+    # displaced along the slope by ex, it is also the candidate at dz = ez + ex tan β of the episode's own β.
     import gymnasium as gym
 
     from drillgym.envs.effects import build_effects
@@ -82,6 +82,9 @@ def test_bone_registration_is_the_candidates_offset_and_tilt_with_its_slope_shar
     for effects in (
         build_reality("bone_registration:ex_m=1e-3,ez_m=4e-4,tilt_rad=0.08"),
         build_effects(f"registration:surface_dz_m={dz},slope_error_rad=0.08"),
+        build_effects(
+            f"registration:surface_dz_m={4e-4 + 1e-3 * math.tan(math.radians(25))},entry_dx_m=1e-3,slope_error_rad=0.08"
+        ),
     ):
         env = gym.make("drillgym/UR5BoneDrill-v1", **(QUIET | {"beta_deg": beta_deg}))
         env.reset(seed=1, options={"effects": effects})
@@ -90,6 +93,7 @@ def test_bone_registration_is_the_candidates_offset_and_tilt_with_its_slope_shar
         forces.append(np.asarray(env.unwrapped.recorder.ft_force_n))
         env.close()
     np.testing.assert_allclose(forces[0], forces[1], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(forces[0], forces[2], rtol=0, atol=1e-9)
 
 
 def test_spindle_motor_settles_on_the_candidates_torque_speed_line_and_lags_it_on_the_way():

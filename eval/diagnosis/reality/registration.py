@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from drillgym.envs.effects.base import EffectHost, Param
+from drillgym.envs.effects.registration import REFERENCE_BETA_RAD
 from drillgym.eval.diagnosis.reality.base import RealityEffect, shift_tool
 
 
@@ -15,8 +16,9 @@ class BoneRegistration(RealityEffect):
 
     A displacement ``ex`` along the slope moves the surface's crossing with the planned axis by ``ex tan β``, so
     with the scenario's β differing from hole to hole (15–35°) the drill meets bone at a different offset in each
-    episode; ``ez`` moves it the same in all. The candidate (``registration``) has one offset along the axis for
-    every episode: it matches ``ez`` and the tilt exactly, and ``ex`` only on average.
+    episode; ``ez`` moves it the same in all. The candidate (``registration``) has both displacements and the
+    tilt; here the bone itself is moved (the tool shifted back, as every reality that moves the tool does), there
+    the cell's geometry offset.
     """
 
     name = "bone_registration"
@@ -39,7 +41,7 @@ class BoneRegistration(RealityEffect):
             shift_tool(env, self, np.array([0.0, 0.0, -dz]), None, at_attach=True)
 
     def candidate_values(self) -> dict[str, float] | None:
-        """``registration``'s offset and tilt where the displacement is along the axis only (else none)."""
-        if self.values["ex_m"] != 0.0:
-            return None
-        return {"surface_dz_m": self.values["ez_m"], "slope_error_rad": self.values["tilt_rad"]}
+        """``registration``'s displacements and tilt."""
+        v = self.values
+        dz = v["ez_m"] + v["ex_m"] * math.tan(REFERENCE_BETA_RAD)  # the candidate's offset is read at β_ref
+        return {"surface_dz_m": dz, "entry_dx_m": v["ex_m"], "slope_error_rad": v["tilt_rad"]}
