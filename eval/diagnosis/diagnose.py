@@ -15,7 +15,7 @@ import os
 import sys
 import time
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, NamedTuple
 
 from tqdm import tqdm
@@ -143,7 +143,8 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
                     if not r.error and r.cal_objective <= pairs[i].cal_objective:
                         r.samples = _merged_samples(pairs[i], r)
                         pairs[i] = r
-                scores = score_models(singles + pairs, before, null, opt.seed)
+            singles = [_best_anywhere(f, pairs) for f in singles]
+            scores = score_models(singles + pairs, before, null, opt.seed)
     timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
     verdict, chosen, location, guard, off_point, scores = _name(
         runner, data, significance, singles + pairs, scores, before, null, opt.seed, bar
@@ -304,6 +305,44 @@ def _polish(runner: Runner, data: DiagnosisData, fit: FitResult, fits: list[FitR
     better = r if not r.error and r.cal_objective <= fit.cal_objective else fit
     better.samples = _merged_samples(fit, r)
     return better
+
+
+def _best_anywhere(single: FitResult, pairs: list[FitResult]) -> FitResult:
+    """``single``, or the best pair holding it with the other effect switched off, where that fits better.
+
+    Such a pair is the single effect itself (the other at every parameter's off value), fitted from other starts
+    and refitted jointly: its values are the single's best fit found anywhere. The single then takes them, its
+    held-out terms and its evaluated points (the pair's, the other effect dropped, with its own).
+    """
+    if single.error or len(single.names) != 1:
+        return single
+    name = single.names[0]
+    best = single
+    for p in pairs:
+        if p.error or name not in p.names or p.cal_objective >= best.cal_objective:
+            continue
+        k = p.names.index(name)
+        other, values = p.names[1 - k], p.params[1 - k]
+        if all(values.get(q.name, q.default) == q.default for q in EFFECTS[other].params):
+            best = p
+    if best is single:
+        return single
+    k = best.names.index(name)
+    own = [(spec[k : k + 1], j, n) for spec, j, n in best.samples if _off(spec[1 - k])]
+    return replace(
+        single,
+        params=[dict(best.params[k])],
+        cal_objective=best.cal_objective,
+        ho_terms=best.ho_terms,
+        samples=list({sp: (sp, j, n) for sp, j, n in [*single.samples, *own]}.values()),
+    )
+
+
+def _off(effect_spec: tuple[str, tuple[tuple[str, float], ...]]) -> bool:
+    """Is an effect of a spec at every parameter's off value?"""
+    name, values = effect_spec
+    defaults = {q.name: q.default for q in EFFECTS[name].params}
+    return all(v == defaults[k] for k, v in values)
 
 
 def _merged_samples(a: FitResult, b: FitResult) -> list[Any]:
