@@ -79,8 +79,11 @@ def test_benchmark_cases_cover_the_acceptance():
     assert {c.truth[0] for c in singles} == {
         "ft_drift", "latency", "joint_friction", "kinematic_offset", "tool_length",
         "density_gradient", "thermal_softening", "skid_friction", "tool_runout", "tracker_latency",
-        "ft_episode_drift", "spindle_sag",
+        "ft_episode_drift", "spindle_sag", "ft_resonance",
     }  # fmt: skip
+    from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
+
+    assert {c.truth[0] for c in singles} == set(DIAGNOSIS_CANDIDATES)  # every default candidate has its reality
     assert all(sum(c.truth == s.truth for c in singles) >= 2 for s in singles)  # two magnitudes each
     assert any(c.kind == "pair" for c in cases) and any(c.kind == "clean" for c in cases)
     outside = [c for c in cases if c.kind == "outside"]
@@ -193,14 +196,18 @@ def test_bench_diagnosis_refuses_unknown_candidates_and_opt_in_quick_runs(tmp_pa
     assert message in capsys.readouterr().err and not (tmp_path / "bench.json").exists()
 
 
-def test_opt_in_cases_come_after_the_default_singles_which_keep_their_seeds():
-    from drillgym.eval.diagnosis.bench.cases import OPT_IN_SINGLES, opt_in_candidates
+def test_opt_in_cases_are_the_later_realities_of_opt_in_candidates_and_every_case_keeps_its_seed():
+    from drillgym.eval.diagnosis.bench.cases import LATER_SINGLES, SINGLES, opt_in_candidates
 
     default, with_opt_in = full_cases(), full_cases(opt_in=True)
-    assert len(with_opt_in) == len(default) + 2 * len(OPT_IN_SINGLES)
+    assert set(opt_in_candidates()) == {"ft_contact_bias", "registration", "joint_backlash"}
+    assert len(with_opt_in) == len(default) + 2 * 3  # ft_load_bias, bone_registration, gear_backlash
     seeds = {c.name: c.seed for c in with_opt_in}
     assert all(seeds[c.name] == c.seed for c in default)
-    assert set(opt_in_candidates()) == {"ft_contact_bias", "registration", "ft_resonance", "joint_backlash"}
+    assert len(set(seeds.values())) == len(seeds)
+    # a later reality of a default candidate is a default case, at the seed it has in the opt-in run
+    assert seeds["mount_resonance-strong"] == 100 + 2 * list(SINGLES | LATER_SINGLES).index("mount_resonance") + 1
+    assert "mount_resonance-strong" in {c.name for c in default}
 
 
 def test_an_ft_gain_error_is_named_with_an_interval_holding_its_gain_when_ft_gain_is_a_candidate(tmp_path):

@@ -69,9 +69,9 @@ SINGLES: dict[str, tuple[str, str]] = {
     "episode_warmup": ("episode_warmup:spread_n=2.5", "episode_warmup:fz_n=3,spread_n=5"),
     "spindle_motor": ("spindle_motor:sag_per_nm=100", "spindle_motor:sag_per_nm=250,time_constant_s=0.5"),
 }
-"""Reality effect -> (moderate, strong) spec, for the default candidates (a new reality goes last, so the
+"""Reality effect -> (moderate, strong) spec, the benchmark's first realities (a new reality goes last, so the
 earlier cases keep their seeds)."""
-OPT_IN_SINGLES: dict[str, tuple[str, str]] = {
+LATER_SINGLES: dict[str, tuple[str, str]] = {
     "ft_load_bias": ("ft_load_bias:bx_n=0.6,bz_n=-0.8", "ft_load_bias:bx_n=-1.5,by_n=1.0,bz_n=2.0"),
     "bone_registration": ("bone_registration:ex_m=1e-3", "bone_registration:ez_m=6e-4,tilt_rad=0.08"),
     "mount_resonance": (
@@ -83,9 +83,15 @@ OPT_IN_SINGLES: dict[str, tuple[str, str]] = {
         "gear_backlash:play0_rad=2e-4,play1_rad=5e-4,play2_rad=3e-4",
     ),
 }
-"""Reality effects whose candidates are opt-in (``ft_contact_bias``, ``registration``, ``ft_resonance``,
-``joint_backlash``): run (after the default
-single cases, which keep their seeds) with ``bench-diagnosis --opt-in``, which adds those candidates."""
+"""The realities of the wider library's candidates, after :data:`SINGLES` (their seeds follow SINGLES' and stay
+the same in every run). One whose candidate is a default one (``mount_resonance``: ``ft_resonance``) is a
+default case; the others (``ft_contact_bias``, ``registration``, ``joint_backlash`` are opt-in candidates) run
+with ``bench-diagnosis --opt-in``, which adds their candidates."""
+
+
+def _candidate(specs: tuple[str, str]) -> str | None:
+    return next((e.explains for e in build_reality(specs[0]) if e.explains), None)
+
 
 PAIRS: tuple[str, ...] = (
     "jittered_latency:mean_s=0.08,jitter_s=0.02+heat_softening:softening_per_k=0.002",
@@ -101,18 +107,22 @@ CLEAN_TRIALS = 6
 
 
 def opt_in_candidates() -> tuple[str, ...]:
-    """The candidates that model :data:`OPT_IN_SINGLES`' realities."""
-    return tuple(
-        dict.fromkeys(e.explains for specs in OPT_IN_SINGLES.values() for e in build_reality(specs[0]) if e.explains)
-    )
+    """The opt-in candidates that model :data:`LATER_SINGLES`' realities."""
+    from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
+
+    names = (_candidate(specs) for specs in LATER_SINGLES.values())
+    return tuple(dict.fromkeys(n for n in names if n is not None and n not in DIAGNOSIS_CANDIDATES))
 
 
 def full_cases(opt_in: bool = False) -> list[Case]:
-    """Every case of the full benchmark (and with ``opt_in`` the cases of :data:`OPT_IN_SINGLES`)."""
+    """Every case of the full benchmark (with ``opt_in`` also the realities of the opt-in candidates)."""
+    optional = set(opt_in_candidates())
     cases: list[Case] = []
-    for name, specs in (SINGLES | OPT_IN_SINGLES if opt_in else SINGLES).items():
-        for k, spec in enumerate(specs):
-            cases.append(Case(f"{name}-{('moderate', 'strong')[k]}", "single", spec, 100 + len(cases)))
+    for position, (name, specs) in enumerate((SINGLES | LATER_SINGLES).items()):
+        if not opt_in and _candidate(specs) in optional:
+            continue
+        for k, spec in enumerate(specs):  # seeds by the reality's place in the tables, whichever run
+            cases.append(Case(f"{name}-{('moderate', 'strong')[k]}", "single", spec, 100 + 2 * position + k))
     for k, spec in enumerate(PAIRS):
         cases.append(Case(f"pair-{k}", "pair", spec, 200 + k))
     for k in range(CLEAN_TRIALS):
