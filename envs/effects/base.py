@@ -185,10 +185,12 @@ class Effect:
     def initial_guess(cls, evidence: dict[str, Any]) -> dict[str, float] | None:
         """Parameters read directly off the data, where the physics allows (a starting point for a fit).
 
-        ``evidence`` holds ``tracker_offset_task_m`` (mean real-minus-sim tracker position before contact,
-        m, task frame), ``R_base_task`` (3x3) and ``excess_peak_hz`` (the frequency where the force residuals'
-        power most exceeds the simulator's own, Hz, or None: over all force axes ``all``, the ``lateral`` ones and
-        the ``axial`` one). None: no direct reading.
+        ``evidence`` (:func:`drillgym.eval.diagnosis.evidence.evidence`) holds ``tracker_offset_task_m`` (mean
+        real-minus-sim tracker position before contact, m, task frame), ``R_base_task`` (3x3), ``excess_peaks_hz``
+        (the frequency where the force residuals' power most exceeds the simulator's own, Hz, or None: over all
+        force axes ``all``, the ``lateral`` ones and the ``axial`` one), ``contact_shift_m`` and ``beta_rad`` (per
+        episode: how much further the real drill was commanded than its replay's when it first touched, m, and
+        the planned surface inclination, rad). None: no direct reading.
         """
         return None
 

@@ -59,7 +59,7 @@ class FTResonance(Effect):
 
         A group with no ringing of its own starts where all three axes ring most.
         """
-        peaks = evidence.get("excess_peak_hz") or {}
+        peaks = evidence.get("excess_peaks_hz") or {}
         every = peaks.get("all")
         if every is None:
             return None

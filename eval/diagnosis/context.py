@@ -53,7 +53,7 @@ class DiagnosisData:
     nulls: list[EpisodeNull] = field(default_factory=list)
     hf_masks: list[np.ndarray] = field(default_factory=list)
     spectrum: dict[str, Any] = field(default_factory=dict)
-    excess_peak_hz: dict[str, float | None] = field(default_factory=dict)
+    excess_peaks_hz: dict[str, float | None] = field(default_factory=dict)
     """Where the calibration episodes' force residuals ring most above the simulator's own (Hz; a fit's start):
     over all force axes (``all``), the lateral ones and the axial one (:func:`~drillgym.eval.diagnosis.spectrum.excess_peaks_hz`)."""
     null_terms: list[Terms] = field(default_factory=list)
@@ -90,7 +90,7 @@ class DiagnosisData:
         real_res = [ep.lf[:, FORCE] - r.nominal.lf[:, FORCE] for ep, r in zip(self.episodes, results, strict=True)]
         null_res = [r.test.lf[:, FORCE] - r.nominal.lf[:, FORCE] for r in results]
         self.spectrum = spectrum_summary(real_res, null_res)
-        self.excess_peak_hz = excess_peaks_hz([real_res[i] for i in self.cal], [null_res[i] for i in self.cal])
+        self.excess_peaks_hz = excess_peaks_hz([real_res[i] for i in self.cal], [null_res[i] for i in self.cal])
         self.baseline_terms = [
             gap_terms(self.real[i], self.nominal_features[i], self.blocks[i], self.nulls[i]) for i in range(n)
         ]

@@ -322,8 +322,7 @@ def _best_anywhere(single: FitResult, pairs: list[FitResult]) -> FitResult:
         if p.error or name not in p.names or p.cal_objective >= best.cal_objective:
             continue
         k = p.names.index(name)
-        other, values = p.names[1 - k], p.params[1 - k]
-        if all(values.get(q.name, q.default) == q.default for q in EFFECTS[other].params):
+        if _off((p.names[1 - k], tuple(p.params[1 - k].items()))):
             best = p
     if best is single:
         return single
@@ -339,10 +338,10 @@ def _best_anywhere(single: FitResult, pairs: list[FitResult]) -> FitResult:
 
 
 def _off(effect_spec: tuple[str, tuple[tuple[str, float], ...]]) -> bool:
-    """Is an effect of a spec at every parameter's off value?"""
+    """Is an effect of a spec (``(name, ((param, value), ...))``) at every parameter's off value?"""
     name, values = effect_spec
-    defaults = {q.name: q.default for q in EFFECTS[name].params}
-    return all(v == defaults[k] for k, v in values)
+    given = dict(values)
+    return all(given.get(q.name, q.default) == q.default for q in EFFECTS[name].params)
 
 
 def _merged_samples(a: FitResult, b: FitResult) -> list[Any]:

@@ -41,7 +41,7 @@ def evidence(d: Any) -> dict[str, Any] | None:
     """The readings of a :class:`~drillgym.eval.diagnosis.context.DiagnosisData` (calibration episodes only).
 
     ``tracker_offset_task_m`` (mean real-minus-sim tracker position before contact, m, task frame),
-    ``R_base_task`` (3x3), ``excess_peak_hz`` (where the force residuals ring most above the simulator's own:
+    ``R_base_task`` (3x3), ``excess_peaks_hz`` (where the force residuals ring most above the simulator's own:
     ``all``, ``lateral``, ``axial``; Hz or None), ``contact_shift_m`` and ``beta_rad`` (each episode's contact
     shift, :func:`contact_shift_m`, and its planned surface inclination; episodes that touch in both). None
     without a tracker reading before contact.
@@ -62,7 +62,7 @@ def evidence(d: Any) -> dict[str, Any] | None:
     return {
         "tracker_offset_task_m": np.mean(offsets, axis=0),
         "R_base_task": d.episodes[d.cal[0]].r_base_task,
-        "excess_peak_hz": d.excess_peak_hz,
+        "excess_peaks_hz": d.excess_peaks_hz,
         "contact_shift_m": np.asarray(shifts),
         "beta_rad": np.asarray(betas),
     }

@@ -247,3 +247,14 @@ def test_a_registration_error_is_named_alone_not_with_a_stick_out_error_that_mov
     assert abs(named["params"]["registration"]["surface_dz_m"] - 6e-4) < 5e-5
     tilt = named["param_intervals"]["registration"]["slope_error_rad"]
     assert tilt["low"] <= 0.08 <= tilt["high"] and not tilt["contains_off"]
+
+
+def test_a_mount_with_a_bending_and_an_axial_mode_is_named_a_resonance_with_both_frequencies(tmp_path):
+    make_reality("mount_resonance:freq_xy_hz=15,freq_z_hz=30,damping=0.05", 12, 11, tmp_path / "logs")
+    eps, _ = load_episodes(tmp_path / "logs")
+    res = diagnose(eps, DiagnoseOptions(workers=1, candidates=("ft_drift", "ft_resonance"), progress=False))
+    assert res["verdict"] == "explained" and res["named"] == ["ft_resonance"]
+    named = next(e for e in res["effects"] if e["named"])
+    assert named["shrink"] > 0.9
+    params = named["params"]["ft_resonance"]
+    assert abs(params["freq_lateral_hz"] - 15.0) < 0.5 and abs(params["freq_axial_hz"] - 30.0) < 1.0

@@ -38,3 +38,12 @@ def test_half_the_reading_through_the_mode_rings_half_as_much_and_a_steady_load_
     FTResonance(amplitude=0.5, freq_lateral_hz=20.0, freq_axial_hz=20.0, damping=0.1).apply_to_trace(half)
     np.testing.assert_allclose(half.force_n - 1.0, 0.5 * (full.force_n - 1.0), atol=1e-12)
     assert abs(full.force_n[-1, 0] - 1.0) < 1e-9 and abs(full.torque_nm[-1, 2] - 1.0) < 1e-9
+
+
+def test_each_mode_starts_where_its_own_axes_ring_most_or_where_all_do():
+    peaks = {"all": 25.0, "lateral": 15.0, "axial": 30.0}
+    guess = FTResonance.initial_guess({"excess_peaks_hz": peaks})
+    assert guess is not None and (guess["freq_lateral_hz"], guess["freq_axial_hz"]) == (15.0, 30.0)
+    guess = FTResonance.initial_guess({"excess_peaks_hz": {"all": 60.0, "lateral": None, "axial": 2.0}})
+    assert guess is not None and (guess["freq_lateral_hz"], guess["freq_axial_hz"]) == (45.0, 5.0)  # kept in range
+    assert FTResonance.initial_guess({"excess_peaks_hz": {"all": None}}) is None  # no ringing: no reading
