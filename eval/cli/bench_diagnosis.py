@@ -33,8 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--opt-in",
         action="store_true",
-        help="also the cases of the opt-in candidates' realities (ft_load_bias), with those "
-        "candidates added to the defaults (unless --candidates names the list)",
+        help="also the cases of the opt-in candidates' realities (ft_load_bias, bone_registration, gear_backlash), "
+        "with those candidates added to the defaults (unless --candidates names the list)",
     )
     parser.add_argument(
         "--pseudo-truth",
