@@ -32,10 +32,6 @@ GRID_FRACTIONS_TWO_SIDED = (1 / 8, 1 / 2)
 """Grid levels on each side of a two-sided parameter."""
 EVALS_PER_PARAM = 14
 """Local-search budget per parameter (evaluations)."""
-SENSOR_ONLY_BUDGET_FACTOR = 4
-"""A model of sensor-only effects searches this many times longer: its evaluations filter recorded traces (~6 ms
-each) instead of replaying the episodes, and a mode's amplitude and damping trade off along a shallow valley that
-14 evaluations per parameter stop short in (a 25 Hz mount fitted at amplitude 0.66 for 1)."""
 INITIAL_STEP = 1 / 16
 """First step of the local search (fraction of each parameter's range)."""
 MIN_STEP = 1 / 1024
@@ -191,8 +187,7 @@ def fit_model(
         names: effect names.
         start: fitted parameters to build on (a pair on top of its first effect's fit): only the last
             effect's parameters are then fitted (forward selection), the others stay at ``start``.
-        budget: local-search evaluations (default :data:`EVALS_PER_PARAM` per fitted parameter, times
-            :data:`SENSOR_ONLY_BUDGET_FACTOR` for sensor-only effects).
+        budget: local-search evaluations (default :data:`EVALS_PER_PARAM` per fitted parameter).
     """
     t0 = time.perf_counter()
     box = ParamBox(names)
@@ -230,7 +225,7 @@ def fit_model(
         # is always refined: what it has to explain is small, and the grid's levels easily overshoot it.
         if start is None and not _worth_refining(values[0], values[int(order[0])], ev.data):
             starts = []
-        total = budget or _per_param(names) * free.size
+        total = budget or EVALS_PER_PARAM * free.size
         ends = [local_search(objective, u0, total // len(starts), free) for u0 in starts]
         u_best = min(ends, key=objective) if ends else points[int(np.argmin(values))]
         objective.finish(result, u_best)
@@ -252,7 +247,7 @@ def refit_jointly(
         ev: the evaluator (data + replayer).
         names: effect names.
         starts: parameter dicts per effect (e.g. the forward fit and the effects' single fits combined).
-        budget: local-search evaluations (default as :func:`fit_model`'s).
+        budget: local-search evaluations (default :data:`EVALS_PER_PARAM` per parameter).
     """
     t0 = time.perf_counter()
     box = ParamBox(names)
@@ -262,7 +257,7 @@ def refit_jointly(
         points = [box.to_unit(s) for s in starts]
         points += _read_first_starts(ev, box, objective, starts[0])
         u0 = min(points, key=objective)
-        u_best = local_search(objective, u0, budget or _per_param(names) * box.size)
+        u_best = local_search(objective, u0, budget or EVALS_PER_PARAM * box.size)
         objective.finish(result, u_best)
     except Exception as e:  # a fit must not stop the diagnosis
         result.error = f"{type(e).__name__}: {e}"
@@ -292,7 +287,7 @@ def _read_first_starts(
             points = box.grid(around=u, effect=j)
             u = min(points, key=objective)
             free = box.indices(j)
-            u = local_search(objective, u, _per_param(box.names) * free.size, free)
+            u = local_search(objective, u, EVALS_PER_PARAM * free.size, free)
         out.append(u)
     return out
 
@@ -350,12 +345,6 @@ def _guess(ev: Evaluator, names: Sequence[str]) -> list[dict[str, float]] | None
         return None
     guess = EFFECTS[names[0]].initial_guess(found)
     return None if guess is None else [guess]
-
-
-def _per_param(names: Sequence[str]) -> int:
-    """Local-search evaluations per parameter of a model of ``names`` (more where no replay is needed)."""
-    cheap = all(EFFECTS[n].sensor_only for n in names)
-    return EVALS_PER_PARAM * (SENSOR_ONLY_BUDGET_FACTOR if cheap else 1)
 
 
 def _moved(u: np.ndarray, i: int, delta: float) -> np.ndarray | None:
