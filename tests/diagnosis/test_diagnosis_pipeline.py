@@ -16,11 +16,11 @@ CANDIDATES = ("ft_drift", "tool_runout", "latency")
 REQUIRED_EFFECT_KEYS = {"name", "params", "heldout_gap_before", "heldout_gap_after", "shrink", "ci_low", "ci_high"}
 
 
-def diagnosed(tmp_path, spec: str, seed: int, episodes: int = 6) -> dict:
+def diagnosed(tmp_path, spec: str, seed: int, episodes: int = 6, candidates: tuple[str, ...] = CANDIDATES) -> dict:
     make_reality(spec, episodes, seed, tmp_path / "logs")
     eps, skipped = load_episodes(tmp_path / "logs")
     assert not skipped
-    return diagnose(eps, DiagnoseOptions(workers=1, candidates=CANDIDATES, progress=False))
+    return diagnose(eps, DiagnoseOptions(workers=1, candidates=candidates, progress=False))
 
 
 def test_a_drifting_ft_sensor_is_named_and_the_gap_shrinks(tmp_path):
@@ -238,9 +238,7 @@ def test_a_registration_error_is_named_alone_not_with_a_stick_out_error_that_mov
     # The bone 0.6 mm further along the axis and tilted 0.08 rad: a stick-out error also moves where the drill
     # first touches, but the registration alone (started from the contact shifts) explains it; the stick-out on
     # top of it is not named.
-    make_reality("bone_registration:ez_m=6e-4,tilt_rad=0.08", 12, 11, tmp_path / "logs")
-    eps, _ = load_episodes(tmp_path / "logs")
-    res = diagnose(eps, DiagnoseOptions(workers=1, candidates=("tool_length", "registration"), progress=False))
+    res = diagnosed(tmp_path, "bone_registration:ez_m=6e-4,tilt_rad=0.08", 11, 12, ("tool_length", "registration"))
     assert res["verdict"] == "explained" and res["named"] == ["registration"]
     named = next(e for e in res["effects"] if e["named"])
     assert named["shrink"] > 0.95
@@ -250,9 +248,9 @@ def test_a_registration_error_is_named_alone_not_with_a_stick_out_error_that_mov
 
 
 def test_a_mount_with_a_bending_and_an_axial_mode_is_named_a_resonance_with_both_frequencies(tmp_path):
-    make_reality("mount_resonance:freq_xy_hz=15,freq_z_hz=30,damping=0.05", 12, 11, tmp_path / "logs")
-    eps, _ = load_episodes(tmp_path / "logs")
-    res = diagnose(eps, DiagnoseOptions(workers=1, candidates=("ft_drift", "ft_resonance"), progress=False))
+    res = diagnosed(
+        tmp_path, "mount_resonance:freq_xy_hz=15,freq_z_hz=30,damping=0.05", 11, 12, ("ft_drift", "ft_resonance")
+    )
     assert res["verdict"] == "explained" and res["named"] == ["ft_resonance"]
     named = next(e for e in res["effects"] if e["named"])
     assert named["shrink"] > 0.9
