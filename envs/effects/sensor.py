@@ -63,37 +63,44 @@ class FTEpisodeDrift(FTDrift):
 
 
 class FTGain(Effect):
-    """F/T gain error: a calibration that reads the lateral and the axial force too high or too low.
+    """F/T calibration error: the lateral and axial forces read with a wrong gain, the lateral ones with some thrust.
 
-    ``F_read = (1 + g_xy) F`` on the x and y axes and ``(1 + g_z) F`` on z (sensor frame); torques are
-    left alone (their rows of the calibration matrix are separate). A wrong calibration file, a sensor
-    recalibrated in another mounting, or a wrong counts-per-force setting scales whole rows; an ATI
-    calibration is good to ~1–2 % of full scale, a wrong file or unit by tens of per cent. Unlike a drift
-    it changes nothing before contact, where the tared force is zero.
+    ``F_read = C F`` with ``C = [[1 + g_xy, 0, c_x], [0, 1 + g_xy, c_y], [0, 0, 1 + g_z]]`` (sensor frame): the force
+    rows of a calibration matrix off in their gains and in the cross-talk from the axial force, the one a
+    drilling load makes visible (the thrust is tens of newtons, the lateral forces a few). Torques are left alone
+    (their rows of the calibration matrix are separate). A wrong calibration file, a sensor recalibrated in
+    another mounting, or a wrong counts-per-force setting scales whole rows; a sensor remounted with a tilted
+    or preloaded adapter, or an overloaded one, reads a share of one axis on another. An ATI calibration is good
+    to ~1–2 % of full scale (cross-talk included), a wrong file or unit by tens of per cent. Unlike a drift it
+    changes nothing before contact, where the tared force is zero.
     """
 
     name = "ft_gain"
-    summary = "F/T lateral and axial forces read with a wrong gain (calibration error)"
+    summary = "F/T forces read through a wrong calibration: lateral and axial gains, thrust read laterally"
     params = (
         Param("fxy_gain", -0.5, 0.5, 0.0, "relative gain error of Fx and Fy (-)"),
         Param("fz_gain", -0.5, 0.5, 0.0, "relative gain error of Fz (-)"),
+        Param("fx_from_fz", -0.05, 0.05, 0.0, "share of Fz read as Fx: cross-talk (-)"),
+        Param("fy_from_fz", -0.05, 0.05, 0.0, "share of Fz read as Fy: cross-talk (-)"),
     )
     channels = frozenset({"force"})
     sensor_only = True
 
-    def _gains(self) -> np.ndarray:
+    def matrix(self) -> np.ndarray:
+        """The force rows of the calibration error, ``C`` (3x3): ``F_read = C F``."""
         v = self.values
-        return 1.0 + np.array([v["fxy_gain"], v["fxy_gain"], v["fz_gain"]])
+        gxy, gz = 1.0 + v["fxy_gain"], 1.0 + v["fz_gain"]
+        return np.array([[gxy, 0.0, v["fx_from_fz"]], [0.0, gxy, v["fy_from_fz"]], [0.0, 0.0, gz]])
 
     def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-        """Scale the force axes."""
+        """Read the forces through ``C``."""
         out = np.array(wrenches, dtype=float)
-        out[:, :3] *= self._gains()[None, :]
+        out[:, :3] = out[:, :3] @ self.matrix().T
         return out
 
     def apply_to_trace(self, trace: TraceView) -> None:
-        """Scale the recorded forces."""
-        trace.force_n *= self._gains()[None, :]
+        """Read the recorded forces through ``C``."""
+        trace.force_n[:] = trace.force_n @ self.matrix().T
 
 
 def engaged_share(env: EffectHost, n: int) -> np.ndarray:

@@ -33,12 +33,12 @@ SETTINGS = {
     "thermal_softening": "thermal_softening:softening=0.3,work_j=5",
     "skid_friction": "skid_friction:mu=0.2",
     "spindle_sag": "spindle_sag:sag_per_nm=150",
-    "registration": "registration:surface_dz_m=4e-4,slope_error_rad=0.08",
+    "registration": "registration:surface_dz_m=4e-4,entry_dx_m=5e-4,slope_error_rad=0.08",
     "ft_resonance": "ft_resonance:amplitude=1,freq_lateral_hz=15,freq_axial_hz=30,damping=0.05",
     "joint_backlash": "joint_backlash:play_rad=3e-4",
     "tool_runout": "tool_runout:runout_m=3e-5",
     "servo_deadband": "servo_deadband:band_m=2e-4",
-    "ft_gain": "ft_gain:fxy_gain=0.2,fz_gain=-0.1",
+    "ft_gain": "ft_gain:fxy_gain=0.2,fz_gain=-0.1,fx_from_fz=0.02,fy_from_fz=-0.01",
     "ft_contact_bias": "ft_contact_bias:bx_n=0.5,bz_n=-0.8",
     "tracker_latency": "tracker_latency:latency_s=0.07",
     "ft_episode_drift": "ft_episode_drift:fy_rate_n_s=0.015,fz_rate_n_s=-0.02",
@@ -195,8 +195,12 @@ def test_sensor_only_effect_on_a_trace_matches_the_simulated_one(name):
     effect.apply_to_trace(view)
     # One resolution step, or for a filter the reading's rounding (half a step) through the filter (at most
     # its impulse response's l1 norm times it) plus the simulated reading's own rounding.
+    resolution = np.array([0.0101, 0.0101, 0.0201])
     steps = 0.5 * _rounding_gain(effect) + 0.5 if name == "ft_resonance" else 1.0
-    assert np.all(np.max(np.abs(view.force_n - sim["force"]), axis=0) <= steps * np.array([0.0101, 0.0101, 0.0201]))
+    bound = steps * resolution
+    if name == "ft_gain":  # a matrix carries each axis's rounding into the others: |C| · (half steps), plus its own
+        bound = np.abs(effect.matrix()) @ (0.5 * resolution) + 0.5 * resolution
+    assert np.all(np.max(np.abs(view.force_n - sim["force"]), axis=0) <= bound)
     assert np.max(np.abs(view.torque_nm - sim["torque"])) <= steps * 2e-4
     # the env reads the tracker once per step: the trace holds every reading the simulated delay line had
     assert view.tracker_m is not None

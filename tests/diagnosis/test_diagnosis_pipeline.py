@@ -210,14 +210,18 @@ def test_opt_in_cases_are_the_later_realities_of_opt_in_candidates_and_every_cas
     assert "mount_resonance-strong" in {c.name for c in default}
 
 
-def test_an_ft_gain_error_is_named_with_an_interval_holding_its_gain_when_ft_gain_is_a_candidate(tmp_path):
-    make_reality("ft_lateral_gain:gain=0.2", 12, 2, tmp_path / "logs")  # no cross-talk: the candidate's form
-    eps, _ = load_episodes(tmp_path / "logs")
-    res = diagnose(eps, DiagnoseOptions(workers=1, candidates=("ft_drift", "ft_gain"), progress=False))
+def test_an_ft_calibration_error_is_named_with_intervals_holding_its_gain_and_cross_talk_when_ft_gain_is_a_candidate(
+    tmp_path,
+):
+    # Fx and Fy read 1.2 times the force and Fx 2 % of the thrust besides: the calibration matrix's x row off.
+    res = diagnosed(tmp_path, "ft_lateral_gain:gain=0.2,crosstalk=0.02", 2, 12, ("ft_drift", "ft_gain"))
     assert res["named"] == ["ft_gain"] and res["off_point_guard"] is None
     named = next(e for e in res["effects"] if e["named"])
-    ci = named["param_intervals"]["ft_gain"]["fxy_gain"]
-    assert ci["low"] <= 0.2 <= ci["high"] and ci["high"] - ci["low"] < 0.05 and not ci["contains_off"]
+    intervals = named["param_intervals"]["ft_gain"]
+    for param, truth, width in (("fxy_gain", 0.2, 0.05), ("fx_from_fz", 0.02, 0.005)):
+        ci = intervals[param]
+        assert ci["low"] <= truth <= ci["high"] and ci["high"] - ci["low"] < width and not ci["contains_off"]
+    assert intervals["fy_from_fz"]["contains_off"] and intervals["fz_gain"]["contains_off"]  # not in the reality
 
 
 def test_a_smoothing_tracker_is_named_as_a_late_tracker_with_its_lag_when_tracker_latency_is_a_candidate(tmp_path):

@@ -86,9 +86,9 @@ class FTLateralGain(RealityEffect):
     """A calibration error of the F/T's lateral axes: a gain and a cross-talk from the axial force.
 
     ``Fx_read = (1 + gain) Fx + crosstalk · Fz``, ``Fy_read = (1 + gain) Fy`` (a calibration matrix whose
-    x row is off, as after remounting the sensor). The candidate ``ft_gain`` (per-axis gains, no cross-talk)
-    models it, but it is not a default candidate (``docs/diagnosis.md`` §3), so for the default library this
-    effect is outside: it should come out unexplained, located at the lateral forces. Unlike a drift it
+    x row is off, as after remounting the sensor). The candidate ``ft_gain`` (lateral and axial gains, cross-talk
+    from Fz into Fx and Fy) models it, but it is not a default candidate (``docs/diagnosis.md`` §3), so for the
+    default library this effect is outside: it should come out unexplained, located at the lateral forces. Unlike a drift it
     changes nothing before contact, where the tared force is zero: a drift named for it predicts a force
     there that the data do not show.
     """
