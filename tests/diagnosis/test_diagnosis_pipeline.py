@@ -200,8 +200,8 @@ def test_opt_in_cases_are_the_later_realities_of_opt_in_candidates_and_every_cas
     from drillgym.eval.diagnosis.bench.cases import LATER_SINGLES, SINGLES, opt_in_candidates
 
     default, with_opt_in = full_cases(), full_cases(opt_in=True)
-    assert set(opt_in_candidates()) == {"ft_contact_bias", "registration", "joint_backlash"}
-    assert len(with_opt_in) == len(default) + 2 * 3  # ft_load_bias, bone_registration, gear_backlash
+    assert set(opt_in_candidates()) == {"ft_contact_bias", "registration", "joint_backlash", "ft_gain"}
+    assert len(with_opt_in) == len(default) + 2 * 4  # ft_load_bias, bone_registration, gear_backlash, ft_lateral_gain
     seeds = {c.name: c.seed for c in with_opt_in}
     assert all(seeds[c.name] == c.seed for c in default)
     assert len(set(seeds.values())) == len(seeds)

@@ -82,10 +82,11 @@ LATER_SINGLES: dict[str, tuple[str, str]] = {
         "gear_backlash:play0_rad=2e-4,play1_rad=2e-4,play2_rad=2e-4",
         "gear_backlash:play0_rad=2e-4,play1_rad=5e-4,play2_rad=3e-4",
     ),
+    "ft_lateral_gain": ("ft_lateral_gain:gain=0.15,crosstalk=0.005", "ft_lateral_gain:gain=-0.3,crosstalk=0.01"),
 }
 """The realities of the wider library's candidates, after :data:`SINGLES` (their seeds follow SINGLES' and stay
 the same in every run). One whose candidate is a default one (``mount_resonance``: ``ft_resonance``) is a
-default case; the others (``ft_contact_bias``, ``registration``, ``joint_backlash`` are opt-in candidates) run
+default case; the others (``ft_contact_bias``, ``registration``, ``joint_backlash``, ``ft_gain`` are opt-in candidates) run
 with ``bench-diagnosis --opt-in``, which adds their candidates."""
 
 

@@ -87,16 +87,15 @@ class FTLateralGain(RealityEffect):
 
     ``Fx_read = (1 + gain) Fx + crosstalk · Fz``, ``Fy_read = (1 + gain) Fy`` (a calibration matrix whose
     x row is off, as after remounting the sensor). The candidate ``ft_gain`` (lateral and axial gains, cross-talk
-    from Fz into Fx and Fy) models it, but it is not a default candidate (``docs/diagnosis.md`` §3), so for the
-    default library this effect is outside: it should come out unexplained, located at the lateral forces. Unlike a drift it
-    changes nothing before contact, where the tared force is zero: a drift named for it predicts a force
-    there that the data do not show.
+    from Fz into Fx and Fy) has this form and more; it is opt-in (``docs/diagnosis.md`` §3), so with the default
+    candidates this effect should come out unexplained, located at the lateral forces. Unlike a drift it changes
+    nothing before contact, where the tared force is zero: a drift named for it predicts a force there that the
+    data do not show.
     """
 
     name = "ft_lateral_gain"
     summary = "F/T lateral axes reading with a wrong gain and some of the thrust (calibration error)"
-    explains = None
-    location = (("fx_n", "fy_n", "fx_hf_n", "fy_hf_n"), ("entry1", "entry2", "entry3", "stable"))
+    explains = "ft_gain"
     params = (
         Param("gain", -0.5, 0.5, 0.0, "relative gain error of Fx and Fy (-)"),
         Param("crosstalk", -0.05, 0.05, 0.0, "share of Fz read as Fx (-)"),
@@ -109,6 +108,11 @@ class FTLateralGain(RealityEffect):
         out[:, :2] *= 1.0 + self.values["gain"]
         out[:, 0] += self.values["crosstalk"] * out[:, 2]
         return out
+
+    def candidate_values(self) -> dict[str, float] | None:
+        """``ft_gain``'s matrix: the lateral gain and the x row's cross-talk, the rest true."""
+        v = self.values
+        return {"fxy_gain": v["gain"], "fz_gain": 0.0, "fx_from_fz": v["crosstalk"], "fy_from_fz": 0.0}
 
 
 class WobblyRunout(RealityEffect):
