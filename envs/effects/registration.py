@@ -27,10 +27,10 @@ class Registration(Effect):
     surface) and by ``dx`` along task x (the registration off along the slope), so it meets the planned axis
     ``dz + dx (tan β − tan β_ref)`` further along it: ``dz`` is the offset of a hole at the reference slope
     β_ref (:data:`REFERENCE_BETA_RAD`), ``dx`` what makes it differ from hole to hole with β. It is inclined by
-    ``β + δβ`` (a surface normal read a few degrees off). The drill
-    touches bone that much later, enters on the real slope (its lateral push at entry, the depth of full
-    engagement) and the stage bounds move with it; the controller, the encoders and the tracker know only the
-    plan. Nothing changes before contact. A surgical registration is good to ~0.5–1 mm and a few degrees.
+    ``β + δβ`` (a surface normal read a few degrees off). The drill touches bone that much later, enters on the
+    real slope (its lateral push at entry, the depth of full engagement) and the stage bounds move with it; the
+    controller, the encoders and the tracker know only the plan. Nothing changes before contact. A surgical
+    registration is good to ~0.5–1 mm and a few degrees.
     """
 
     name = "registration"

@@ -86,11 +86,12 @@ LATER_SINGLES: dict[str, tuple[str, str]] = {
 }
 """The realities of the wider library's candidates, after :data:`SINGLES` (their seeds follow SINGLES' and stay
 the same in every run). One whose candidate is a default one (``mount_resonance``: ``ft_resonance``) is a
-default case; the others (``ft_contact_bias``, ``registration``, ``joint_backlash``, ``ft_gain`` are opt-in candidates) run
-with ``bench-diagnosis --opt-in``, which adds their candidates."""
+default case; the others (their candidates ``ft_contact_bias``, ``registration``, ``joint_backlash`` and ``ft_gain``
+are opt-in) run with ``bench-diagnosis --opt-in``, which adds their candidates."""
 
 
 def _candidate(specs: tuple[str, str]) -> str | None:
+    """The candidate that models a reality's cases (None for an effect outside the library)."""
     return next((e.explains for e in build_reality(specs[0]) if e.explains), None)
 
 
