@@ -80,17 +80,13 @@ class FTResonance(Effect):
         self.state = np.zeros((2, 6))
         self.filters = self._filters()
 
-    def _ring(self, w: np.ndarray, state: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
-        """``H w`` of wrench rows (n, 6), from ``state`` (or rest), and the state after them."""
-        y = np.empty_like(w)
-        out_state = None if state is None else np.empty_like(state)
-        for (b, a), cols in zip(self.filters, (LATERAL, ~LATERAL), strict=True):
-            if state is None:
-                y[:, cols] = signal.lfilter(b, a, w[:, cols], axis=0)
-            else:
-                assert out_state is not None
-                y[:, cols], out_state[:, cols] = signal.lfilter(b, a, w[:, cols], axis=0, zi=state[:, cols])
-        return y, out_state
+    @staticmethod
+    def _ring(filters: Any, w: np.ndarray, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``H w`` of wrench rows (n, 6) from the modes' ``state`` (2, 6), and their state after the rows."""
+        y, after = np.empty_like(w), np.empty_like(state)
+        for (b, a), cols in zip(filters, (LATERAL, ~LATERAL), strict=True):
+            y[:, cols], after[:, cols] = signal.lfilter(b, a, w[:, cols], axis=0, zi=state[:, cols])
+        return y, after
 
     def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """The step's samples through the modes, their state carried to the next step."""
@@ -98,9 +94,7 @@ class FTResonance(Effect):
         w = np.asarray(wrenches, dtype=float)
         if amp == 0.0:
             return w
-        y, state = self._ring(w, self.state)
-        assert state is not None
-        self.state = state
+        y, self.state = self._ring(self.filters, w, self.state)
         return w + amp * (y - w)
 
     def apply_to_trace(self, trace: TraceView) -> None:
@@ -108,9 +102,8 @@ class FTResonance(Effect):
         amp = self.values["amplitude"]
         if amp == 0.0:
             return
-        self.filters = self._filters()
         w = np.concatenate([trace.force_n, trace.torque_nm], axis=1)
-        y, _ = self._ring(w, None)
+        y, _ = self._ring(self._filters(), w, np.zeros((2, 6)))
         w += amp * (y - w)
         trace.force_n[:] = w[:, :3]
         trace.torque_nm[:] = w[:, 3:]

@@ -17,6 +17,7 @@ from drillgym.envs.effects.base import Effect
 from drillgym.envs.effects.registry import EFFECTS
 from drillgym.eval.diagnosis.channels import FORCE
 from drillgym.eval.diagnosis.episodes import EpisodeData
+from drillgym.eval.diagnosis.evidence import evidence as read_evidence
 from drillgym.eval.diagnosis.features import Blocks, Features, features, make_blocks, smooth_blocks
 from drillgym.eval.diagnosis.gap import HARDNESS_LEVELS, EpisodeNull, Terms, episode_null, gap_terms, noise_variance
 from drillgym.eval.diagnosis.replay import Replayer, SimTrace, seed_for
@@ -58,6 +59,8 @@ class DiagnosisData:
     over all force axes (``all``), the lateral ones and the axial one (:func:`~drillgym.eval.diagnosis.spectrum.excess_peaks_hz`)."""
     null_terms: list[Terms] = field(default_factory=list)
     baseline_terms: list[Terms] = field(default_factory=list)
+    evidence: dict[str, Any] | None = None
+    """What the data say directly of the effects, the fits' starting points (:func:`~drillgym.eval.diagnosis.evidence.evidence`)."""
 
     @classmethod
     def from_episodes(cls, episodes: list[EpisodeData], cal: list[int], ho: list[int]) -> DiagnosisData:
@@ -94,6 +97,7 @@ class DiagnosisData:
         self.baseline_terms = [
             gap_terms(self.real[i], self.nominal_features[i], self.blocks[i], self.nulls[i]) for i in range(n)
         ]
+        self.evidence = read_evidence(self)
 
     def _with_blocks(self, results: list[BaselineResult]) -> list[tuple[BaselineResult, Blocks, np.ndarray]]:
         return list(zip(results, self.blocks, self.hf_masks, strict=True))

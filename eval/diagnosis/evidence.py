@@ -12,8 +12,11 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs.scenario import Scenario
 from drillgym.eval.diagnosis.channels import FORCE
 
+DEFAULT_BETA_DEG = Scenario().beta_deg
+"""The surface inclination of a log whose header leaves it out: the one the replay's scenario then has."""
 CONTACT_FORCE_N = 0.3
 """Force magnitude (N) taken as the first touch: 20 times the F/T's noise before contact (~0.015 N), a few
 samples into the contact's rise at the paper's feed."""
@@ -40,6 +43,8 @@ def contact_shift_m(real_force_n: np.ndarray, sim_force_n: np.ndarray, depth_cmd
 def evidence(d: Any) -> dict[str, Any] | None:
     """The readings of a :class:`~drillgym.eval.diagnosis.context.DiagnosisData` (calibration episodes only).
 
+    Made once, with the baseline replays, as ``d.evidence``.
+
     ``tracker_offset_task_m`` (mean real-minus-sim tracker position before contact, m, task frame),
     ``R_base_task`` (3x3), ``excess_peaks_hz`` (where the force residuals ring most above the simulator's own:
     ``all``, ``lateral``, ``axial``; Hz or None), ``contact_shift_m`` and ``beta_rad`` (each episode's contact
@@ -56,7 +61,7 @@ def evidence(d: Any) -> dict[str, Any] | None:
         shift = contact_shift_m(ep.lf[:, FORCE], d.nominal[i].lf[:, FORCE], ep.depth_cmd_m)
         if shift is not None:
             shifts.append(shift)
-            betas.append(math.radians(float(ep.scenario.get("beta_deg", 0.0))))
+            betas.append(math.radians(float(ep.scenario.get("beta_deg", DEFAULT_BETA_DEG))))
     if not offsets:
         return None
     return {

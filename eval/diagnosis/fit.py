@@ -23,7 +23,6 @@ import numpy as np
 from drillgym.envs.effects.base import Param
 from drillgym.envs.effects.registry import EFFECTS
 from drillgym.eval.diagnosis.context import Evaluator, Spec
-from drillgym.eval.diagnosis.evidence import evidence
 from drillgym.eval.diagnosis.gap import Terms, pooled
 
 GRID_FRACTIONS = (1 / 16, 1 / 4, 1.0)
@@ -338,10 +337,8 @@ def _guess(ev: Evaluator, names: Sequence[str]) -> list[dict[str, float]] | None
     that act only through the cut leave alone (so it also serves an effect fitted on top of another), where
     the force residuals ring, and where the drill first touches.
     """
-    if len(names) != 1:
-        return None
-    found = evidence(ev.data)
-    if found is None:
+    found = ev.data.evidence
+    if len(names) != 1 or found is None:
         return None
     guess = EFFECTS[names[0]].initial_guess(found)
     return None if guess is None else [guess]

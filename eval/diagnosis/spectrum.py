@@ -67,26 +67,33 @@ def excess_peak_hz(real: list[np.ndarray], null: list[np.ndarray], axes: tuple[i
     Welch spectra of the force ``axes``, summed over them and averaged over episodes (``real`` and ``null`` as in
     :func:`spectrum_summary`). None where the real power nowhere exceeds twice the null's (no ringing to read).
     """
-
-    def mean_psd(residuals: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
-        spectra = []
-        for x in residuals:
-            x = x[np.all(np.isfinite(x), axis=1)][:, list(axes)]
-            if x.shape[0] >= SEGMENT:
-                f, p = signal.welch(x, fs=FT_RATE_HZ, nperseg=SEGMENT, axis=0)
-                spectra.append(p.sum(axis=1))
-        return (f, np.mean(spectra, axis=0)) if spectra else None
-
-    r, n = mean_psd(real), mean_psd(null)
-    if r is None or n is None:
-        return None
-    f, pr = r
-    pn = n[1]
-    band = (f >= PEAK_BAND_HZ[0]) & (f <= PEAK_BAND_HZ[1])
-    excess = np.where(band & (pr > 2.0 * pn), pr - pn, 0.0)
-    return float(f[int(np.argmax(excess))]) if excess.max() > 0.0 else None
+    r, n = _mean_psd(real), _mean_psd(null)
+    return None if r is None or n is None else _peak(r[0], r[1][:, list(axes)], n[1][:, list(axes)])
 
 
 def excess_peaks_hz(real: list[np.ndarray], null: list[np.ndarray]) -> dict[str, float | None]:
-    """:func:`excess_peak_hz` of all three force axes (``all``) and of each of :data:`AXIS_GROUPS`."""
-    return {"all": excess_peak_hz(real, null)} | {g: excess_peak_hz(real, null, a) for g, a in AXIS_GROUPS.items()}
+    """:func:`excess_peak_hz` of all three force axes (``all``) and of each of :data:`AXIS_GROUPS` (spectra made once)."""
+    r, n = _mean_psd(real), _mean_psd(null)
+    groups = {"all": (0, 1, 2)} | AXIS_GROUPS
+    if r is None or n is None:
+        return dict.fromkeys(groups)
+    return {g: _peak(r[0], r[1][:, list(a)], n[1][:, list(a)]) for g, a in groups.items()}
+
+
+def _mean_psd(residuals: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
+    """Frequencies and each force axis's Welch spectrum averaged over the episodes long enough, (n_f, 3)."""
+    spectra = []
+    for x in residuals:
+        x = x[np.all(np.isfinite(x), axis=1)]
+        if x.shape[0] >= SEGMENT:
+            f, p = signal.welch(x, fs=FT_RATE_HZ, nperseg=SEGMENT, axis=0)
+            spectra.append(p)
+    return (f, np.mean(spectra, axis=0)) if spectra else None
+
+
+def _peak(f: np.ndarray, real_psd: np.ndarray, null_psd: np.ndarray) -> float | None:
+    """Where the axes' summed real power most exceeds twice the null's, in :data:`PEAK_BAND_HZ` (None: nowhere)."""
+    pr, pn = real_psd.sum(axis=1), null_psd.sum(axis=1)
+    band = (f >= PEAK_BAND_HZ[0]) & (f <= PEAK_BAND_HZ[1])
+    excess = np.where(band & (pr > 2.0 * pn), pr - pn, 0.0)
+    return float(f[int(np.argmax(excess))]) if excess.max() > 0.0 else None
