@@ -10,6 +10,8 @@ from typing import Any
 import yaml
 
 ALGOS = ("sac", "td3", "ppo")
+SCHEDULE_MODE = "schedule"
+"""``residual_mode`` of a plan-schedule residual (one tuning of the base per hole, from the plan)."""
 
 
 @dataclass
@@ -24,7 +26,16 @@ class TrainConfig:
     """Residual ±1 = ± this share of the env's action range (0.5: ±1 mm of correction)."""
     residual_mode: str = "add"
     """``add``: the residual adds ± ``residual_scale`` of the action range; ``gain``: it scales the base's
-    lateral correction by ``1 + residual_scale · residual`` (see :data:`drillgym.controllers.residual.RESIDUAL_MODES`)."""
+    lateral correction by ``1 + residual_scale · residual`` (see :data:`drillgym.controllers.residual.RESIDUAL_MODES`);
+    ``schedule``: once per hole, from the plan alone, it sets the base's gains and entry schedule
+    (``schedule_spans``; :mod:`drillgym.controllers.plan_schedule`), trained one hole per step with a paired
+    reward (:mod:`drillgym.training.schedule_env`). The step-level options (``residual_scale``, ``residual_feed``,
+    ``residual_axes``, ``observe_*``, ``paired_reward``, the env's reward weights) do not apply to it."""
+    schedule_spans: dict[str, float] = field(default_factory=dict)
+    """``schedule`` mode: base field -> log2 span of its multiplier (empty: :data:`drillgym.controllers.plan_schedule.SCHEDULE_SPANS`)."""
+    schedule_reward: dict[str, float] = field(default_factory=dict)
+    """``schedule`` mode: weights of the paired hole reward (:class:`drillgym.training.schedule_env.ScheduleReward`
+    fields; empty: its defaults)."""
     residual_feed: bool = False
     """Let the residual change the feed (off: compare at the base's feed, as Li does)."""
     residual_feed_ceiling: str = "base"
@@ -106,12 +117,46 @@ class TrainConfig:
         from drillgym.controllers.residual import check_mode
         from drillgym.training.domain_randomization import check_ranges
 
-        check_mode(self.residual_mode, self.residual_feed_ceiling)
+        if self.residual_mode == SCHEDULE_MODE:
+            if self.normalize_obs:
+                raise ValueError(
+                    "residual_mode: schedule observes the plan already scaled to [-1, 1]: set normalize_obs: false"
+                )
+            self.schedule_spec()
+            self.schedule_weights()
+        else:
+            check_mode(self.residual_mode, self.residual_feed_ceiling)
         check_ranges(self.dr_ranges)
         if not 0.0 <= self.paper_share <= 1.0:
             raise ValueError(f"paper_share={self.paper_share!r} must be in [0, 1]")
         if self.total_timesteps < 1 or self.n_envs < 1:
             raise ValueError("total_timesteps and n_envs must be >= 1")
+
+    @property
+    def schedule(self) -> bool:
+        """Whether the residual is a plan schedule (one tuning per hole)."""
+        return self.residual_mode == SCHEDULE_MODE
+
+    def schedule_spec(self) -> Any:
+        """The :class:`drillgym.controllers.plan_schedule.ScheduleSpec` of a ``schedule`` run.
+
+        Its plan support comes from the training ranges.
+        """
+        from drillgym.controllers.plan_schedule import SCHEDULE_SPANS, ScheduleSpec
+        from drillgym.training.domain_randomization import training_plan_support
+
+        spans = {k: float(v) for k, v in (self.schedule_spans or SCHEDULE_SPANS).items()}
+        return ScheduleSpec(self.base, spans, training_plan_support(self.dr_ranges))
+
+    def schedule_weights(self) -> Any:
+        """The :class:`drillgym.training.schedule_env.ScheduleReward` of a ``schedule`` run."""
+        from drillgym.training.schedule_env import ScheduleReward
+
+        known = {f.name for f in dataclasses.fields(ScheduleReward)}
+        unknown = sorted(set(self.schedule_reward) - known)
+        if unknown:
+            raise ValueError(f"schedule_reward: unknown weight(s) {unknown}; known: {sorted(known)}")
+        return ScheduleReward(**{k: float(v) for k, v in self.schedule_reward.items()})
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict (YAML/JSON-ready)."""

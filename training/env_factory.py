@@ -21,6 +21,7 @@ from drillgym.training.domain_randomization import (
 )
 from drillgym.training.paired_reward import PairedReward
 from drillgym.training.residual_wrapper import ResidualWrapper
+from drillgym.training.schedule_env import ScheduleEnv
 
 ENV_ID = SIM_ENV_ID
 
@@ -51,9 +52,26 @@ def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | N
     return wrap_residual(env, cfg)
 
 
+def schedule_env(cfg: TrainConfig, episodes: list[tuple[dict[str, Any], int]] | None = None) -> ScheduleEnv:
+    """The one-hole-per-step env of a ``schedule`` run (draws inside the training ranges, or ``episodes`` in turn)."""
+    paper_share = cfg.paper_share if cfg.domain_randomization else 1.0
+    return ScheduleEnv(
+        cfg.schedule_spec(),
+        cfg.env_kwargs,
+        merged_ranges(cfg.dr_ranges),
+        paper_share,
+        cfg.schedule_weights(),
+        episodes=episodes,
+    )
+
+
 def make_train_vec_env(cfg: TrainConfig) -> VecEnv:
     """``cfg.n_envs`` randomised envs: SubprocVecEnv (spawned workers) when more than one."""
-    factory: Callable[[], gym.Env] = lambda: residual_env(cfg, cfg.domain_randomization)  # noqa: E731
+    factory: Callable[[], gym.Env]
+    if cfg.schedule:
+        factory = lambda: schedule_env(cfg)  # noqa: E731
+    else:
+        factory = lambda: residual_env(cfg, cfg.domain_randomization)  # noqa: E731
     if cfg.n_envs > 1:
         return make_vec_env(
             factory,
@@ -75,6 +93,13 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
     """
 
     def factory() -> gym.Env:
+        if cfg.schedule:
+            from drillgym.training.selection import validation_episodes
+
+            fixed = validation_episodes(cfg)[: cfg.eval_episodes] if scenario is None else [(scenario, 10_000)]
+            if cfg.eval_scenarios == "paper" and scenario is None:
+                fixed = [({}, 10_000 + i) for i in range(cfg.eval_episodes)]
+            return schedule_env(cfg, fixed)
         if cfg.eval_scenarios == "validation" and scenario is None:
             env: gym.Env = gym.make(ENV_ID, **cfg.env_kwargs)
             scenarios = validation_scenarios(cfg.eval_episodes, ranges=merged_ranges(cfg.dr_ranges))

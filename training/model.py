@@ -62,6 +62,9 @@ ALGO_CLASSES: dict[str, type[BaseAlgorithm]] = {"sac": ResidualSAC, "td3": Resid
 
 def build_model(cfg: TrainConfig, env: VecEnv, tensorboard_log: Path | None = None) -> BaseAlgorithm:
     """A fresh model for ``cfg`` with its action output zero-initialised (see :func:`zero_init_residual`)."""
+    from gymnasium import spaces
+
+    policy = "MultiInputPolicy" if isinstance(env.observation_space, spaces.Dict) else "MlpPolicy"
     common: dict[str, Any] = {
         "seed": cfg.seed,
         "verbose": 0,
@@ -70,7 +73,7 @@ def build_model(cfg: TrainConfig, env: VecEnv, tensorboard_log: Path | None = No
     if cfg.algo == "sac":
         target_entropy: float | str = cfg.target_entropy
         model: BaseAlgorithm = ResidualSAC(
-            "MultiInputPolicy",
+            policy,
             env,
             actor_warmup_steps=cfg.actor_warmup_steps,
             learning_rate=cfg.learning_rate,
@@ -87,7 +90,7 @@ def build_model(cfg: TrainConfig, env: VecEnv, tensorboard_log: Path | None = No
         )
     elif cfg.algo == "td3":
         model = ResidualTD3(
-            "MultiInputPolicy",
+            policy,
             env,
             actor_warmup_steps=cfg.actor_warmup_steps,
             learning_rate=cfg.learning_rate,
@@ -102,7 +105,7 @@ def build_model(cfg: TrainConfig, env: VecEnv, tensorboard_log: Path | None = No
         )
     else:
         model = PPO(
-            "MultiInputPolicy",
+            policy,
             env,
             learning_rate=cfg.learning_rate,
             n_steps=cfg.n_steps,

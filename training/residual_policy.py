@@ -11,9 +11,11 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from drillgym.controllers.plan_schedule import PlanScheduledController
 from drillgym.controllers.registry import make_controller
 from drillgym.controllers.residual import PLAN_KEY, PREV_RESIDUAL_KEY, ResidualController, ResidualSpec
 from drillgym.training.config import TrainConfig
@@ -27,8 +29,8 @@ class BundlePolicy:
     def __init__(self, bundle: PolicyBundle) -> None:
         self.bundle = bundle
 
-    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """The residual for one policy observation."""
+    def __call__(self, obs: Any) -> np.ndarray:
+        """The residual for one policy observation (a dict, or a schedule policy's plan features)."""
         if self.bundle.normalizer is not None:
             obs = self.bundle.normalizer(obs)
         residual, _ = self.bundle.model.predict(obs, deterministic=True)
@@ -61,8 +63,12 @@ def _single_thread_inference() -> None:
         torch.set_num_threads(1)
 
 
-def load_residual_controller(path: Path | str) -> ResidualController:
-    """``residual:PATH`` (or a shipped policy's name) -> controller (used by :func:`drillgym.controllers.make_controller`)."""
+def load_residual_controller(path: Path | str) -> ResidualController | PlanScheduledController:
+    """``residual:PATH`` (or a shipped policy's name) -> controller (used by :func:`drillgym.controllers.make_controller`).
+
+    A ``schedule`` bundle gives a :class:`drillgym.controllers.plan_schedule.PlanScheduledController`: its
+    policy tunes the base once per hole from the plan.
+    """
     if not str(path):
         raise ValueError("residual controllers need a path: residual:PATH/TO/policy.zip")
     _single_thread_inference()
@@ -70,6 +76,10 @@ def load_residual_controller(path: Path | str) -> ResidualController:
     bundle = load_bundle(resolved)
     spaces = getattr(bundle.model.observation_space, "spaces", {})
     cfg = bundle.config
+    if cfg.schedule:
+        return PlanScheduledController(
+            cfg.schedule_spec(), BundlePolicy(bundle), {"path": str(resolved), **cfg.to_dict()}
+        )
     # What the saved model observes decides, as its observation space was built from it.
     spec = replace(
         residual_spec(cfg), observe_prev_residual=PREV_RESIDUAL_KEY in spaces, observe_plan=PLAN_KEY in spaces

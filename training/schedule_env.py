@@ -1,0 +1,166 @@
+"""Training env of a schedule residual: one step is one hole, drilled with the tuning the agent chose.
+
+:class:`ScheduleEnv` is a one-step Gymnasium env (a contextual bandit). ``reset`` draws the hole's scenario
+(inside the training ranges, or the paper scenario with ``paper_share``) and an episode seed, and observes
+the plan's normalised features (:func:`drillgym.controllers.plan_schedule.normalized_plan`); ``step(action)``
+drills the hole with the base controller tuned by ``action``
+(:class:`drillgym.controllers.plan_schedule.PlanScheduledController`) and ends the episode. The base
+controller drills the same scenario on the same seed (the same specimen and noise), and the reward is the
+difference, in the benchmark's own terms (:func:`paired_schedule_reward`): with a zero action the reward is
+exactly 0. One decision per hole from what is known before drilling leaves the learner no credit to assign
+across a thousand steps, and the pairing removes the specimen-to-specimen swing that hides a gain of a few
+per cent.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from drillgym.controllers import make_controller
+from drillgym.controllers.plan_schedule import PlanScheduledController, ScheduleSpec, normalized_plan
+from drillgym.controllers.rollout import run_episode
+from drillgym.envs import SIM_ENV_ID
+from drillgym.training.domain_randomization import DR_RANGES, sample_scenario
+from drillgym.training.paired_reward import SEED_HIGH
+
+
+@dataclass(frozen=True)
+class ScheduleReward:
+    """Weights of the paired hole reward (:func:`paired_schedule_reward`).
+
+    Attributes:
+        force_weight: cost of each relative rise of the peak lateral force above the base's, in units of relative
+            deviation (3: a peak 1 % higher costs as much as a deviation 3 % higher). A lower peak earns nothing.
+        time_weight: cost of each relative rise of the drill time beyond ``time_free`` (relative deviation units).
+        time_free: relative drill-time rise over the base that costs nothing (0.2: +20 %).
+        deviation_floor_mm: added to the base's deviation in the relative deviation change, so that a hole the
+            base drills almost exactly does not dominate the reward (mm).
+    """
+
+    force_weight: float = 3.0
+    time_weight: float = 2.0
+    time_free: float = 0.2
+    deviation_floor_mm: float = 0.01
+
+    def __post_init__(self) -> None:
+        if min(self.force_weight, self.time_weight, self.time_free) < 0.0 or self.deviation_floor_mm <= 0.0:
+            raise ValueError(f"schedule reward weights must be >= 0 and the floor > 0: {self}")
+
+
+def paired_schedule_reward(agent: dict[str, float], base: dict[str, float], w: ScheduleReward) -> float:
+    """Reward of one hole drilled by the agent's tuning against the base's on the same seed.
+
+    ``−Δdev / (dev_base + floor) − force_weight · max(ΔF / F_base, 0) − time_weight · max(Δt / t_base − time_free, 0)``,
+    from the episodes' ``deviation_mean_mm``, ``lateral_force_max_n`` and ``drill_time_s``: lower deviation
+    earns, a higher peak force or a much longer drill costs. 0 when the two holes are the same.
+    """
+    dev = (agent["deviation_mean_mm"] - base["deviation_mean_mm"]) / (base["deviation_mean_mm"] + w.deviation_floor_mm)
+    force = max(
+        (agent["lateral_force_max_n"] - base["lateral_force_max_n"]) / max(base["lateral_force_max_n"], 1e-6), 0.0
+    )
+    time = max((agent["drill_time_s"] - base["drill_time_s"]) / max(base["drill_time_s"], 1e-6) - w.time_free, 0.0)
+    out = -dev - w.force_weight * force - w.time_weight * time
+    return float(out) if np.isfinite(out) else -10.0
+
+
+class ScheduleEnv(gym.Env):
+    """One hole per episode: observe the plan, choose the base's tuning, be rewarded against the base.
+
+    Args:
+        spec: the base controller and the scheduled fields (its ``plan_support`` scales the observation).
+        env_kwargs: arguments of the simulated env (reward weights are irrelevant here).
+        ranges: domain-randomisation ranges (:data:`drillgym.training.domain_randomization.DR_RANGES`).
+        paper_share: share of holes drilled in the env's own scenario (the paper's, by default).
+        reward: the reward's weights.
+        episodes: fixed ``(scenario, seed)`` holes to visit in turn instead of draws (evaluation: every visit of a
+            hole replays it, so successive evaluations differ only by the policy).
+
+    ``info`` holds the hole's scenario, seed, both episodes' metrics (``metrics``: the agent's, ``base``) and the
+    tuned spec.
+    """
+
+    def __init__(
+        self,
+        spec: ScheduleSpec,
+        env_kwargs: dict[str, Any] | None = None,
+        ranges: dict[str, tuple[float, float]] | None = None,
+        paper_share: float = 0.0,
+        reward: ScheduleReward | None = None,
+        episodes: list[tuple[dict[str, Any], int]] | None = None,
+    ) -> None:
+        if not 0.0 <= paper_share <= 1.0:
+            raise ValueError(f"paper_share={paper_share!r} must be in [0, 1]")
+        self.schedule = spec
+        self.sim = gym.make(SIM_ENV_ID, **(env_kwargs or {}))
+        self.ranges = dict(DR_RANGES if ranges is None else ranges)
+        self.paper_share = float(paper_share)
+        self.weights = reward or ScheduleReward()
+        self._paper = dict(self.sim.unwrapped.scenario.to_dict())  # type: ignore[attr-defined]
+        self.observation_space = spaces.Box(-1.0, 1.0, (5,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (spec.dims,), np.float32)
+        self.episodes = None if episodes is None else [(dict(sc), int(seed)) for sc, seed in episodes]
+        if self.episodes is not None and not self.episodes:
+            raise ValueError("ScheduleEnv: an empty list of episodes")
+        self._visits = 0
+        self._rng: np.random.Generator | None = None
+        self.scenario: dict[str, Any] = {}
+        self.episode_seed = -1
+        self.base = make_controller(spec.base)
+
+    def _plan(self) -> np.ndarray:
+        self.sim.reset(seed=self.episode_seed, options={"scenario": self.scenario})
+        return normalized_plan(self.sim.unwrapped.plan, self.schedule.plan_support)  # type: ignore[attr-defined]
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Draw the hole's scenario and seed (``options["scenario"]`` fixes the scenario); observe its plan."""
+        super().reset(seed=seed)
+        if seed is not None or self._rng is None:
+            self._rng = np.random.default_rng(seed)
+        if self.episodes is not None:
+            scenario, episode_seed = self.episodes[self._visits % len(self.episodes)]
+            self._visits += 1
+            self.scenario = {**self._paper, **scenario}
+            self.episode_seed = episode_seed
+            return self._plan(), {"scenario": dict(self.scenario), "episode_seed": self.episode_seed}
+        if options and "scenario" in options:
+            self.scenario = {**self._paper, **options["scenario"]}
+        elif self.paper_share > 0.0 and self._rng.uniform() < self.paper_share:
+            self.scenario = dict(self._paper)
+        else:
+            self.scenario = {**self._paper, **sample_scenario(self._rng, self.ranges)}
+        self.episode_seed = int(self._rng.integers(SEED_HIGH))
+        return self._plan(), {"scenario": dict(self.scenario), "episode_seed": self.episode_seed}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Drill the hole with the tuning ``action`` and with the base; the paired reward; the episode ends."""
+        if self.episode_seed < 0:
+            raise RuntimeError("call reset() before step()")
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        tuned = PlanScheduledController(self.schedule, policy=lambda _obs: a)
+        opts = {"scenario": self.scenario}
+        agent = run_episode(self.sim, tuned, self.episode_seed, keep_trace=False, options=opts)
+        if np.all(np.clip(a, -1.0, 1.0) == 0.0):
+            base = agent
+        else:
+            base = run_episode(self.sim, self.base, self.episode_seed, keep_trace=False, options=opts)
+        reward = paired_schedule_reward(agent.metrics, base.metrics, self.weights)
+        info = {
+            "scenario": dict(self.scenario),
+            "episode_seed": self.episode_seed,
+            "metrics": agent.metrics,
+            "base": base.metrics,
+            "tuned_spec": self.schedule.controller_spec(a),
+        }
+        obs = normalized_plan(self.sim.unwrapped.plan, self.schedule.plan_support)  # type: ignore[attr-defined]
+        return obs, reward, True, False, info
+
+    def close(self) -> None:
+        """Close the simulated env."""
+        self.sim.close()
