@@ -228,6 +228,7 @@ def judge(args: argparse.Namespace, out: Path, baselines: list[str]) -> int:
     from drillgym.eval.bench.episode import grid_jobs
     from drillgym.eval.bench.jobs import run_jobs
     from drillgym.eval.bench.report import episodes_frame
+    from drillgym.eval.learning.schedule_map import plot_schedule_map, schedule_table
     from drillgym.eval.learning.seed_report import write_seed_report
 
     suites = [s.strip() for s in args.eval_suites.split(",") if s.strip()]
@@ -244,5 +245,11 @@ def judge(args: argparse.Namespace, out: Path, baselines: list[str]) -> int:
         return 1
     write_seed_report(pd.DataFrame(frame), out, best_baseline=args.best_baseline, reference=args.reference)
     print((out / "seed_report.md").read_text())
-    print(f"Results: {out.resolve()}/ (seed_report.md, seed_report.json, seed_report.png, seed_episodes.csv)")
+    files = "seed_report.md, seed_report.json, seed_report.png, seed_episodes.csv"
+    table = schedule_table(policies, suites)
+    if len(table):  # schedule residuals: what each seed sets for each scenario's plan
+        table.to_csv(out / "schedule_map.csv", index=False)
+        plot_schedule_map(table, out / "schedule_map.png")
+        files += ", schedule_map.csv, schedule_map.png"
+    print(f"Results: {out.resolve()}/ ({files})")
     return 0

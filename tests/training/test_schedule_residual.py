@@ -176,3 +176,13 @@ def test_a_tiny_schedule_run_exports_a_policy_that_tunes_each_hole(tmp_path):
     env.close()
     assert np.isfinite(result.metrics["deviation_mean_mm"])
     assert set(controller.describe()["config"]) >= {"path", "residual_mode", "base"}
+    # the schedule map: what the policy sets for each scenario's plan (a classical run is left out)
+    from drillgym.eval.learning.schedule_map import plot_schedule_map, schedule_table
+
+    table = schedule_table({"seed0": f"residual:{out / 'policy.zip'}", "li2023": "li2023"}, ["paper", "heldout"])
+    assert len(table) == 9 and set(table["run"]) == {"seed0"}
+    paper = table[table["scenario"] == "paper"].iloc[0]
+    assert paper["kp"] == pytest.approx(controller.spec.values(controller.action)["kp"], rel=1e-6)  # it drilled paper
+    assert paper["base_kp"] == 3.0 and paper["base_entry_depth_mm"] == 1.25
+    plot_schedule_map(table, tmp_path / "map.png")
+    assert (tmp_path / "map.png").stat().st_size > 1000
