@@ -22,9 +22,10 @@ from drillgym.training.model import ALGO_CLASSES
 
 POLICY_DIR = Path(__file__).resolve().parent / "policies"
 """The policies shipped with the package."""
-NAMED_POLICIES = {"li2023_sac": "residual_li2023_sac.zip"}
-"""Shipped policies by name (``residual:NAME``), from any working directory."""
-SHIPPED = "li2023_sac"
+NAMED_POLICIES = {"schedule_sac": "residual_schedule_sac.zip", "li2023_sac": "residual_li2023_sac.zip"}
+"""Shipped policies by name (``residual:NAME``), from any working directory: ``schedule_sac``, the schedule
+residual on ``li2023_tuned`` (``docs/training.md``); ``li2023_sac``, the earlier step-level residual on ``li2023``."""
+SHIPPED = "schedule_sac"
 """The headline shipped policy: ``residual:shipped``."""
 
 

@@ -29,8 +29,16 @@ from drillgym.eval.reproduce.experiments import (
 )
 from drillgym.eval.reproduce.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
 
-SHIPPED_POLICY = Path(__file__).resolve().parents[1] / "training" / "policies" / "residual_li2023_sac.zip"
-"""The residual policy shipped with the project (shown beside the paper's controllers when present)."""
+
+def shipped_policy() -> Path:
+    """The headline policy shipped with the package (``residual:shipped``), shown beside the paper's controllers."""
+    from drillgym.training.policy_bundle import resolve_policy
+
+    return resolve_policy("shipped")
+
+
+LEARNED_LABEL = "learned schedule on li2023_tuned (shipped policy)"
+"""How the reproduction names the shipped policy's rows."""
 
 PAPER = {
     "dev_none": LI2023_UNCOMPENSATED["deviation_mean_mm"],
@@ -130,8 +138,8 @@ def run(args: argparse.Namespace) -> int:
             "layered", {"beta_deg": 0.0, "cortical_thickness_mm": 2.0, "depth_mm": 10.0}, "zhang2005:deformation=false"
         ),
     }
-    if SHIPPED_POLICY.exists():
-        conditions["residual"] = Condition("paper", {}, f"residual:{SHIPPED_POLICY}")
+    if shipped_policy().exists():
+        conditions["residual"] = Condition("paper", {}, f"residual:{shipped_policy()}")
     for kp in kp_values:
         conditions[f"sweep_kp{kp:g}"] = Condition("paper", {}, f"li2023:kp={kp:g}")
     results: dict[str, list] = {}
@@ -205,9 +213,10 @@ def _rows(results: dict[str, list], trends: dict[str, Any], ident: dict[str, Any
         rows.append(Row(label, unit, None, v, "baseline", ci, note))
     if "residual" in results:
         for metric, unit, label in (
-            ("deviation_mean_mm", "mm", "mean tip deviation, residual SAC on li2023"),
-            ("lateral_force_max_n", "N", "max lateral force, residual SAC on li2023"),
-            ("hole_offset_mm", "mm", "entry-hole centre offset, residual SAC on li2023"),
+            ("deviation_mean_mm", "mm", f"mean tip deviation, {LEARNED_LABEL}"),
+            ("lateral_force_max_n", "N", f"max lateral force, {LEARNED_LABEL}"),
+            ("hole_offset_mm", "mm", f"entry-hole centre offset, {LEARNED_LABEL}"),
+            ("drill_time_s", "s", f"drill time, {LEARNED_LABEL}"),
         ):
             v, ci = m(results["residual"], metric)
             rows.append(Row(label, unit, None, v, "learned", ci, "beyond the paper: trained in the sim"))

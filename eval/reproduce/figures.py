@@ -96,7 +96,7 @@ def fig13(out: Path, results: dict[str, list]) -> str:
     shade_stages(ax, tr["t_s"], tr["stage"], xlim=(1.5, 14.5))
     lines = [("none", "no compensation", "C3"), ("kp1", "li2023 KP = 1", "C1"), ("kp4", "li2023 KP = 4", "C0")]
     if "residual" in results:
-        lines.append(("residual", "residual SAC on li2023", "C2"))
+        lines.append(("residual", "learned schedule (shipped)", "C2"))
     for key, label, colour in lines:
         t = results[key][0].trace
         ax.plot(t["t_s"], _lateral(t), color=colour, label=label)

@@ -186,3 +186,17 @@ def test_a_tiny_schedule_run_exports_a_policy_that_tunes_each_hole(tmp_path):
     assert paper["base_kp"] == 3.0 and paper["base_entry_depth_mm"] == 1.25
     plot_schedule_map(table, tmp_path / "map.png")
     assert (tmp_path / "map.png").stat().st_size > 1000
+
+
+def test_the_shipped_policy_is_a_schedule_that_tunes_the_paper_hole_within_its_spans():
+    controller = make_controller("residual:shipped")
+    assert isinstance(controller, PlanScheduledController)
+    env = gym.make(ENV_ID)
+    result = run_episode(env, controller, seed=0, keep_trace=False)
+    env.close()
+    values = controller.spec.values(controller.action)
+    _, base = base_fields("li2023_tuned")
+    for field, span in controller.spec.spans.items():
+        assert base[field] * 2**-span - 1e-9 <= values[field] <= base[field] * 2**span + 1e-9, field
+    assert np.any(controller.action != 0.0)  # it changes the paper hole's tuning
+    assert result.metrics["deviation_mean_mm"] < 0.1 and not result.failure
