@@ -24,6 +24,8 @@ from drillgym.training.residual_wrapper import ResidualWrapper
 from drillgym.training.schedule_env import ScheduleEnv
 
 ENV_ID = SIM_ENV_ID
+EVAL_SEED = 10_000
+"""Seed of the evaluation env (plus the run's seed for step-level runs; plus the hole's index for schedule runs)."""
 
 
 def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:
@@ -65,6 +67,20 @@ def schedule_env(cfg: TrainConfig, episodes: list[tuple[dict[str, Any], int]] | 
     )
 
 
+def _schedule_eval_episodes(cfg: TrainConfig, scenario: dict[str, Any] | None) -> list[tuple[dict[str, Any], int]]:
+    """The (scenario, seed) holes a ``schedule`` run is evaluated on, as the step-level evaluation's episodes.
+
+    ``validation``: the validation draws and their seeds (:func:`drillgym.training.selection.validation_episodes`,
+    the first ``cfg.eval_episodes``); ``paper`` (or a given ``scenario``): that scenario on ``cfg.eval_episodes``
+    seeds from :data:`EVAL_SEED`.
+    """
+    from drillgym.training.selection import validation_episodes
+
+    if cfg.eval_scenarios == "validation" and scenario is None:
+        return validation_episodes(cfg)[: cfg.eval_episodes]
+    return [(dict(scenario or {}), EVAL_SEED + i) for i in range(cfg.eval_episodes)]
+
+
 def make_train_vec_env(cfg: TrainConfig) -> VecEnv:
     """``cfg.n_envs`` randomised envs: SubprocVecEnv (spawned workers) when more than one."""
     factory: Callable[[], gym.Env]
@@ -93,13 +109,8 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
     """
 
     def factory() -> gym.Env:
-        if cfg.schedule:
-            from drillgym.training.selection import validation_episodes
-
-            fixed = validation_episodes(cfg)[: cfg.eval_episodes] if scenario is None else [(scenario, 10_000)]
-            if cfg.eval_scenarios == "paper" and scenario is None:
-                fixed = [({}, 10_000 + i) for i in range(cfg.eval_episodes)]
-            return schedule_env(cfg, fixed)
+        if cfg.schedule:  # the same holes at every evaluation: fixed scenarios, each with its own seed
+            return schedule_env(cfg, _schedule_eval_episodes(cfg, scenario))
         if cfg.eval_scenarios == "validation" and scenario is None:
             env: gym.Env = gym.make(ENV_ID, **cfg.env_kwargs)
             scenarios = validation_scenarios(cfg.eval_episodes, ranges=merged_ranges(cfg.dr_ranges))
@@ -107,4 +118,4 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
             return wrap_residual(env, cfg)
         return residual_env(cfg, False, scenario)
 
-    return make_vec_env(factory, n_envs=1, seed=10_000 + cfg.seed)
+    return make_vec_env(factory, n_envs=1, seed=EVAL_SEED + cfg.seed)

@@ -200,3 +200,17 @@ def test_the_shipped_policy_is_a_schedule_that_tunes_the_paper_hole_within_its_s
         assert base[field] * 2**-span - 1e-9 <= values[field] <= base[field] * 2**span + 1e-9, field
     assert np.any(controller.action != 0.0)  # it changes the paper hole's tuning
     assert result.metrics["deviation_mean_mm"] < 0.1 and not result.failure
+
+
+def test_a_schedule_run_is_evaluated_on_fixed_holes():
+    from drillgym.training.env_factory import EVAL_SEED, make_eval_vec_env
+    from drillgym.training.selection import validation_episodes
+
+    cfg = TrainConfig(residual_mode="schedule", normalize_obs=False, eval_episodes=3, eval_scenarios="validation")
+    venv = make_eval_vec_env(cfg)
+    assert venv.envs[0].unwrapped.episodes == validation_episodes(cfg)[:3]
+    venv.close()
+    cfg = TrainConfig(residual_mode="schedule", normalize_obs=False, eval_episodes=2, eval_scenarios="paper")
+    venv = make_eval_vec_env(cfg)
+    assert venv.envs[0].unwrapped.episodes == [({}, EVAL_SEED), ({}, EVAL_SEED + 1)]
+    venv.close()
