@@ -12,7 +12,7 @@ pipeline's timing allowance (LI2023_TOL) of their mean, whichever is wider. The 
 action after exactly 14 ms on a fixed grid, the emulator after the real pipeline (servo process 0-8 ms + controller
 cycle 0-8 ms + physics update 0-10 ms) with jitter; constant latencies from 4 to 22 ms move the sim's metrics by
 < 1 % (docs/deployment.md §7).
-A residual policy also sets the feed, and the shipped one's bursts of slow feed at the entry amplify the
+A residual policy also sets the feed, and the step-level one's (li2023_sac) bursts of slow feed at the entry amplify the
 pipeline's timing: its entry (true deviation, peak force, drilling time) varies from run to run through the
 emulator far beyond what the sim shows under its own noise draws or any constant latency (see RESIDUAL_TOL). Its
 test compares only thrust and tracker deviation with the sim, and checks that the policy compensates and slows
@@ -58,7 +58,7 @@ RESIDUAL_TOL = {  # only what the pipeline's timing does not move (docs/deployme
     "thrust_max_n": (0.2, 0.0),
     "tracker_deviation_mean_mm": (0.15, 0.06),
 }
-"""A learned policy that also sets the feed amplifies the real pipeline's timing: the shipped one's bursts of slow
+"""A learned policy that also sets the feed amplifies the real pipeline's timing: the step-level one's bursts of slow
 feed at the entry moved, through the emulator, its drilling time by up to 1.23 s and its peak lateral force by up
 to +0.39 N (+50 %), where the sim moves them by at most 0.02 s and 0.014 N for any constant command latency from
 2 to 30 ms. The sim is no reference for those; the test checks
