@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.controllers.base import Controller
-from drillgym.controllers.feed_schedule import SCHEDULE_FIELDS, EntryFeedSchedule
+from drillgym.controllers.feed_schedule import EntryFeedSchedule
 from drillgym.controllers.residual import PLAN_HIGH, plan_features
 from drillgym.envs.constants import FEED_OVERRIDE_LOG2_MAX
 from drillgym.envs.plan import DrillPlan
@@ -79,8 +79,11 @@ class ScheduleSpec:
                 raise ValueError(f"{name} has no numeric field {field!r} to schedule; fields: {sorted(values)}")
             if not (math.isfinite(span) and 0.0 < span <= 3.0):
                 raise ValueError(f"span of {field!r} = {span} must be in (0, 3] (log2 of the largest factor)")
-            if values[field] <= 0.0 and field not in SCHEDULE_FIELDS:
-                raise ValueError(f"{name}.{field} = {values[field]} cannot be scaled (it must be > 0)")
+            if values[field] <= 0.0:
+                raise ValueError(
+                    f"{self.base}: {field} = {values[field]:g} cannot be scaled by a factor; give the base a positive "
+                    f"value first (e.g. {name}:{field}=1)"
+                )
         if not self.spans:
             raise ValueError("a schedule residual needs at least one field to schedule")
 
@@ -112,8 +115,11 @@ class ScheduleSpec:
 
     def controller_spec(self, action: np.ndarray) -> str:
         """The base spec with the scheduled fields set for ``action`` (``a = 0``: the base's own values)."""
-        fields = ",".join(f"{k}={v:.6g}" for k, v in self.values(action).items())
-        return f"{self.base}:{fields}" if ":" not in self.base else f"{self.base},{fields}"
+        from drillgym.controllers.registry import parse_spec
+
+        name, given = parse_spec(self.base)
+        fields = {**given, **{k: f"{v:.6g}" for k, v in self.values(action).items()}}
+        return f"{name}:" + ",".join(f"{k}={v}" for k, v in fields.items())
 
 
 def normalized_plan(plan: Any, support: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:

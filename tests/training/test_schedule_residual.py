@@ -42,6 +42,9 @@ def test_a_schedule_action_multiplies_each_field_by_a_power_of_two_within_its_ra
     assert wide.values(np.array([1.0]))["entry_feed_scale"] == 1.0
     assert wide.values(np.array([-1.0]))["entry_feed_scale"] == pytest.approx(0.25)
     assert spec.controller_spec(np.zeros(4)).startswith("li2023_tuned:kp=3,y_gain=1.3,")
+    # a field the base spec already sets is replaced, not repeated
+    over = ScheduleSpec("li2023_tuned:kp=2,ki=0.3", {"kp": 0.5})
+    assert over.controller_spec(np.array([1.0])) == f"li2023_tuned:kp={2 * 2**0.5:.6g},ki=0.3"
 
 
 def test_bad_schedules_are_clear_errors():
@@ -49,6 +52,8 @@ def test_bad_schedules_are_clear_errors():
         ScheduleSpec("li2023", {"gain": 0.5})
     with pytest.raises(ValueError, match=r"must be in \(0, 3\]"):
         ScheduleSpec("li2023", {"kp": 0.0})
+    with pytest.raises(ValueError, match="entry_depth_mm = 0 cannot be scaled"):  # plain li2023 has no slow entry
+        ScheduleSpec("li2023")
     with pytest.raises(ValueError, match="classical base controller"):
         ScheduleSpec("residual:shipped")
     with pytest.raises(ValueError, match="NaN"):
@@ -151,9 +156,9 @@ def test_schedule_configs_are_checked():
     with pytest.raises(ValueError, match="normalize_obs: false"):
         TrainConfig(residual_mode="schedule", base="li2023_tuned")
     with pytest.raises(ValueError, match="unknown weight"):
-        TrainConfig(residual_mode="schedule", normalize_obs=False, schedule_reward={"force": 1.0})
+        TrainConfig(residual_mode="schedule", normalize_obs=False, base="li2023_tuned", schedule_reward={"force": 1.0})
     with pytest.raises(ValueError, match="no numeric field"):
-        TrainConfig(residual_mode="schedule", normalize_obs=False, schedule_spans={"kd_gain": 1.0})
+        TrainConfig(residual_mode="schedule", normalize_obs=False, base="li2023_tuned", schedule_spans={"kd_gain": 1.0})
     cfg = TrainConfig(residual_mode="schedule", normalize_obs=False, base="li2023_tuned")
     assert cfg.schedule and cfg.schedule_spec().spans == SCHEDULE_SPANS
 
@@ -206,11 +211,12 @@ def test_a_schedule_run_is_evaluated_on_fixed_holes():
     from drillgym.training.env_factory import EVAL_SEED, make_eval_vec_env
     from drillgym.training.selection import validation_episodes
 
-    cfg = TrainConfig(residual_mode="schedule", normalize_obs=False, eval_episodes=3, eval_scenarios="validation")
+    kw = {"residual_mode": "schedule", "normalize_obs": False, "base": "li2023_tuned"}
+    cfg = TrainConfig(**kw, eval_episodes=3, eval_scenarios="validation")
     venv = make_eval_vec_env(cfg)
     assert venv.envs[0].unwrapped.episodes == validation_episodes(cfg)[:3]
     venv.close()
-    cfg = TrainConfig(residual_mode="schedule", normalize_obs=False, eval_episodes=2, eval_scenarios="paper")
+    cfg = TrainConfig(**kw, eval_episodes=2, eval_scenarios="paper")
     venv = make_eval_vec_env(cfg)
     assert venv.envs[0].unwrapped.episodes == [({}, EVAL_SEED), ({}, EVAL_SEED + 1)]
     venv.close()
