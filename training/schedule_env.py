@@ -23,6 +23,7 @@ from gymnasium import spaces
 
 from drillgym.controllers import make_controller
 from drillgym.controllers.plan_schedule import PlanScheduledController, ScheduleSpec, normalized_plan
+from drillgym.controllers.residual import PLAN_HIGH
 from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.training.domain_randomization import DR_RANGES, sample_scenario
@@ -101,7 +102,7 @@ class ScheduleEnv(gym.Env):
         self.paper_share = float(paper_share)
         self.weights = reward or ScheduleReward()
         self._paper = dict(self.sim.unwrapped.scenario.to_dict())  # type: ignore[attr-defined]
-        self.observation_space = spaces.Box(-1.0, 1.0, (5,), np.float32)
+        self.observation_space = spaces.Box(-1.0, 1.0, PLAN_HIGH.shape, np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (spec.dims,), np.float32)
         self.episodes = None if episodes is None else [(dict(sc), int(seed)) for sc, seed in episodes]
         if self.episodes is not None and not self.episodes:
