@@ -17,6 +17,7 @@ base controller's own feedback does all the work inside it.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -26,6 +27,7 @@ import numpy as np
 
 from drillgym.controllers.base import Controller
 from drillgym.controllers.feed_schedule import EntryFeedSchedule
+from drillgym.controllers.registry import CONTROLLERS, PRESETS, make_controller, parse_spec
 from drillgym.controllers.residual import PLAN_HIGH, plan_features
 from drillgym.envs.constants import FEED_OVERRIDE_LOG2_MAX
 from drillgym.envs.plan import DrillPlan
@@ -40,8 +42,6 @@ SchedulePolicy = Callable[[np.ndarray], np.ndarray]
 
 def base_fields(base: str) -> tuple[str, dict[str, float]]:
     """The base spec's controller name and the numeric value of each of its fields (preset and defaults filled in)."""
-    from drillgym.controllers.registry import CONTROLLERS, PRESETS, parse_spec
-
     name, overrides = parse_spec(base)
     if name in PRESETS:
         name, preset = parse_spec(PRESETS[name])
@@ -73,7 +73,7 @@ class ScheduleSpec:
     plan_support: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        name, values = base_fields(self.base)
+        name, values = self.base_name, self.base_values
         for field, span in self.spans.items():
             if field not in values:
                 raise ValueError(f"{name} has no numeric field {field!r} to schedule; fields: {sorted(values)}")
@@ -86,6 +86,20 @@ class ScheduleSpec:
                 )
         if not self.spans:
             raise ValueError("a schedule residual needs at least one field to schedule")
+
+    @functools.cached_property
+    def _base(self) -> tuple[str, dict[str, float]]:
+        return base_fields(self.base)
+
+    @property
+    def base_name(self) -> str:
+        """The base's controller name (a preset resolved)."""
+        return self._base[0]
+
+    @property
+    def base_values(self) -> dict[str, float]:
+        """The base's numeric fields (:func:`base_fields`), read once."""
+        return self._base[1]
 
     @property
     def fields(self) -> tuple[str, ...]:
@@ -105,7 +119,7 @@ class ScheduleSpec:
         if not np.all(np.isfinite(a)):
             raise ValueError(f"schedule action {a.tolist()} contains NaN or inf")
         a = np.clip(a, -1.0, 1.0)
-        _, base = base_fields(self.base)
+        base = self.base_values
         out = {f: base[f] * 2.0 ** (self.spans[f] * float(x)) for f, x in zip(self.fields, a, strict=True)}
         if "entry_feed_scale" in out:
             out["entry_feed_scale"] = float(np.clip(out["entry_feed_scale"], 2.0**-FEED_OVERRIDE_LOG2_MAX, 1.0))
@@ -115,8 +129,6 @@ class ScheduleSpec:
 
     def controller_spec(self, action: np.ndarray) -> str:
         """The base spec with the scheduled fields set for ``action`` (``a = 0``: the base's own values)."""
-        from drillgym.controllers.registry import parse_spec
-
         name, given = parse_spec(self.base)
         fields = {**given, **{k: f"{v:.6g}" for k, v in self.values(action).items()}}
         return f"{name}:" + ",".join(f"{k}={v}" for k, v in fields.items())
@@ -146,13 +158,10 @@ class PlanScheduledController(Controller):
     def __init__(
         self, spec: ScheduleSpec, policy: SchedulePolicy | None = None, description: dict[str, Any] | None = None
     ) -> None:
-        from drillgym.controllers.registry import make_controller
-
         super().__init__()
         self.spec = spec
         self.policy = policy
         self._description = description
-        self._make = make_controller
         self.action = np.zeros(spec.dims, dtype=np.float32)
         """The schedule action of the current hole."""
         self.inner: Controller = make_controller(spec.controller_spec(self.action))
@@ -163,7 +172,7 @@ class PlanScheduledController(Controller):
         obs = normalized_plan(plan, self.spec.plan_support)
         action = np.zeros(self.spec.dims) if self.policy is None else self.policy(obs)
         self.action = np.clip(np.asarray(action, dtype=np.float32).reshape(-1), -1.0, 1.0)
-        self.inner = self._make(self.spec.controller_spec(self.action))
+        self.inner = make_controller(self.spec.controller_spec(self.action))
         self.inner.set_plan(plan)
         super().set_plan(plan)
 

@@ -22,6 +22,7 @@ from drillgym.training.domain_randomization import (
 from drillgym.training.paired_reward import PairedReward
 from drillgym.training.residual_wrapper import ResidualWrapper
 from drillgym.training.schedule_env import ScheduleEnv
+from drillgym.training.selection import validation_episodes
 
 ENV_ID = SIM_ENV_ID
 EVAL_SEED = 10_000
@@ -74,8 +75,6 @@ def _schedule_eval_episodes(cfg: TrainConfig, scenario: dict[str, Any] | None) -
     the first ``cfg.eval_episodes``); ``paper`` (or a given ``scenario``): that scenario on ``cfg.eval_episodes``
     seeds from :data:`EVAL_SEED`.
     """
-    from drillgym.training.selection import validation_episodes
-
     if cfg.eval_scenarios == "validation" and scenario is None:
         return validation_episodes(cfg)[: cfg.eval_episodes]
     return [(dict(scenario or {}), EVAL_SEED + i) for i in range(cfg.eval_episodes)]

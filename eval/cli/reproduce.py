@@ -138,8 +138,9 @@ def run(args: argparse.Namespace) -> int:
             "layered", {"beta_deg": 0.0, "cortical_thickness_mm": 2.0, "depth_mm": 10.0}, "zhang2005:deformation=false"
         ),
     }
-    if shipped_policy().exists():
-        conditions["residual"] = Condition("paper", {}, f"residual:{shipped_policy()}")
+    policy = shipped_policy()
+    if policy.exists():
+        conditions["residual"] = Condition("paper", {}, f"residual:{policy}")
     for kp in kp_values:
         conditions[f"sweep_kp{kp:g}"] = Condition("paper", {}, f"li2023:kp={kp:g}")
     results: dict[str, list] = {}

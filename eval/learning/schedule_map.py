@@ -14,7 +14,7 @@ import gymnasium as gym
 import pandas as pd
 
 from drillgym.controllers import make_controller
-from drillgym.controllers.plan_schedule import PlanScheduledController, base_fields
+from drillgym.controllers.plan_schedule import PlanScheduledController
 from drillgym.envs import SIM_ENV_ID
 from drillgym.eval.bench.suites import suite_scenarios
 
@@ -41,7 +41,7 @@ def schedule_table(policies: Mapping[str, str], suites: Sequence[str]) -> pd.Dat
             env.close()
             for run, controller in scheduled.items():
                 controller.set_plan(plan)
-                _, base = base_fields(controller.spec.base)
+                base = controller.spec.base_values
                 values = controller.spec.values(controller.action)
                 rows.append(
                     {
