@@ -23,6 +23,7 @@ from drillgym.envs.cell import SimCell, chains_of
 from drillgym.envs.constants import PHYSICS_DT_S, SUBSTEPS_PER_STEP, TRACKER_RATE_HZ
 from drillgym.envs.drilling.contact import ContactSample
 from drillgym.envs.drilling.force_model import EngagementTable
+from drillgym.envs.effects.backlash import JointBacklash
 from drillgym.envs.effects.base import Effect
 from drillgym.envs.effects.bone import ThermalSoftening
 from drillgym.envs.effects.joints import JointFriction
@@ -92,11 +93,9 @@ def episode_params(
     par[sk.N_BINS] = cell.hole.filled.shape[0]
     par[sk.BIN_M] = cell.hole.bin_m
     par[sk.OMEGA] = 2.0 * math.pi * sc.spindle_rpm / 60.0
-    if cell.geometry_offset_task_m is not None:
-        par[sk.GEOMETRY_OFFSET : sk.GEOMETRY_OFFSET + 3] = cell.geometry_offset_task_m
+    if cell.geometry_offset_task_m is not None:  # the offsets themselves are state (``load``)
         par[sk.GEOMETRY_ON] = par[sk.TARGET_OFFSET_ON] = 1.0
     if cell.marker_offset_base_m is not None:
-        par[sk.MARKER_OFFSET : sk.MARKER_OFFSET + 3] = cell.marker_offset_base_m
         par[sk.MARKER_ON] = 1.0
     par[sk.ENTRY_GUIDANCE] = solver.entry_guidance
     return par
@@ -114,6 +113,13 @@ def _joint_friction(effect: Effect, par: np.ndarray) -> None:
         par[sk.FRICTION_ON] = par[sk.TARGET_OFFSET_ON] = 1.0
 
 
+def _joint_backlash(effect: Effect, par: np.ndarray) -> None:
+    half = 0.5 * effect.values["play_rad"]
+    par[sk.BACKLASH_HALF] = half
+    if half > 0.0:  # the links move the tool and the marker from the first step on
+        par[sk.GEOMETRY_ON] = par[sk.MARKER_ON] = par[sk.TARGET_OFFSET_ON] = 1.0
+
+
 def _latency(effect: Effect, par: np.ndarray) -> None:
     par[sk.EXTRA_LATENCY] = effect.values["extra_latency_s"]
 
@@ -125,11 +131,13 @@ def _spindle_sag(effect: Effect, par: np.ndarray) -> None:
 STEP_EFFECTS: dict[str, Callable[[Effect, np.ndarray], None]] = {
     ThermalSoftening.name: _thermal_softening,
     JointFriction.name: _joint_friction,
+    JointBacklash.name: _joint_backlash,
     Latency.name: _latency,
     SpindleSag.name: _spindle_sag,
 }
 """The effects with a step hook the compiled step runs, by name: each writes its parameters into ``par``
-(the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._friction_lag``, ``step_kernel._delayed``,
+(the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._friction_lag``, ``step_kernel._backlash``,
+``step_kernel._delayed``,
 the spindle share in ``step_kernel.advance``)."""
 
 
@@ -222,6 +230,8 @@ class KernelState:
             if hook is not None:
                 hook(e, self.par)
         self._thermal = next((e for e in effects if isinstance(e, ThermalSoftening)), None)
+        backlash = next((e for e in effects if isinstance(e, JointBacklash)), None)
+        self._backlash = backlash if self.par[sk.BACKLASH_HALF] > 0.0 else None
         self.noise = np.zeros(NOISE_SIZE)
         self.command = np.zeros(4)
         self.loaded = False
@@ -292,7 +302,14 @@ class KernelState:
         self.par[sk.FORCE_SCALE] = solver.force_scale
         fs[sk.FORCE_SCALE_NOW] = solver.force_scale
         fs[sk.SPINDLE_SHARE] = cell.spindle_rpm / cell.scenario.spindle_rpm
-        fs[sk.TARGET_OFFSET : sk.TARGET_OFFSET + 3] = self.par[sk.GEOMETRY_OFFSET : sk.GEOMETRY_OFFSET + 3]
+        if cell.geometry_offset_task_m is not None:
+            fs[sk.GEOMETRY_OFFSET : sk.GEOMETRY_OFFSET + 3] = cell.geometry_offset_task_m
+        if cell.marker_offset_base_m is not None:
+            fs[sk.MARKER_OFFSET : sk.MARKER_OFFSET + 3] = cell.marker_offset_base_m
+        fs[sk.TARGET_OFFSET : sk.TARGET_OFFSET + 3] = fs[sk.GEOMETRY_OFFSET : sk.GEOMETRY_OFFSET + 3]
+        if self._backlash is not None:
+            fs[sk.LINK_Q : sk.LINK_Q + 3] = self._backlash.q_link[:3]
+            fs[sk.LINK_TIP : sk.LINK_TIP + 3], fs[sk.LINK_MARKER : sk.LINK_MARKER + 3] = self._backlash.share
         smp = cell.sample
         o = sk.SAMPLE
         fs[o : o + 10] = [*smp.tip, *smp.rigid, *smp.force, smp.torque_axis]
@@ -355,6 +372,14 @@ class KernelState:
         cell.spindle_rpm = cell.scenario.spindle_rpm * v[sk.SPINDLE_SHARE]
         if self._thermal is not None:
             self._thermal.work_j = v[sk.WORK_J]
+        if self._backlash is not None:  # the links moved the tool and the marker
+            self._backlash.q_link[:3] = fs[sk.LINK_Q : sk.LINK_Q + 3]
+            self._backlash.share = (
+                fs[sk.LINK_TIP : sk.LINK_TIP + 3].copy(),
+                fs[sk.LINK_MARKER : sk.LINK_MARKER + 3].copy(),
+            )
+            cell.geometry_offset_task_m = fs[sk.GEOMETRY_OFFSET : sk.GEOMETRY_OFFSET + 3].copy()
+            cell.marker_offset_base_m = fs[sk.MARKER_OFFSET : sk.MARKER_OFFSET + 3].copy()
         if i[sk.FAILURE] and env.failure is None:
             env.failure = "force_limit"
         env.steps = i[sk.STEPS]

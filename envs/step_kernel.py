@@ -3,7 +3,7 @@
 :meth:`UR5BoneDrillEnv.advance <drillgym.envs.drill_env.UR5BoneDrillEnv.advance>` without unmodelled
 effects or with the compiled ones (:attr:`Effect.compiled <drillgym.envs.effects.base.Effect.compiled>`: a
 depth profile of the forces, the tool's length, a kinematic offset, skid friction, thermal softening, joint
-friction, spindle sag), in one call: the command queue
+friction, joint backlash, spindle sag, a registration error), in one call: the command queue
 (latency), the nominal path, the tip balance of the five F/T samples (:func:`~drillgym.envs.drilling.contact_kernel.run_samples`), the F/T readings, the RTDE TCP,
 the arm's inverse kinematics and compliance, and the tracker. The single env calls :func:`advance`
 for its own state; the batched env (:mod:`drillgym.envs.batched`) calls :func:`advance_batch` for N
@@ -99,7 +99,19 @@ FORCE_SCALE_NOW = 109
 """The force scale in effect: the specimen's (``par[FORCE_SCALE]``), after thermal softening if on."""
 SPINDLE_SHARE = 110
 """The spindle's speed as a share of the scenario's (1 without spindle sag)."""
-FLOAT_STATE_SIZE = 111
+GEOMETRY_OFFSET = 111
+"""Where the physical tool sits away from the controller's model (3, m, task frame;
+:attr:`SimCell.geometry_offset_task_m <drillgym.envs.cell.SimCell.geometry_offset_task_m>`; used where
+``par[GEOMETRY_ON]``): constant but for joint backlash, whose links move it."""
+MARKER_OFFSET = 114
+"""The same for the tracker marker (3, m, base frame; used where ``par[MARKER_ON]``)."""
+LINK_Q = 117
+"""Joint backlash: the link angles of the first three joints (3, rad)."""
+LINK_TIP = 120
+"""Joint backlash: its share of the geometry offset (3, m, task frame)."""
+LINK_MARKER = 123
+"""Joint backlash: its share of the marker offset (3, m, base frame)."""
+FLOAT_STATE_SIZE = 126
 
 # ---------------------------------------------------------------- integer state ``ist``
 PHASE = 0
@@ -164,36 +176,34 @@ N_GRID = 58
 N_BINS = 59
 """Bins of the hole in use."""
 BIN_M = 60
-GEOMETRY_OFFSET = 61
-"""Where the physical tool sits away from the controller's model (3, m, task frame;
-:attr:`SimCell.geometry_offset_task_m <drillgym.envs.cell.SimCell.geometry_offset_task_m>`)."""
-MARKER_OFFSET = 64
-"""The same for the tracker marker (3, m, base frame)."""
-GEOMETRY_ON = 67
+BACKLASH_HALF = 61
+"""Joint backlash: half the play of each of the first three joints (rad; 0: off;
+:class:`~drillgym.envs.effects.backlash.JointBacklash`)."""
+GEOMETRY_ON = 62
 """1 if the cell has a geometry offset."""
-MARKER_ON = 68
+MARKER_ON = 63
 """1 if the cell has a marker offset."""
-TARGET_OFFSET_ON = 69
+TARGET_OFFSET_ON = 64
 """1 if the servo target is shifted (a geometry offset or joint friction)."""
-ENTRY_GUIDANCE = 70
+ENTRY_GUIDANCE = 65
 """Extra side guidance while the lips enter (share of full guidance at first touch; skid friction)."""
-SOFTENING = 71
+SOFTENING = 66
 """Thermal softening: asymptotic fractional loss of hardness (0: off)."""
-SOFTENING_WORK_J = 72
+SOFTENING_WORK_J = 67
 """Thermal softening: cutting work for 63 % of the loss (J)."""
-OMEGA = 73
+OMEGA = 68
 """Spindle speed (rad/s)."""
-FRICTION_COULOMB = 74
+FRICTION_COULOMB = 69
 """Joint friction: Coulomb position error per moving joint (rad; 0 with the viscous term: off)."""
-FRICTION_VISCOUS = 75
+FRICTION_VISCOUS = 70
 """Joint friction: viscous position error per joint speed (s)."""
-FRICTION_ON = 76
+FRICTION_ON = 71
 """1 if the joint friction is on."""
-EXTRA_LATENCY = 77
+EXTRA_LATENCY = 72
 """Extra delay of the whole servo target (s; 0: off; :class:`~drillgym.envs.effects.timing.Latency`)."""
-SPINDLE_SAG = 78
+SPINDLE_SAG = 73
 """Spindle speed loss per N·m of cutting torque (1/(N·m); 0: off; :class:`~drillgym.envs.effects.spindle.SpindleSag`)."""
-PARAM_SIZE = 79
+PARAM_SIZE = 74
 
 DELAY_ROWS = 1024
 """Capacity of the delay line ``delay`` (rows ``t_s, target (3, m, task frame)``, one per sample); when full,
@@ -338,6 +348,32 @@ def _soften(fs: np.ndarray, ist: np.ndarray, par: np.ndarray) -> None:  # pragma
 
 
 @numba.njit(cache=True)
+def _backlash(fs: np.ndarray, par: np.ndarray, chains: np.ndarray) -> None:  # pragma: no cover (compiled)
+    """The links of the first three joints kept within half the play of their motors; the tool and marker with them.
+
+    :class:`~drillgym.envs.effects.backlash.JointBacklash`'s ``begin_step``: the links' offsets of the tool tip
+    (task frame) and the marker (base frame) replace the effect's earlier share of the geometry offsets, and the
+    servo-held point moves with the tip.
+    """
+    half = par[BACKLASH_HALF]
+    q_m = fs[Q_MOTOR : Q_MOTOR + 6].copy()
+    q_link = q_m.copy()
+    for j in range(3):
+        q_link[j] = min(max(fs[LINK_Q + j], q_m[j] - half), q_m[j] + half)
+        fs[LINK_Q + j] = q_link[j]
+    o = R_BASE_TASK
+    r = par[o : o + 9].reshape((3, 3))
+    tip = r.T @ (frame_pose(q_link, chains[0])[1] - frame_pose(q_m, chains[0])[1])
+    marker = frame_pose(q_link, chains[1])[1] - frame_pose(q_m, chains[1])[1]
+    for i in range(3):
+        fs[GEOMETRY_OFFSET + i] = fs[GEOMETRY_OFFSET + i] - fs[LINK_TIP + i] + tip[i]
+        fs[MARKER_OFFSET + i] = fs[MARKER_OFFSET + i] - fs[LINK_MARKER + i] + marker[i]
+        fs[SOLVER + i] = fs[SOLVER + i] + (tip[i] - fs[LINK_TIP + i])
+        fs[LINK_TIP + i], fs[LINK_MARKER + i] = tip[i], marker[i]
+        fs[TARGET_OFFSET + i] = fs[GEOMETRY_OFFSET + i]
+
+
+@numba.njit(cache=True)
 def _friction_lag(fs: np.ndarray, ist: np.ndarray, pend: np.ndarray, par: np.ndarray) -> None:  # pragma: no cover
     """The step's servo-target shift (task frame, m): the geometry offset plus the joint friction's lag.
 
@@ -360,7 +396,7 @@ def _friction_lag(fs: np.ndarray, ist: np.ndarray, pend: np.ndarray, par: np.nda
     dq = -(par[FRICTION_COULOMB] * np.tanh(qd / SIGN_SMOOTHING_RAD_S) + par[FRICTION_VISCOUS] * qd)
     lag = r.T @ (jac[:3] @ dq)
     for i in range(3):
-        fs[TARGET_OFFSET + i] = par[GEOMETRY_OFFSET + i] + lag[i] if par[GEOMETRY_ON] == 1.0 else lag[i]
+        fs[TARGET_OFFSET + i] = fs[GEOMETRY_OFFSET + i] + lag[i] if par[GEOMETRY_ON] == 1.0 else lag[i]
 
 
 @numba.njit(cache=True)
@@ -437,7 +473,7 @@ def _rtde_tcp(fs: np.ndarray, par: np.ndarray, row: np.ndarray) -> None:  # prag
     o = R_BASE_TASK
     x, y, z = row[3], row[4], row[5]
     if par[GEOMETRY_ON] == 1.0:
-        x, y, z = x - par[GEOMETRY_OFFSET], y - par[GEOMETRY_OFFSET + 1], z - par[GEOMETRY_OFFSET + 2]
+        x, y, z = x - fs[GEOMETRY_OFFSET], y - fs[GEOMETRY_OFFSET + 1], z - fs[GEOMETRY_OFFSET + 2]
     for i in range(3):
         fs[RTDE_TCP + i] = par[ENTRY_BASE + i] + (par[o + 3 * i] * x + par[o + 3 * i + 1] * y + par[o + 3 * i + 2] * z)
 
@@ -485,6 +521,8 @@ def advance(  # noqa: C901 (one step, in the env's order)
     ist[PENDING] = npend + 1
     if par[SOFTENING] > 0.0:
         _soften(fs, ist, par)
+    if par[BACKLASH_HALF] > 0.0:
+        _backlash(fs, par, chains)
     if par[FRICTION_ON] == 1.0:
         _friction_lag(fs, ist, pend, par)
     if par[SPINDLE_SAG] > 0.0:  # SpindleSag.begin_step: the speed from the last sample's cutting torque
@@ -576,7 +614,7 @@ def advance(  # noqa: C901 (one step, in the env's order)
     entry = par[ENTRY_BASE : ENTRY_BASE + 3]
     stiffness = par[STIFFNESS : STIFFNESS + 6]
     jac = fs[JACOBIAN : JACOBIAN + 36].reshape((6, 6))
-    rigid = smp[n - 1, 3:6] - par[GEOMETRY_OFFSET : GEOMETRY_OFFSET + 3] if par[GEOMETRY_ON] == 1.0 else smp[n - 1, 3:6]
+    rigid = smp[n - 1, 3:6] - fs[GEOMETRY_OFFSET : GEOMETRY_OFFSET + 3] if par[GEOMETRY_ON] == 1.0 else smp[n - 1, 3:6]
     q = ik_step(fs[Q_MOTOR : Q_MOTOR + 6], jac, rigid, entry, r_task, chains[0])
     for i in range(6):
         if not math.isfinite(q[i]):
@@ -595,7 +633,7 @@ def advance(  # noqa: C901 (one step, in the env's order)
         dq = joint_deflection(jac, smp[n - 1, 6:9], smp[n - 1, 9], r_task, stiffness)
         marker = frame_pose(q + dq, chains[1])[1]
         if par[MARKER_ON] == 1.0:
-            marker = marker + par[MARKER_OFFSET : MARKER_OFFSET + 3]
+            marker = marker + fs[MARKER_OFFSET : MARKER_OFFSET + 3]
         for i in range(3):
             noisy = marker[i] + par[TRACKER_NOISE] * noise[6 * n + i] if par[TRACKER_NOISE] > 0.0 else marker[i]
             fs[TRACKER_READING + i] = noisy

@@ -27,6 +27,7 @@ class JointBacklash(Effect):
     params = (Param("play_rad", 0.0, 1e-3, 0.0, "full play of each of the first three joints (rad)"),)
     channels = frozenset({"force", "torque", "tracker"})
     channels_before_contact = frozenset({"tracker"})
+    compiled = True
 
     def attach(self, env: EffectHost) -> None:
         """Links centred in their play; no offset yet."""
