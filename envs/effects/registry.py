@@ -41,13 +41,13 @@ EFFECTS: dict[str, type[Effect]] = {
 }
 """The unmodelled effects of the library, by name (``build_effects``, ``make-reality``, cells)."""
 
-OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias", "registration", "joint_backlash")
+OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias", "registration")
 """In the library, but tried only when asked for (``diagnose --candidates``); measured on ``bench-diagnosis --opt-in``
 (``docs/diagnosis.md`` §6). ``servo_deadband`` (added for ``drillgym explain-paper``): the withheld-effect benchmark
 has not been run with it. ``ft_gain``, ``ft_contact_bias``: each named its own reality, but also served as a second
-effect patching a bone model's force level (and ``ft_gain``'s cross-talk from the thrust took a thrust-loaded bias). ``registration``: named its reality (both forms) and nothing else, but
-its replays add 5–7 s to a 12-episode diagnosis (31–34 s against 26–27 s). ``joint_backlash``: named its reality and
-nothing else, but steps in Python (no compiled counterpart yet), several times slower to replay."""
+effect patching a bone model's force level (and ``ft_gain``'s cross-talk from the thrust took a thrust-loaded bias).
+``registration``: named its reality (both forms) and nothing else, but its fits add 5–7 s to a 12-episode diagnosis
+(31–34 s against 26–27 s)."""
 DIAGNOSIS_CANDIDATES: tuple[str, ...] = tuple(name for name in EFFECTS if name not in OPT_IN_CANDIDATES)
 """The candidates ``drillgym diagnose`` and ``bench-diagnosis`` try by default."""
 

@@ -33,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--opt-in",
         action="store_true",
-        help="also the cases of the opt-in candidates' realities (ft_load_bias, bone_registration, gear_backlash, ft_lateral_gain), "
+        help="also the cases of the opt-in candidates' realities (ft_load_bias, bone_registration, ft_lateral_gain), "
         "with those candidates added to the defaults (unless --candidates names the list)",
     )
     parser.add_argument(

@@ -200,14 +200,15 @@ def test_opt_in_cases_are_the_later_realities_of_opt_in_candidates_and_every_cas
     from drillgym.eval.diagnosis.bench.cases import LATER_SINGLES, SINGLES, opt_in_candidates
 
     default, with_opt_in = full_cases(), full_cases(opt_in=True)
-    assert set(opt_in_candidates()) == {"ft_contact_bias", "registration", "joint_backlash", "ft_gain"}
-    assert len(with_opt_in) == len(default) + 2 * 4  # ft_load_bias, bone_registration, gear_backlash, ft_lateral_gain
+    assert set(opt_in_candidates()) == {"ft_contact_bias", "registration", "ft_gain"}
+    assert len(with_opt_in) == len(default) + 2 * 3  # ft_load_bias, bone_registration, ft_lateral_gain
     seeds = {c.name: c.seed for c in with_opt_in}
     assert all(seeds[c.name] == c.seed for c in default)
     assert len(set(seeds.values())) == len(seeds)
     # a later reality of a default candidate is a default case, at the seed it has in the opt-in run
-    assert seeds["mount_resonance-strong"] == 100 + 2 * list(SINGLES | LATER_SINGLES).index("mount_resonance") + 1
-    assert "mount_resonance-strong" in {c.name for c in default}
+    for name in ("mount_resonance", "gear_backlash"):
+        assert seeds[f"{name}-strong"] == 100 + 2 * list(SINGLES | LATER_SINGLES).index(name) + 1
+        assert f"{name}-strong" in {c.name for c in default}
 
 
 def test_an_ft_calibration_error_is_named_with_intervals_holding_its_gain_and_cross_talk_when_ft_gain_is_a_candidate(

@@ -85,9 +85,9 @@ LATER_SINGLES: dict[str, tuple[str, str]] = {
     "ft_lateral_gain": ("ft_lateral_gain:gain=0.15,crosstalk=0.005", "ft_lateral_gain:gain=-0.3,crosstalk=0.01"),
 }
 """The realities of the wider library's candidates, after :data:`SINGLES` (their seeds follow SINGLES' and stay
-the same in every run). One whose candidate is a default one (``mount_resonance``: ``ft_resonance``) is a
-default case; the others (their candidates ``ft_contact_bias``, ``registration``, ``joint_backlash`` and ``ft_gain``
-are opt-in) run with ``bench-diagnosis --opt-in``, which adds their candidates."""
+the same in every run). One whose candidate is a default one (``mount_resonance``: ``ft_resonance``;
+``gear_backlash``: ``joint_backlash``) is a default case; the others (their candidates ``ft_contact_bias``,
+``registration`` and ``ft_gain`` are opt-in) run with ``bench-diagnosis --opt-in``, which adds their candidates."""
 
 
 def _candidate(specs: tuple[str, str]) -> str | None:
