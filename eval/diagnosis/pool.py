@@ -35,9 +35,9 @@ def _fit(job: tuple[int, tuple[str, ...], list[dict[str, float]] | None]) -> tup
     return k, fit_model(_WORKER["evaluator"], names, start)
 
 
-def _refit(job: tuple[int, tuple[str, ...], list[list[dict[str, float]]]]) -> tuple[int, FitResult]:
-    k, names, starts = job
-    return k, refit_jointly(_WORKER["evaluator"], names, starts)
+def _refit(job: tuple[int, tuple[str, ...], list[list[dict[str, float]]], bool]) -> tuple[int, FitResult]:
+    k, names, starts, design = job
+    return k, refit_jointly(_WORKER["evaluator"], names, starts, design=design)
 
 
 class Runner:
@@ -63,7 +63,14 @@ class Runner:
         return self._map(data, _fit, [(k, names, start) for k, (names, start) in enumerate(models)])
 
     def refits(
-        self, data: DiagnosisData, models: list[tuple[tuple[str, ...], list[list[dict[str, float]]]]]
+        self,
+        data: DiagnosisData,
+        models: list[tuple[tuple[str, ...], list[list[dict[str, float]]]]],
+        design: bool = False,
     ) -> Iterable[tuple[int, FitResult]]:
-        """Refit each ``(names, starts)`` with every parameter free (:func:`~drillgym.eval.diagnosis.fit.refit_jointly`)."""
-        return self._map(data, _refit, [(k, names, starts) for k, (names, starts) in enumerate(models)])
+        """Refit each ``(names, starts)`` with every parameter free (:func:`~drillgym.eval.diagnosis.fit.refit_jointly`).
+
+        ``design``: also evaluate each one's local design (for its parameters' intervals).
+        """
+        jobs = [(k, names, starts, design) for k, (names, starts) in enumerate(models)]
+        return self._map(data, _refit, jobs)
