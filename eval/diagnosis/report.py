@@ -89,31 +89,6 @@ def param_text(effect: dict[str, Any]) -> str:
     return "; ".join(parts)
 
 
-def interval_lines(named: dict[str, Any] | None) -> list[str]:
-    """The named model's parameter intervals with the two they join (search's points, local design), if it has them."""
-    entries = [
-        (name, p, ci)
-        for name, params in ((named or {}).get("param_intervals") or {}).items()
-        for p, ci in params.items()
-        if ci and ci.get("design")
-    ]
-    if not entries:
-        return []
-    lines = [
-        "",
-        "95 % intervals of the named model's parameters (the hull of the search's and the local design's):",
-        "",
-    ]
-    for name, p, ci in entries:
-        (a, b), (c, d) = ci["search"], ci["design"]
-        edge = " — reaches beyond the points evaluated" if ci["at_search_edge"] else ""
-        lines.append(
-            f"* `{name}.{p}`: [{ci['low']:.4g}, {ci['high']:.4g}] (search [{a:.4g}, {b:.4g}], "
-            f"local design [{c:.4g}, {d:.4g}]){edge}"
-        )
-    return lines
-
-
 def why_not_named(effect: dict[str, Any], res: dict[str, Any]) -> str:
     """Why a model ranked above the named one (or any model, when none is named) was not named."""
     names = [e["name"] for e in res["effects"]]
@@ -214,7 +189,6 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
             f"Left after the named model: **{left['ratio']:.3g}× the simulator's own level** on the held-out "
             f"episodes, most of it at {cells or '–'}.",
         ]
-    lines += interval_lines(next((e for e in res["effects"] if e["named"]), None))
     ev = res.get("second_effect_evidence")
     if ev:
         how = ["it explains alone what it adds"] if ev["alone"] else []

@@ -90,16 +90,3 @@ def test_a_design_is_evaluated_for_at_most_three_replayed_parameters_or_six_on_t
     assert not designable(["kinematic_offset", "latency"])  # four parameters to replay: 33 replays
     assert designable(["ft_resonance"]) and designable(["tool_runout", "ft_drift"])  # sensor-side: no replay
     assert not designable(["ft_resonance", "ft_drift"])  # seven
-
-
-def test_the_report_lists_the_named_models_joined_intervals_with_their_two_halves():
-    from drillgym.eval.diagnosis.report import interval_lines
-
-    ci = {"low": 0.65, "high": 0.74, "at_search_edge": True, "search": [0.65, 0.67], "design": [0.69, 0.74]}
-    named = {"param_intervals": {"ft_resonance": {"amplitude": ci, "damping": None}}}
-    lines = interval_lines(named)
-    assert lines[-1] == (
-        "* `ft_resonance.amplitude`: [0.65, 0.74] (search [0.65, 0.67], local design [0.69, 0.74])"
-        " — reaches beyond the points evaluated"
-    )
-    assert interval_lines(None) == [] and interval_lines({"param_intervals": {"latency": {"x": {"low": 0}}}}) == []
