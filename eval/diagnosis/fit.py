@@ -24,7 +24,7 @@ from drillgym.envs.effects.base import Param
 from drillgym.envs.effects.registry import EFFECTS
 from drillgym.eval.diagnosis.context import Evaluator, Spec
 from drillgym.eval.diagnosis.gap import Terms, pooled
-from drillgym.eval.diagnosis.local_design import design_points, designable
+from drillgym.eval.diagnosis.local_design import MAX_DESIGN_PARAMS, design_points
 
 GRID_FRACTIONS = (1 / 16, 1 / 4, 1.0)
 """Grid levels of a one-sided parameter, as fractions of its span from the off value."""
@@ -255,8 +255,8 @@ def refit_jointly(
         starts: parameter dicts per effect (e.g. the forward fit and the effects' single fits combined).
         budget: local-search evaluations (default :data:`EVALS_PER_PARAM` per parameter).
         design: also evaluate the local design around the end point (:func:`~drillgym.eval.diagnosis.local_design.design_points`,
-            for a model small enough: :func:`~drillgym.eval.diagnosis.local_design.designable`), whose best point is
-            the fit if it is better, for the parameters' intervals (:attr:`FitResult.design`).
+            models of at most :data:`~drillgym.eval.diagnosis.local_design.MAX_DESIGN_PARAMS` parameters), whose best
+            point is the fit if it is better, for the parameters' intervals (:attr:`FitResult.design`).
     """
     t0 = time.perf_counter()
     box = ParamBox(names)
@@ -267,7 +267,7 @@ def refit_jointly(
         points += _read_first_starts(ev, box, objective, starts[0])
         u0 = min(points, key=objective)
         u_best = local_search(objective, u0, budget or EVALS_PER_PARAM * box.size)
-        if design and designable(names):
+        if design and box.size <= MAX_DESIGN_PARAMS:
             around = [np.round(p, 5) for p in design_points(np.round(u_best, 5))]  # on the specs' own grid
             result.design = [box.spec(p) for p in around]
             u_best = min(around, key=objective)

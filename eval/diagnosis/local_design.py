@@ -5,7 +5,7 @@ through the fit; where two parameters trade off along a shallow, slanted valley 
 damping, a registration's displacements), the resampled minima would lie along the valley, where no point was
 evaluated, and the interval comes out narrower than the data allow. So the named model, once refined, is also
 evaluated on a small design around its fit (:func:`design_points`: each parameter ± one step, and every pair of
-parameters on the four diagonals; ``2K² + 1`` points for K parameters; :func:`designable`), in the same job, with every calibration
+parameters on the four diagonals; ``2K² + 1`` points for K parameters), in the same job, with every calibration
 episode's gap terms. A full quadratic in the parameters fitted through the design's pooled gaps gives the gap's
 curvature there (its Hessian H, which must be positive definite); each bootstrap resample of the episodes (the same
 resamples as the search's intervals) weights the terms, and the slope ``g`` of the same fit through its resampled
@@ -30,19 +30,8 @@ from drillgym.eval.diagnosis.intervals import BOOTSTRAP, expanded_tail
 
 DESIGN_STEP = 1 / 64
 """Step of the design in each parameter (share of its range): 16 times the compass search's finest."""
-MAX_REPLAYED_PARAMS = 3
-"""A model with more parameters of effects that need replays gets no design (``2K² + 1`` replays of the calibration
-episodes: 19 for three)."""
-MAX_DESIGN_PARAMS = 6
-"""... nor one with more parameters in all (sensor-side effects are applied to the recorded traces: 73 cheap
-evaluations for six)."""
-
-
-def designable(names: Sequence[str]) -> bool:
-    """Whether a model of the effects ``names`` gets a local design (:data:`MAX_REPLAYED_PARAMS`, :data:`MAX_DESIGN_PARAMS`)."""
-    sizes = [(len(EFFECTS[n].params), EFFECTS[n].sensor_only) for n in names]
-    replayed = sum(k for k, sensor in sizes if not sensor)
-    return replayed <= MAX_REPLAYED_PARAMS and sum(k for k, _ in sizes) <= MAX_DESIGN_PARAMS
+MAX_DESIGN_PARAMS = 3
+"""A model with more parameters gets no design (``2K² + 1`` replays of the calibration episodes: 19 for three)."""
 
 
 def _offsets(x: float) -> tuple[float, float]:

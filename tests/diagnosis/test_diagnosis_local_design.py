@@ -4,7 +4,7 @@ import numpy as np
 
 from drillgym.eval.diagnosis.fit import ParamBox
 from drillgym.eval.diagnosis.intervals import BOOTSTRAP, expanded_tail, parameter_intervals
-from drillgym.eval.diagnosis.local_design import DESIGN_STEP, design_intervals, design_points, designable, widest
+from drillgym.eval.diagnosis.local_design import DESIGN_STEP, design_intervals, design_points, widest
 
 NAMES = ("joint_friction",)  # two parameters: coulomb_rad in [0, 1e-3], viscous_s in [0, 0.02]
 BOX = ParamBox(NAMES)
@@ -83,10 +83,3 @@ def test_no_design_interval_without_a_minimum_or_with_a_failed_point():
     failed[3] = (failed[3][0], None, None)
     assert design_intervals(NAMES, design, failed) is None
     assert widest({"joint_friction": {}}, None) == {"joint_friction": {}}
-
-
-def test_a_design_is_evaluated_for_at_most_three_replayed_parameters_or_six_on_the_recorded_traces():
-    assert designable(["kinematic_offset"]) and designable(["latency", "thermal_softening"])
-    assert not designable(["kinematic_offset", "latency"])  # four parameters to replay: 33 replays
-    assert designable(["ft_resonance"]) and designable(["tool_runout", "ft_drift"])  # sensor-side: no replay
-    assert not designable(["ft_resonance", "ft_drift"])  # seven
