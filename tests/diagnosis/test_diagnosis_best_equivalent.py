@@ -45,21 +45,6 @@ def test_intervals_are_scored_against_the_best_equivalent_where_there_is_one():
     figures = summarise(rows)["figures"]
     assert figures["interval_coverage"] == 1 / 3 and figures["interval_coverage_best_equivalent"] == 2 / 3
     assert figures["parameters_scored_best_equivalent"] == 3
-    assert (
-        figures["parameters_with_a_design"] == 0 and figures["interval_coverage_best_equivalent_design_alone"] is None
-    )
-
-
-def test_each_half_of_a_joined_interval_is_scored_alone_too():
-    row = _row("wobbly_runout:runout_m=4e-5", "tool_runout", "runout_m", 4e-5, 4.6e-5, 5.0e-5)
-    row["params"][0] |= {"search": [4.6e-5, 4.8e-5], "design": [4.7e-5, 5.0e-5]}  # their hull: [4.6, 5.0]
-    add_best_equivalent([row], {row["spec"]: {"candidate": "tool_runout", "params": {"runout_m": 4.9e-5}}})
-    check = row["params"][0]
-    assert check["covered_best_equivalent"] and check["covered_best_equivalent_design"]
-    assert not check["covered_best_equivalent_search"]
-    figures = summarise([row])["figures"]
-    assert figures["interval_coverage_best_equivalent_search_alone"] == 0.0
-    assert figures["interval_coverage_best_equivalent_design_alone"] == 1.0 and figures["parameters_with_a_design"] == 1
 
 
 def test_best_equivalents_are_fitted_once_per_reality_and_kept_in_the_file(tmp_path):

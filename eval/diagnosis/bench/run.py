@@ -164,8 +164,6 @@ def parameter_checks(case: Case, res: dict[str, Any]) -> list[dict[str, Any]]:
                     "low": low,
                     "high": high,
                     "covered": covered,
-                    "search": ci.get("search") if ci else None,
-                    "design": ci.get("design") if ci else None,
                 }
             )
     return out
@@ -226,11 +224,6 @@ def add_best_equivalent(rows: list[dict[str, Any]], table: dict[str, Any]) -> No
             p["covered_best_equivalent"] = (
                 None if ref is None or p["low"] is None or p["high"] is None else bool(p["low"] <= ref <= p["high"])
             )
-            for source in ("search", "design"):  # each half of a joined interval (local_design.widest), alone
-                span = p.get(source)
-                p[f"covered_best_equivalent_{source}"] = (
-                    None if ref is None or not span else bool(span[0] <= ref <= span[1])
-                )
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -261,11 +254,6 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "interval_coverage_best_equivalent": _coverage(rows, "covered_best_equivalent"),
         "parameters_scored_best_equivalent": sum(
             p.get("covered_best_equivalent") is not None for r in rows for p in (r.get("params") or [])
-        ),
-        "interval_coverage_best_equivalent_search_alone": _coverage(rows, "covered_best_equivalent_search"),
-        "interval_coverage_best_equivalent_design_alone": _coverage(rows, "covered_best_equivalent_design"),
-        "parameters_with_a_design": sum(
-            p.get("covered_best_equivalent_design") is not None for r in rows for p in (r.get("params") or [])
         ),
     }
     passed = {k: float(figures[k] or 0.0) >= v for k, v in ACCEPTANCE.items() if figures.get(k) is not None}
