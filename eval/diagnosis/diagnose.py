@@ -25,7 +25,6 @@ from drillgym.eval.diagnosis.context import DiagnosisData, split_episodes
 from drillgym.eval.diagnosis.episodes import EpisodeData
 from drillgym.eval.diagnosis.fit import FitResult
 from drillgym.eval.diagnosis.intervals import off_point_inside, parameter_intervals
-from drillgym.eval.diagnosis.local_design import design_intervals, widest
 from drillgym.eval.diagnosis.pool import Runner
 from drillgym.eval.diagnosis.rank import (
     PAIR_TRY_RESIDUAL,
@@ -266,20 +265,10 @@ def _name(
 
 
 def _bound(scores: list[ModelScore], seed: int) -> None:
-    """Every model's parameter intervals.
-
-    A random effect's come with its fit; the others' from the search's points, joined for a refined model with
-    those of its local design (:func:`~drillgym.eval.diagnosis.local_design.widest`).
-    """
+    """Every model's parameter intervals (a random effect's come with its fit)."""
     for s in scores:
-        if s.intervals:
-            continue
-        fit = s.fit
-        if fit.intervals is not None:
-            s.intervals = fit.intervals
-            continue
-        local = None if fit.design is None else design_intervals(fit.names, fit.design, fit.samples, seed)
-        s.intervals = widest(parameter_intervals(fit.samples, seed), local)
+        if not s.intervals:
+            s.intervals = s.fit.intervals if s.fit.intervals is not None else parameter_intervals(s.fit.samples, seed)
 
 
 def _decide(
@@ -312,7 +301,7 @@ def _polish(runner: Runner, data: DiagnosisData, fit: FitResult, fits: list[FitR
         start = [f.params[f.names.index(n)] for n in names]
         if start not in starts:
             starts.append(start)
-    (r,) = _collect(runner.refits(data, [(names, starts)], design=True), 1, bar)
+    (r,) = _collect(runner.refits(data, [(names, starts)]), 1, bar)
     better = r if not r.error and r.cal_objective <= fit.cal_objective else fit
     better.samples = _merged_samples(fit, r)
     return better

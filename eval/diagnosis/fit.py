@@ -24,7 +24,6 @@ from drillgym.envs.effects.base import Param
 from drillgym.envs.effects.registry import EFFECTS
 from drillgym.eval.diagnosis.context import Evaluator, Spec
 from drillgym.eval.diagnosis.gap import Terms, pooled
-from drillgym.eval.diagnosis.local_design import MAX_DESIGN_PARAMS, design_points
 
 GRID_FRACTIONS = (1 / 16, 1 / 4, 1.0)
 """Grid levels of a one-sided parameter, as fractions of its span from the off value."""
@@ -76,8 +75,6 @@ class FitResult:
     from ``samples`` (:func:`drillgym.eval.diagnosis.intervals.parameter_intervals`)."""
     per_episode: dict[str, Any] | None = None
     """A random effect's spread and each episode's parameters (:mod:`drillgym.eval.diagnosis.random_effects`)."""
-    design: list[Spec] | None = None
-    """The local design evaluated around the fit (centre first; :mod:`drillgym.eval.diagnosis.local_design`), if any."""
 
 
 class ParamBox:
@@ -237,11 +234,7 @@ def fit_model(
 
 
 def refit_jointly(
-    ev: Evaluator,
-    names: Sequence[str],
-    starts: Sequence[Sequence[dict[str, float]]],
-    budget: int | None = None,
-    design: bool = False,
+    ev: Evaluator, names: Sequence[str], starts: Sequence[Sequence[dict[str, float]]], budget: int | None = None
 ) -> FitResult:
     """Refit every parameter of ``names`` together, from the best of ``starts``.
 
@@ -254,9 +247,6 @@ def refit_jointly(
         names: effect names.
         starts: parameter dicts per effect (e.g. the forward fit and the effects' single fits combined).
         budget: local-search evaluations (default :data:`EVALS_PER_PARAM` per parameter).
-        design: also evaluate the local design around the end point (:func:`~drillgym.eval.diagnosis.local_design.design_points`,
-            models of at most :data:`~drillgym.eval.diagnosis.local_design.MAX_DESIGN_PARAMS` parameters), whose best
-            point is the fit if it is better, for the parameters' intervals (:attr:`FitResult.design`).
     """
     t0 = time.perf_counter()
     box = ParamBox(names)
@@ -267,10 +257,6 @@ def refit_jointly(
         points += _read_first_starts(ev, box, objective, starts[0])
         u0 = min(points, key=objective)
         u_best = local_search(objective, u0, budget or EVALS_PER_PARAM * box.size)
-        if design and box.size <= MAX_DESIGN_PARAMS:
-            around = [np.round(p, 5) for p in design_points(np.round(u_best, 5))]  # on the specs' own grid
-            result.design = [box.spec(p) for p in around]
-            u_best = min(around, key=objective)
         objective.finish(result, u_best)
     except Exception as e:  # a fit must not stop the diagnosis
         result.error = f"{type(e).__name__}: {e}"

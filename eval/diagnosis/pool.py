@@ -35,9 +35,9 @@ def _fit(job: tuple[int, tuple[str, ...], list[dict[str, float]] | None]) -> tup
     return k, fit_model(_WORKER["evaluator"], names, start)
 
 
-def _refit(job: tuple[int, tuple[str, ...], list[list[dict[str, float]]], bool]) -> tuple[int, FitResult]:
-    k, names, starts, design = job
-    return k, refit_jointly(_WORKER["evaluator"], names, starts, design=design)
+def _refit(job: tuple[int, tuple[str, ...], list[list[dict[str, float]]]]) -> tuple[int, FitResult]:
+    k, names, starts = job
+    return k, refit_jointly(_WORKER["evaluator"], names, starts)
 
 
 class Runner:
@@ -63,14 +63,7 @@ class Runner:
         return self._map(data, _fit, [(k, names, start) for k, (names, start) in enumerate(models)])
 
     def refits(
-        self,
-        data: DiagnosisData,
-        models: list[tuple[tuple[str, ...], list[list[dict[str, float]]]]],
-        design: bool = False,
+        self, data: DiagnosisData, models: list[tuple[tuple[str, ...], list[list[dict[str, float]]]]]
     ) -> Iterable[tuple[int, FitResult]]:
-        """Refit each ``(names, starts)`` with every parameter free (:func:`~drillgym.eval.diagnosis.fit.refit_jointly`).
-
-        ``design``: also evaluate each one's local design (for its parameters' intervals).
-        """
-        jobs = [(k, names, starts, design) for k, (names, starts) in enumerate(models)]
-        return self._map(data, _refit, jobs)
+        """Refit each ``(names, starts)`` with every parameter free (:func:`~drillgym.eval.diagnosis.fit.refit_jointly`)."""
+        return self._map(data, _refit, [(k, names, starts) for k, (names, starts) in enumerate(models)])

@@ -86,7 +86,7 @@ class _Runner:
     def __init__(self, result):
         self.result, self.asked = result, []
 
-    def refits(self, data, models, design=False):
+    def refits(self, data, models):
         self.asked.extend(models)
         return iter([(0, self.result)])
 
