@@ -15,6 +15,8 @@ from drillgym.envs.cell_params import CellParams
 from drillgym.envs.constants import (
     ACTION_DIM,
     CONTROL_DT_S,
+    FEED_OVERRIDE_LOG2_MAX,
+    MAX_CORRECTION_M,
     MAX_EPISODE_STEPS,
     PHYSICS_DT_S,
     RTDE_RATE_HZ,
@@ -415,28 +417,56 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         calling :meth:`advance` step by step (equal within 1e-12, ``tests/envs/test_step_kernel.py``); on the
         compiled step without sensor noise the whole replay is one compiled call.
         """
-        a = checked_action(actions, "env state unchanged", num_envs=len(actions))
-        if self.path.phase == Phase.DONE or self.failure is not None:
-            raise RuntimeError("advance_open_loop() called after the episode ended; call reset()")
-        kernel = self._kernel
-        if kernel is not None and kernel.noiseless:
-            commands = np.empty((len(a), 4))
-            for k, row in enumerate(a):  # the single step's scaling, row by row (bit for bit)
-                commands[k, :3], commands[k, 3] = scale_action(row)
-            done, q, tracker, out = kernel.open_loop(self, commands)
+        done, q, tracker, out = self._open_loop(actions, "advance_open_loop")
+        if out is not None:
             self._record(out)
             self._ended()
-            return done, q, tracker
+        return done, q, tracker
+
+    def replay_open_loop(self, actions: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """:meth:`advance_open_loop`, returning the recorder's channels as arrays instead of keeping them.
+
+        The fourth item holds every channel of :class:`~drillgym.envs.metrics.EpisodeRecorder` (one row per
+        F/T sample; ``tip_task_m``, ``ft_force_n`` and ``ft_torque_nm`` (n, 3)), with the values the recorder
+        would hold. On the compiled step without sensor noise nothing is appended to the recorder and no
+        metrics are computed (a diagnosis replays thousands of episodes and reads each once); otherwise the
+        episode is recorded as by :meth:`advance_open_loop` and its channels are read from the recorder.
+        """
+        done, q, tracker, out = self._open_loop(actions, "replay_open_loop")
+        if out is not None:
+            assert self._kernel is not None
+            self.truncated = bool(self._kernel.ist[TRUNCATED])
+            return done, q, tracker, record_channels(out)
+        rec = self.recorder
+        channels = {name: np.asarray(values) for name, values in rec.__dict__.items()}
+        return done, q, tracker, channels
+
+    def _open_loop(self, actions: np.ndarray, caller: str) -> tuple[int, np.ndarray, np.ndarray, np.ndarray | None]:
+        """Advance through ``actions``, in one compiled call or step by step.
+
+        In one compiled call where the episode is noiseless and compiled (its sample rows are returned, not
+        recorded); else step by step (recorded; rows None).
+        """
+        a = checked_action(actions, "env state unchanged", num_envs=len(actions))
+        if self.path.phase == Phase.DONE or self.failure is not None:
+            raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
+        kernel = self._kernel
+        if kernel is not None and kernel.noiseless:
+            a64 = np.asarray(a, dtype=float)  # scale_action's, row by row and bit for bit:
+            commands = np.empty((len(a), 4))
+            commands[:, :3] = MAX_CORRECTION_M * a64[:, :3]  # elementwise products
+            commands[:, 3] = [2.0 ** (FEED_OVERRIDE_LOG2_MAX * x) for x in a64[:, 3].tolist()]  # a float's power
+            return kernel.open_loop(self, commands)
         q = np.full((len(a), 6), np.nan)
         tracker = np.full((len(a), 3), np.nan)
         done = 0
         for k, row in enumerate(a):
-            terminated, truncated = self._advance(row, "advance_open_loop")
+            terminated, truncated = self._advance(row, caller)
             q[k], tracker[k] = self.cell.q_motor_rad, self.tracker_reading
             done = k + 1
             if terminated or truncated:
                 break
-        return done, q, tracker
+        return done, q, tracker, None
 
     def _advance_compiled(self, corr: np.ndarray, scale: float) -> tuple[bool, bool]:
         """:meth:`_advance` without effects, in one compiled call (:mod:`drillgym.envs.step_kernel`)."""

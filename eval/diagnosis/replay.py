@@ -106,9 +106,8 @@ class Replayer:
         env.set_effects(list(effects) or None)
         env.reset(seed=seed, options={"scenario": scenario} if key != self._key else None)
         self._key = key
-        done, q, tracker = env.advance_open_loop(ep.actions)
-        rec = env.recorder
-        m = min(len(rec.t_s), ep.n)
+        done, q, tracker, rec = env.replay_open_loop(ep.actions)
+        m = min(len(rec["t_s"]), ep.n)
         reps = np.diff(np.concatenate([[0], np.arange(1, done + 1) * 5]))  # 5 samples per step
         q_rows = np.repeat(q[:done], reps, axis=0)[:m]
         cell = env.cell
@@ -117,16 +116,16 @@ class Replayer:
         if not env.scenario.tracker:
             tr_task[:] = np.nan
         lf = np.full((ep.n, len(LF_CHANNELS)), np.nan)
-        lf[:m, FORCE] = np.asarray(rec.ft_force_n[:m])
-        lf[:m, TORQUE] = np.asarray(rec.ft_torque_nm[:m])
+        lf[:m, FORCE] = rec["ft_force_n"][:m]
+        lf[:m, TORQUE] = rec["ft_torque_nm"][:m]
         lf[:m, TRACKER] = tr_task
         lf[:m, Q] = q_rows
-        tips = np.asarray(rec.tip_task_m[:m], dtype=float).reshape(m, 3)
+        tips = np.asarray(rec["tip_task_m"][:m], dtype=float).reshape(m, 3)
         share = np.zeros(ep.n)
         depth = tips[:, 2] + tips[:, 0] * cell.solver.tan_beta
         share[:m] = np.interp(depth, cell.table.depth_m, cell.table.engaged_fraction)
         t = ep.t_s.copy()
-        t[:m] = np.asarray(rec.t_s[:m])
+        t[:m] = rec["t_s"][:m]
         return SimTrace(lf, t, share, float(cell.sensor_arm_m), float(env.scenario.spindle_rpm))
 
     def close(self) -> None:

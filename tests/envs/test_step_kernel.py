@@ -210,3 +210,30 @@ def test_an_open_loop_replay_rejects_a_nan_action_and_keeps_the_state():
         env.advance_open_loop(actions)
     assert env.steps == 0 and not env.recorder.t_s
     env.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "spec"),
+    [
+        ({"ft_noise_n": 0.0, "tracker_noise_mm": 0.0}, COMPILED_EFFECTS["all"]),  # one compiled call
+        ({"ft_noise_n": 0.0, "tracker_noise_mm": 0.0}, "servo_deadband:band_m=1e-4"),  # Python step
+    ],
+)
+def test_a_replay_returns_the_channels_an_open_loop_advance_records_bit_for_bit(kwargs, spec):
+    actions = _random_actions(12)  # float32, as a policy's: scaled as the single step scales them
+    envs_ = [gym.make(ENV_ID, **kwargs).unwrapped for _ in range(2)]
+    try:
+        for env in envs_:
+            env.reset(seed=4, options={"effects": build_effects(spec)})
+        replayed, recorded = envs_
+        done, q, tracker, channels = replayed.replay_open_loop(actions)
+        done_ref, q_ref, tracker_ref = recorded.advance_open_loop(actions)
+        assert done == done_ref and np.array_equal(q, q_ref, equal_nan=True)
+        assert np.array_equal(tracker, tracker_ref, equal_nan=True)
+        for name, values in recorded.recorder.__dict__.items():
+            ref = np.asarray(values)
+            assert channels[name].shape == ref.shape and np.array_equal(channels[name], ref), name
+        assert replayed.truncated == recorded.truncated
+    finally:
+        for env in envs_:
+            env.close()
