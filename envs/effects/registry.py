@@ -46,8 +46,8 @@ OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias", "registrati
 (``docs/diagnosis.md`` §6). ``servo_deadband`` (added for ``drillgym explain-paper``): the withheld-effect benchmark
 has not been run with it. ``ft_gain``, ``ft_contact_bias``: each named its own reality, but also served as a second
 effect patching a bone model's force level (and ``ft_gain``'s cross-talk from the thrust took a thrust-loaded bias).
-``registration``: named its reality (both forms) and nothing else, but its fits add 5–7 s to a 12-episode diagnosis
-(31–34 s against 26–27 s)."""
+``registration``: named its reality (both forms) and nothing else, but its fits add 4–6 s to a 12-episode diagnosis
+of 19 s (each surface angle rebuilds the episodes' force tables)."""
 DIAGNOSIS_CANDIDATES: tuple[str, ...] = tuple(name for name in EFFECTS if name not in OPT_IN_CANDIDATES)
 """The candidates ``drillgym diagnose`` and ``bench-diagnosis`` try by default."""
 
