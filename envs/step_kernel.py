@@ -91,8 +91,8 @@ C_ROBOT = 83
 SAMPLE = 92
 """The latest sample's row (13, :data:`~drillgym.envs.drilling.contact_kernel.ROW_SIZE`)."""
 TARGET_OFFSET = 105
-"""This step's shift of the servo target (3, m, task frame): the tool's geometry offset (set at load) plus,
-with joint friction, its servo lag (used where ``par[TARGET_OFFSET_ON]``)."""
+"""This step's shift of the servo target (3, m, task frame): the tool's geometry offset (``GEOMETRY_OFFSET``, set at
+load and moved by joint backlash) plus, with joint friction, its servo lag (used where ``par[TARGET_OFFSET_ON]``)."""
 WORK_J = 108
 """Cutting work done so far (J; thermal softening)."""
 FORCE_SCALE_NOW = 109
