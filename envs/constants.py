@@ -56,6 +56,19 @@ def scale_action(action: np.ndarray) -> tuple[np.ndarray, Any]:
     return MAX_CORRECTION_M * a[:, :3], 2.0 ** (FEED_OVERRIDE_LOG2_MAX * a[:, 3])
 
 
+def scaled_rows(actions: np.ndarray) -> np.ndarray:
+    """:func:`scale_action` of each row of ``actions`` (T, 4), bit for bit, as (T, 4) rows: correction (m), feed scale.
+
+    The corrections are elementwise products (as one row's); each feed scale is a float's power, as the single
+    step's (numpy's array power may round differently), without a Python call per row.
+    """
+    a = np.asarray(actions, dtype=float)
+    out = np.empty((len(a), 4))
+    out[:, :3] = MAX_CORRECTION_M * a[:, :3]
+    out[:, 3] = [2.0 ** (FEED_OVERRIDE_LOG2_MAX * x) for x in a[:, 3].tolist()]
+    return out
+
+
 def unscale_action(correction_base_m: np.ndarray, feed_scale: float = 1.0) -> np.ndarray:
     """Inverse of :func:`scale_action`, clipped to the action box (float32)."""
     a = np.empty(ACTION_DIM)

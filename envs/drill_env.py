@@ -15,14 +15,13 @@ from drillgym.envs.cell_params import CellParams
 from drillgym.envs.constants import (
     ACTION_DIM,
     CONTROL_DT_S,
-    FEED_OVERRIDE_LOG2_MAX,
-    MAX_CORRECTION_M,
     MAX_EPISODE_STEPS,
     PHYSICS_DT_S,
     RTDE_RATE_HZ,
     SUBSTEPS_PER_STEP,
     TRACKER_RATE_HZ,
     scale_action,
+    scaled_rows,
 )
 from drillgym.envs.drilling.bone import BonePreset
 from drillgym.envs.drilling.contact import SampleRow
@@ -452,11 +451,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
         kernel = self._kernel
         if kernel is not None and kernel.noiseless:
-            a64 = np.asarray(a, dtype=float)  # scale_action's, row by row and bit for bit:
-            commands = np.empty((len(a), 4))
-            commands[:, :3] = MAX_CORRECTION_M * a64[:, :3]  # elementwise products
-            commands[:, 3] = [2.0 ** (FEED_OVERRIDE_LOG2_MAX * x) for x in a64[:, 3].tolist()]  # a float's power
-            return kernel.open_loop(self, commands)
+            return kernel.open_loop(self, scaled_rows(a))
         q = np.full((len(a), 6), np.nan)
         tracker = np.full((len(a), 3), np.nan)
         done = 0

@@ -356,7 +356,7 @@ def _backlash(fs: np.ndarray, par: np.ndarray, chains: np.ndarray) -> None:  # p
     servo-held point moves with the tip.
     """
     half = par[BACKLASH_HALF]
-    q_m = fs[Q_MOTOR : Q_MOTOR + 6].copy()
+    q_m = fs[Q_MOTOR : Q_MOTOR + 6]  # read only here
     q_link = q_m.copy()
     for j in range(3):
         q_link[j] = min(max(fs[LINK_Q + j], q_m[j] - half), q_m[j] + half)
