@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from typing import Any
 
 from drillgym.envs.key_values import split_spec_list
@@ -20,8 +21,33 @@ def controller_label(spec: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "_", label).strip("._") or "controller"
 
 
-def run_jobs(jobs: list[Any], workers: int, desc: str = "bench") -> list[dict[str, Any]]:
-    """Run every job (in-process for ``workers == 1``, else in spawned processes); rows in any order."""
+def reference_spec(specs: list[str], name: str | None) -> str:
+    """The spec of ``specs`` that ``name`` names, as written or by its :func:`controller_label`; None: the first.
+
+    Raises ``ValueError`` listing the choices when ``name`` names none of them (``--reference``).
+    """
+    if name is None:
+        return specs[0]
+    if name in specs:
+        return name
+    for spec in specs:
+        if controller_label(spec) == name:
+            return spec
+    choices = ", ".join(dict.fromkeys(c for s in specs for c in (s, controller_label(s))))
+    raise ValueError(f"--reference {name!r} is not one of the --controllers; choose from {choices}")
+
+
+def run_jobs(
+    jobs: list[Any],
+    workers: int,
+    desc: str = "bench",
+    on_row: Callable[[dict[str, Any]], None] | None = None,
+) -> list[dict[str, Any]]:
+    """Run every job (in-process for ``workers == 1``, else in spawned processes); rows in any order.
+
+    ``on_row`` is called with each row as its episode finishes (``drillgym bench`` appends it to ``episodes.csv``,
+    so an interrupted or crashed run keeps every finished episode).
+    """
     from tqdm import tqdm
 
     from drillgym.eval.bench.episode import close_cached, run_job
@@ -32,6 +58,8 @@ def run_jobs(jobs: list[Any], workers: int, desc: str = "bench") -> list[dict[st
             for _, row in run_unordered(run_job, jobs, workers, on_error=_worker_failed):
                 bar.update(1)
                 rows.append(row)
+                if on_row is not None:
+                    on_row(row)
         finally:
             close_cached()  # the envs of an in-process run
     return rows

@@ -3,7 +3,8 @@
 CI of the mean: Student t with n-1 degrees of freedom, ``mean ± t(0.975, n-1) · s / √n``; for n = 1
 the interval is the value itself. Non-finite values (a metric undefined in an episode) are left out,
 so ``n`` counts the episodes that define the metric. Paired differences compare a controller with
-the baseline (the first controller) on the same seeds.
+the baseline (the reference controller, by default the first) on the same seeds; a difference is
+significant when its 95% CI excludes 0 (:func:`significant`, :func:`verdict`).
 """
 
 from __future__ import annotations
@@ -69,6 +70,53 @@ def paired_differences(
     return pd.DataFrame(rows, columns=list(PAIRED_COLUMNS))
 
 
+def significant(ci_low: float, ci_high: float) -> bool:
+    """Whether a CI excludes 0 (False without an interval, e.g. from one pair)."""
+    return math.isfinite(ci_low) and math.isfinite(ci_high) and (ci_low > 0.0 or ci_high < 0.0)
+
+
+UNIT_SUFFIXES = {"_mm": "mm", "_n": "N", "_s": "s"}
+"""Unit of a metric from its name's suffix (``deviation_mean_mm`` is in mm)."""
+
+
+def metric_unit(metric: str) -> str:
+    """``"mm"`` for ``"deviation_mean_mm"``, ``"N"`` for ``"lateral_force_max_n"``; ``""`` if the name has none."""
+    return next((unit for suffix, unit in UNIT_SUFFIXES.items() if metric.endswith(suffix)), "")
+
+
+def verdict(metric: str, controller: str, reference: str, mean: float, ci_low: float, ci_high: float, n: int) -> str:
+    """One line on ``controller`` minus ``reference`` for a metric, from the paired difference's mean and 95% CI.
+
+    ``"deviation_mean_mm: `b` lower than `a` (-0.107 [-0.115, -0.0988] mm, CI excludes 0)"``; "higher than" for
+    a CI above 0, "no significant difference" for one that holds 0; no verdict without an interval (n < 2).
+    The difference is in the metric's unit (:func:`metric_unit`).
+    """
+    unit = metric_unit(metric)
+    delta = format_ci(mean, ci_low, ci_high) + (f" {unit}" if unit else "")
+    if n == 0 or not math.isfinite(mean):
+        return f"{metric}: `{controller}` vs `{reference}`: no paired episodes"
+    if not (math.isfinite(ci_low) and math.isfinite(ci_high)):
+        return f"{metric}: `{controller}` vs `{reference}`: {delta}, one pair, no CI (needs 2 or more seeds)"
+    if significant(ci_low, ci_high):
+        word = "lower" if mean < 0 else "higher"
+        return f"{metric}: `{controller}` {word} than `{reference}` ({delta}, CI excludes 0)"
+    return f"{metric}: no significant difference between `{controller}` and `{reference}` ({delta}, CI includes 0)"
+
+
+def verdict_lines(paired: pd.DataFrame, metrics: Sequence[str], scenario: str) -> list[str]:
+    """:func:`verdict` for every controller of ``paired`` (in its order) and metric, on one scenario of it."""
+    here = paired[paired["scenario"] == scenario]
+    cells = {(r["controller"], r["metric"]): r for r in here.to_dict("records")}
+    lines = []
+    for controller in dict.fromkeys(here["controller"]):
+        for metric in metrics:
+            r = cells.get((controller, metric))
+            if r is not None:
+                stats_ = (float(r["mean"]), float(r["ci_low"]), float(r["ci_high"]), int(r["n"]))
+                lines.append(verdict(metric, str(controller), str(r["baseline"]), *stats_))
+    return lines
+
+
 def format_ci(mean: float, low: float, high: float) -> str:
     """``"0.712 [0.69, 0.734]"`` (3 significant digits), ``"0.712 [–]"`` without an interval, ``"-"`` if undefined."""
     if not math.isfinite(mean):
@@ -90,8 +138,11 @@ def md_table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
     return "\n".join(lines)
 
 
-def markdown_table(long: pd.DataFrame, metrics: Sequence[str], label: str = "") -> str:
-    """Rows scenario × controller, one column per metric as ``mean [ci_low, ci_high]``, plus n."""
+def markdown_table(long: pd.DataFrame, metrics: Sequence[str], label: str = "", bold_significant: bool = False) -> str:
+    """Rows scenario × controller, one column per metric as ``mean [ci_low, ci_high]``, plus n.
+
+    With ``bold_significant`` (paired differences), a cell whose CI excludes 0 is in bold: ``**-0.1 [-0.2, -0.05]**``.
+    """
     head = ["scenario", "controller", "n", *(f"{label}{m}" for m in metrics)]
     rows = []
     keys = list(dict.fromkeys(zip(long["scenario"], long["controller"], strict=True)))
@@ -107,6 +158,14 @@ def markdown_table(long: pd.DataFrame, metrics: Sequence[str], label: str = "") 
     for scenario, controller in keys:
         stats_ = [cells.get((scenario, controller, m)) for m in metrics]
         n = max((s[3] for s in stats_ if s is not None), default=0)
-        vals = [format_ci(*s[:3]) if s is not None else "-" for s in stats_]
+        vals = [_cell(s, bold_significant) for s in stats_]
         rows.append([scenario, f"`{controller}`", n, *vals])
     return md_table(head, rows)
+
+
+def _cell(stat: tuple[float, float, float, int] | None, bold_significant: bool) -> str:
+    """``mean [ci_low, ci_high]`` of one table cell, in bold if asked and significant; ``"-"`` without a value."""
+    if stat is None:
+        return "-"
+    text = format_ci(*stat[:3])
+    return f"**{text}**" if bold_significant and significant(stat[1], stat[2]) else text

@@ -114,8 +114,9 @@ def _collect(ref: Any, chunk: list[EpisodeJob]) -> list[tuple[dict[str, Any], di
         return [(_failed_row(job, e), {}) for job in chunk]
 
 
-def _groups(jobs: Sequence[EpisodeJob]) -> list[tuple[str, str, str]]:
-    return list(dict.fromkeys((j.suite, j.scenario, j.controller) for j in jobs))
+def _groups(jobs: Sequence[EpisodeJob], done: Sequence[dict[str, Any]] = ()) -> list[tuple[str, str, str]]:
+    keys = [(r["suite"], r["scenario"], r["controller"]) for r in done]
+    return list(dict.fromkeys([*keys, *((j.suite, j.scenario, j.controller) for j in jobs)]))
 
 
 def run_jobs_ray(
@@ -127,6 +128,7 @@ def run_jobs_ray(
     max_retries: int = MAX_RETRIES,
     num_cpus: int | None = None,
     chunk_size: int | None = None,
+    done_rows: Sequence[dict[str, Any]] = (),
 ) -> RayBenchRun:
     """Run every job as a Ray task, writing rows and logs into ``out`` as they complete.
 
@@ -139,9 +141,11 @@ def run_jobs_ray(
         max_retries: re-runs of a task whose worker died; after that the episode is an error row.
         num_cpus: CPUs of a local instance (default: the machine's).
         chunk_size: episodes per Ray task (default :func:`chunk_size_for`); a chunk's rows arrive together.
+        done_rows: rows of episodes that finished before (``drillgym bench --resume``), not among ``jobs``: written
+            into ``episodes.csv`` first, and returned with the new ones.
 
     Returns:
-        Rows in completion order, and the timings.
+        Rows in completion order (``done_rows`` first), and the timings.
     """
     from tqdm import tqdm
 
@@ -153,7 +157,8 @@ def run_jobs_ray(
         ray.get([warm.remote() for _ in range(max(session.cpus, 1))])
         warmup_s = time.perf_counter() - t0
         print(f"ray: {session.cpus} workers started and warmed up in {warmup_s:.1f} s")
-        sink = StreamingSink(out, _groups(jobs))
+        sink = StreamingSink(out, _groups(jobs, done_rows))
+        sink.extend([(row, {}) for row in done_rows])
         t0 = time.perf_counter()
         driver_node = ray.get_runtime_context().get_node_id()
         size = chunk_size or chunk_size_for(len(jobs), session.cpus)

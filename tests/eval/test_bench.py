@@ -176,3 +176,87 @@ def test_one_seed_reports_no_interval_and_counts_in_the_singular(tmp_path):
     assert "1 episode: seed 0 " in text
     assert " [–] |" in text
     assert not re.search(r"\[([-\d.e+]+), \1\]", text), "a zero-width interval"
+
+
+def interrupt_after(monkeypatch, k):
+    """Make the in-process episodes raise KeyboardInterrupt (a Ctrl-C) in the (k+1)-th; count the calls."""
+    calls = []
+
+    def run_job(job):
+        calls.append(job.key)
+        if len(calls) == k + 1:
+            raise KeyboardInterrupt
+        return real_run_job(job)
+
+    real_run_job = bench_episode.run_job
+    monkeypatch.setattr(bench_episode, "run_job", run_job)
+    return calls
+
+
+def read_text_columns(path):
+    """episodes.csv as written (every cell as text), without the timing."""
+    return pd.read_csv(path, dtype=str, keep_default_na=False).drop(columns="wall_time_s")
+
+
+def test_an_interrupted_run_keeps_its_finished_episodes_and_resume_completes_it(tmp_path, monkeypatch, capsys):
+    whole, out = tmp_path / "whole", tmp_path / "cut"
+    args = ["bench", "--controllers", "none,li2023", "--seeds", "2"]
+    assert main([*args, "--out", str(whole)]) == 0
+    capsys.readouterr()
+
+    calls = interrupt_after(monkeypatch, 3)
+    assert main([*args, "--out", str(out)]) == 130
+    err = capsys.readouterr().err
+    episodes = pd.read_csv(out / "episodes.csv")
+    assert len(episodes) == 3 and episodes["error"].isna().all()
+    assert "episodes.csv keeps the 3 of 4 episodes that finished" in err and "drillgym bench: interrupted" in err
+    resume = f"drillgym bench --suite paper --controllers none,li2023 --cell ideal --seeds 2 --out {out} --resume"
+    assert resume in err
+    assert not (out / "summary.md").exists()
+    assert main([*args, "--out", str(out)]) == 2  # a plain rerun would replace it: refused
+    assert "--resume to finish it" in capsys.readouterr().err
+
+    calls.clear()
+    assert main([*args, "--out", str(out), "--resume"]) == 0
+    assert len(calls) == 1  # only the episode that had not finished
+    pd.testing.assert_frame_equal(read_text_columns(out / "episodes.csv"), read_text_columns(whole / "episodes.csv"))
+    for name in ("summary.csv", "paired.csv"):
+        assert (out / name).read_text() == (whole / name).read_text()
+    assert sorted(p.name for p in (out / "logs").iterdir()) == sorted(p.name for p in (whole / "logs").iterdir())
+
+
+def test_a_resumed_run_reruns_the_episodes_that_failed(tmp_path, monkeypatch):
+    out = tmp_path / "bench"
+    args = ["bench", "--controllers", "none", "--seeds", "2", "--no-logs", "--out", str(out)]
+    real_run_job = bench_episode.run_job
+    calls = []
+
+    def flaky(job):
+        calls.append(job.seed)
+        row = real_run_job(job)
+        return {**row, "error": "RuntimeError: flaky", "traceback": "flaky"} if len(calls) == 2 else row
+
+    monkeypatch.setattr(bench_episode, "run_job", flaky)
+    assert main(args) == 1
+    assert (out / "errors.log").exists()
+    assert main([*args, "--resume"]) == 0
+    assert calls == [0, 1, 1]
+    assert pd.read_csv(out / "episodes.csv")["error"].isna().all() and not (out / "errors.log").exists()
+
+
+def test_resume_needs_a_previous_run_of_the_same_command(tmp_path, capsys):
+    out = tmp_path / "bench"
+    args = ["bench", "--controllers", "none", "--seeds", "1", "--no-logs", "--out", str(out)]
+    assert main([*args, "--resume"]) == 2
+    assert "episodes.csv does not exist, so there is nothing to resume" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        main([*args, "--resume", "--overwrite"])
+    assert exit_.value.code == 2 and "not allowed with argument" in capsys.readouterr().err
+    assert main(args) == 0
+    capsys.readouterr()
+    assert main(["bench", "--controllers", "none", "--seeds", "2", "--no-logs", "--out", str(out), "--resume"]) == 2
+    assert "seeds 1 then, 2 now" in capsys.readouterr().err
+    (out / "run.json").unlink()  # a run from before run.json: each episode is checked against the command
+    assert main(["bench", "--controllers", "li2023", "--seeds", "1", "--no-logs", "--out", str(out), "--resume"]) == 2
+    assert "holds an episode this command does not run (paper paper none seed 0)" in capsys.readouterr().err
+    assert main([*args, "--resume"]) == 0  # already complete: only the report is written again

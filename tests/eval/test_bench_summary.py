@@ -67,3 +67,53 @@ def test_rounding_noise_prints_as_zero_in_the_reproduction_report():
     from drillgym.eval.reproduce.report import _fmt
 
     assert _fmt(3.36e-16) == "0" and _fmt(-2e-14) == "0" and _fmt(0.0123) == "0.0123" and _fmt(None) == "-"
+
+
+def paired_frame(rows):
+    columns = ["suite", "scenario", "controller", "baseline", "metric", "mean", "ci_low", "ci_high", "n"]
+    return pd.DataFrame([("s", *r) for r in rows], columns=columns)
+
+
+def test_a_verdict_names_the_side_only_when_the_ci_excludes_zero():
+    from drillgym.eval.bench.summary import significant, verdict
+
+    lower = verdict("deviation_mean_mm", "b", "a", -0.107, -0.115, -0.099, 5)
+    assert lower == "deviation_mean_mm: `b` lower than `a` (-0.107 [-0.115, -0.099] mm, CI excludes 0)"
+    higher = verdict("lateral_force_max_n", "b", "a", 0.2, 0.05, 0.35, 5)
+    assert higher == "lateral_force_max_n: `b` higher than `a` (0.2 [0.05, 0.35] N, CI excludes 0)"
+    straddling = verdict("drill_time_s", "b", "a", -0.1, -0.3, 0.1, 5)
+    assert (
+        straddling == "drill_time_s: no significant difference between `b` and `a` (-0.1 [-0.3, 0.1] s, CI includes 0)"
+    )
+    assert "no CI" in verdict("deviation_mean_mm", "b", "a", -0.1, math.nan, math.nan, 1)
+    assert "no paired episodes" in verdict("deviation_mean_mm", "b", "a", math.nan, math.nan, math.nan, 0)
+    assert significant(-0.2, -0.1) and significant(0.1, 0.2)
+    assert not significant(-0.1, 0.1) and not significant(0.0, 0.0) and not significant(math.nan, math.nan)
+
+
+def test_verdict_lines_take_one_scenario_controller_by_controller():
+    from drillgym.eval.bench.summary import verdict_lines
+
+    paired = paired_frame(
+        [
+            ("a", "b", "ref", "m1_mm", -1.0, -1.5, -0.5, 3),
+            ("all", "b", "ref", "m1_mm", -1.0, -1.2, -0.8, 6),
+            ("all", "b", "ref", "m2_s", 0.1, -0.1, 0.3, 6),
+            ("all", "c", "ref", "m1_mm", 0.4, 0.2, 0.6, 6),
+        ]
+    )
+    lines = verdict_lines(paired, ["m1_mm", "m2_s"], "all")
+    assert lines == [
+        "m1_mm: `b` lower than `ref` (-1 [-1.2, -0.8] mm, CI excludes 0)",
+        "m2_s: no significant difference between `b` and `ref` (0.1 [-0.1, 0.3] s, CI includes 0)",
+        "m1_mm: `c` higher than `ref` (0.4 [0.2, 0.6] mm, CI excludes 0)",
+    ]
+
+
+def test_significant_paired_differences_are_bold_in_the_markdown_table():
+    from drillgym.eval.bench.summary import markdown_table
+
+    paired = paired_frame([("a", "b", "ref", "m1", -1.0, -1.5, -0.5, 3), ("a", "b", "ref", "m2", 0.1, -0.1, 0.3, 3)])
+    row = markdown_table(paired, ["m1", "m2"], bold_significant=True).splitlines()[2]
+    assert row == "| a | `b` | 3 | **-1 [-1.5, -0.5]** | 0.1 [-0.1, 0.3] |"
+    assert "**" not in markdown_table(paired, ["m1", "m2"])
