@@ -12,6 +12,7 @@ import gymnasium as gym
 import numpy as np
 
 from drillgym.controllers.residual import plan_support
+from drillgym.envs.seeds import Purpose, draw_seed, in_namespace, training_stream
 
 TRAINING_RANGES: dict[str, tuple[float, float]] = {
     "beta_deg": (15.0, 35.0),
@@ -85,12 +86,22 @@ class DomainRandomization(gym.Wrapper):
     With ``paper_share`` > 0 that share of the episodes is drilled in the env's own scenario (the one it was
     made with: the paper scenario for a default env) instead of a draw; 0 draws every episode, as before.
 
-    The draws come from a generator seeded by the first ``reset(seed=...)``, so a seeded training run
-    sees the same sequence of scenarios.
+    The draws come from a generator seeded by the first ``reset(seed=...)`` (and ``stream_keys``: a run's seed
+    and a worker's rank; :func:`drillgym.envs.seeds.training_stream`), so a seeded training run
+    sees the same sequence of scenarios. The env's own seed stays in the training namespace
+    (:mod:`drillgym.envs.seeds`): a given seed already there (a :class:`PairedReward` above) is passed on,
+    any other is replaced by a draw there, so no training episode drills a judge episode's specimen.
     """
 
-    def __init__(self, env: gym.Env, ranges: dict[str, tuple[float, float]] | None = None, paper_share: float = 0.0):
+    def __init__(
+        self,
+        env: gym.Env,
+        ranges: dict[str, tuple[float, float]] | None = None,
+        paper_share: float = 0.0,
+        stream_keys: tuple[int, ...] = (),
+    ):
         super().__init__(env)
+        self.stream_keys = tuple(int(k) for k in stream_keys)
         if not 0.0 <= paper_share <= 1.0:
             raise ValueError(f"paper_share={paper_share!r} must be in [0, 1]")
         self.ranges = dict(DR_RANGES if ranges is None else ranges)
@@ -101,14 +112,17 @@ class DomainRandomization(gym.Wrapper):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         """Draw a scenario (or, with ``paper_share``, sometimes the env's own) and reset the env with it."""
+        env_seed: int | None = None
         if seed is not None or self._rng is None:
-            self._rng = np.random.default_rng(seed)
+            self._rng = training_stream(self.stream_keys, seed)
+            in_training = seed is not None and in_namespace(seed, Purpose.TRAIN)
+            env_seed = seed if in_training else draw_seed(self._rng, Purpose.TRAIN)
         if self.paper_share > 0.0 and self._rng.uniform() < self.paper_share:
             self.current = dict(self._paper)
         else:
             self.current = sample_scenario(self._rng, self.ranges)
         opts = {**(options or {}), "scenario": {**self.current, **(options or {}).get("scenario", {})}}
-        obs, info = self.env.reset(seed=seed, options=opts)
+        obs, info = self.env.reset(seed=env_seed, options=opts)
         return obs, {**info, "scenario": dict(self.current)}
 
 

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
 from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 from drillgym.envs import SIM_ENV_ID
+from drillgym.envs.seeds import Purpose, episode_seed
 from drillgym.training.config import TrainConfig
 from drillgym.training.domain_randomization import (
     VALIDATION_SEED,
@@ -26,7 +29,8 @@ from drillgym.training.selection import validation_episodes
 
 ENV_ID = SIM_ENV_ID
 EVAL_SEED = 10_000
-"""Seed of the evaluation env (plus the run's seed for step-level runs; plus the hole's index for schedule runs)."""
+"""Index of the evaluation env's seed in the selection namespace (plus the run's seed for step-level runs; plus the
+hole's index for schedule runs; :mod:`drillgym.envs.seeds`)."""
 
 
 def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:
@@ -45,18 +49,27 @@ def wrap_residual(env: gym.Env, cfg: TrainConfig) -> ResidualWrapper:
     )
 
 
-def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | None = None) -> gym.Env:
-    """One drilling env (optionally domain-randomised, then with ``cfg.paired_reward``) under the residual wrapper."""
+def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | None = None, rank: int = 0) -> gym.Env:
+    """One drilling env (optionally domain-randomised, then with ``cfg.paired_reward``) under the residual wrapper.
+
+    A randomised env draws from the training stream of ``(cfg.seed, rank)`` (:mod:`drillgym.envs.seeds`).
+    """
     env: gym.Env = gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})})
     if randomize:
-        env = DomainRandomization(env, merged_ranges(cfg.dr_ranges), cfg.paper_share)
+        keys = (cfg.seed, rank)
+        env = DomainRandomization(env, merged_ranges(cfg.dr_ranges), cfg.paper_share, stream_keys=keys)
         if cfg.paired_reward:
-            env = PairedReward(env, cfg.base, lambda: gym.make(ENV_ID, **cfg.env_kwargs))
+            env = PairedReward(env, cfg.base, lambda: gym.make(ENV_ID, **cfg.env_kwargs), stream_keys=keys)
     return wrap_residual(env, cfg)
 
 
-def schedule_env(cfg: TrainConfig, episodes: list[tuple[dict[str, Any], int]] | None = None) -> ScheduleEnv:
-    """The one-hole-per-step env of a ``schedule`` run (draws inside the training ranges, or ``episodes`` in turn)."""
+def schedule_env(
+    cfg: TrainConfig, episodes: list[tuple[dict[str, Any], int]] | None = None, rank: int = 0
+) -> ScheduleEnv:
+    """The one-hole-per-step env of a ``schedule`` run (draws inside the training ranges, or ``episodes`` in turn).
+
+    Draws come from the training stream of ``(cfg.seed, rank)`` (:mod:`drillgym.envs.seeds`).
+    """
     paper_share = cfg.paper_share if cfg.domain_randomization else 1.0
     return ScheduleEnv(
         cfg.schedule_spec(),
@@ -65,6 +78,7 @@ def schedule_env(cfg: TrainConfig, episodes: list[tuple[dict[str, Any], int]] | 
         paper_share,
         cfg.schedule_weights(),
         episodes=episodes,
+        stream_keys=(cfg.seed, rank),
     )
 
 
@@ -73,29 +87,32 @@ def _schedule_eval_episodes(cfg: TrainConfig, scenario: dict[str, Any] | None) -
 
     ``validation``: the validation draws and their seeds (:func:`drillgym.training.selection.validation_episodes`,
     the first ``cfg.eval_episodes``); ``paper`` (or a given ``scenario``): that scenario on ``cfg.eval_episodes``
-    seeds from :data:`EVAL_SEED`.
+    selection seeds from :data:`EVAL_SEED`.
     """
     if cfg.eval_scenarios == "validation" and scenario is None:
         return validation_episodes(cfg)[: cfg.eval_episodes]
-    return [(dict(scenario or {}), EVAL_SEED + i) for i in range(cfg.eval_episodes)]
+    return [(dict(scenario or {}), episode_seed(Purpose.SELECT, EVAL_SEED + i)) for i in range(cfg.eval_episodes)]
+
+
+def _train_env(cfg: TrainConfig, rank: int) -> gym.Env:
+    """Worker ``rank``'s training env, monitored as SB3's ``make_vec_env`` does."""
+    env: gym.Env = (
+        schedule_env(cfg, rank=rank) if cfg.schedule else residual_env(cfg, cfg.domain_randomization, rank=rank)
+    )
+    return Monitor(env)
 
 
 def make_train_vec_env(cfg: TrainConfig) -> VecEnv:
-    """``cfg.n_envs`` randomised envs: SubprocVecEnv (spawned workers) when more than one."""
-    factory: Callable[[], gym.Env]
-    if cfg.schedule:
-        factory = lambda: schedule_env(cfg)  # noqa: E731
-    else:
-        factory = lambda: residual_env(cfg, cfg.domain_randomization)  # noqa: E731
+    """``cfg.n_envs`` randomised envs: SubprocVecEnv (spawned workers) when more than one.
+
+    Worker ``rank`` draws its episodes from its own stream, keyed by ``(cfg.seed, rank)``
+    (:mod:`drillgym.envs.seeds`): runs ``s`` and ``s + 1`` share no worker's episodes (SB3's ``make_vec_env``
+    would seed worker ``r`` with ``s + r``).
+    """
+    factories: list[Callable[[], gym.Env]] = [functools.partial(_train_env, cfg, rank) for rank in range(cfg.n_envs)]
     if cfg.n_envs > 1:
-        return make_vec_env(
-            factory,
-            n_envs=cfg.n_envs,
-            seed=cfg.seed,
-            vec_env_cls=SubprocVecEnv,
-            vec_env_kwargs={"start_method": "spawn"},
-        )
-    return make_vec_env(factory, n_envs=1, seed=cfg.seed, vec_env_cls=DummyVecEnv)
+        return SubprocVecEnv(factories, start_method="spawn")
+    return DummyVecEnv(factories)
 
 
 def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) -> VecEnv:
@@ -113,8 +130,9 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
         if cfg.eval_scenarios == "validation" and scenario is None:
             env: gym.Env = gym.make(ENV_ID, **cfg.env_kwargs)
             scenarios = validation_scenarios(cfg.eval_episodes, ranges=merged_ranges(cfg.dr_ranges))
-            env = ScenarioCycle(env, scenarios, seeds=[VALIDATION_SEED + i for i in range(len(scenarios))])
+            seeds = [episode_seed(Purpose.SELECT, VALIDATION_SEED + i) for i in range(len(scenarios))]
+            env = ScenarioCycle(env, scenarios, seeds=seeds)
             return wrap_residual(env, cfg)
         return residual_env(cfg, False, scenario)
 
-    return make_vec_env(factory, n_envs=1, seed=EVAL_SEED + cfg.seed)
+    return make_vec_env(factory, n_envs=1, seed=episode_seed(Purpose.SELECT, EVAL_SEED + cfg.seed))

@@ -24,9 +24,7 @@ import numpy as np
 
 from drillgym.controllers import make_controller
 from drillgym.controllers.rollout import run_episode
-
-SEED_HIGH = 2**31 - 1
-"""Episode seeds are drawn in [0, SEED_HIGH)."""
+from drillgym.envs.seeds import Purpose, draw_seed, training_stream
 
 
 def base_step_rewards(twin: gym.Env, base: str, seed: int, scenario: dict[str, Any]) -> np.ndarray:
@@ -44,14 +42,17 @@ class PairedReward(gym.Wrapper):
             :class:`drillgym.training.residual_wrapper.ResidualWrapper`.
         base: the base controller's spec (the residual's base).
         make_twin: builds the twin env (the simulated env with the training env's arguments).
+        stream_keys: keys of the seed draws' generator (:func:`drillgym.envs.seeds.training_stream`): a run's seed and a worker's rank.
 
-    ``info["reward_unpaired"]`` holds the env's own step reward. Each reset draws the episode's seed from a
-    generator seeded by the first ``reset(seed=...)``, so a seeded run replays the same episodes.
+    ``info["reward_unpaired"]`` holds the env's own step reward. Each reset draws the episode's seed, in the
+    training namespace (:mod:`drillgym.envs.seeds`), from a generator seeded by the first ``reset(seed=...)``,
+    so a seeded run replays the same episodes.
     """
 
-    def __init__(self, env: gym.Env, base: str, make_twin: Callable[[], gym.Env]):
+    def __init__(self, env: gym.Env, base: str, make_twin: Callable[[], gym.Env], stream_keys: tuple[int, ...] = ()):
         super().__init__(env)
         self.base = base
+        self.stream_keys = tuple(int(k) for k in stream_keys)
         self.twin = make_twin()
         self._rng: np.random.Generator | None = None
         self.last_seed = -1
@@ -63,8 +64,8 @@ class PairedReward(gym.Wrapper):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         """Reset with a drawn episode seed and run the base on the same episode in the twin."""
         if seed is not None or self._rng is None:
-            self._rng = np.random.default_rng(seed)
-        self.last_seed = int(self._rng.integers(SEED_HIGH))
+            self._rng = training_stream(self.stream_keys, seed)
+        self.last_seed = draw_seed(self._rng, Purpose.TRAIN)
         obs, info = self.env.reset(seed=self.last_seed, options=options)
         scenario = self.env.unwrapped.scenario.to_dict()  # type: ignore[attr-defined]
         self.last_base_rewards = base_step_rewards(self.twin, self.base, self.last_seed, scenario)

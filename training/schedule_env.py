@@ -26,8 +26,8 @@ from drillgym.controllers.plan_schedule import PlanScheduledController, Schedule
 from drillgym.controllers.residual import PLAN_HIGH
 from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
+from drillgym.envs.seeds import Purpose, draw_seed, training_stream
 from drillgym.training.domain_randomization import DR_RANGES, sample_scenario
-from drillgym.training.paired_reward import SEED_HIGH
 
 
 @dataclass(frozen=True)
@@ -80,6 +80,9 @@ class ScheduleEnv(gym.Env):
         reward: the reward's weights.
         episodes: fixed ``(scenario, seed)`` holes to visit in turn instead of draws (evaluation: every visit of a
             hole replays it, so successive evaluations differ only by the policy).
+        stream_keys: keys of the draws' generator (a run's seed and the worker's rank): the scenarios and episode
+            seeds come from :func:`drillgym.envs.seeds.stream` ``(TRAIN, *stream_keys[, reset seed])``, and every
+            drawn episode seed lies in the training namespace, never a judge episode's.
 
     ``info`` holds the hole's scenario, seed, both episodes' metrics (``metrics``: the agent's, ``base``) and the
     tuned spec.
@@ -93,6 +96,7 @@ class ScheduleEnv(gym.Env):
         paper_share: float = 0.0,
         reward: ScheduleReward | None = None,
         episodes: list[tuple[dict[str, Any], int]] | None = None,
+        stream_keys: tuple[int, ...] = (),
     ) -> None:
         if not 0.0 <= paper_share <= 1.0:
             raise ValueError(f"paper_share={paper_share!r} must be in [0, 1]")
@@ -109,6 +113,7 @@ class ScheduleEnv(gym.Env):
             raise ValueError("ScheduleEnv: an empty list of episodes")
         self._visits = 0
         self._rng: np.random.Generator | None = None
+        self.stream_keys = tuple(int(k) for k in stream_keys)
         self.scenario: dict[str, Any] = {}
         self.episode_seed = -1
         self.base = make_controller(spec.base)
@@ -123,7 +128,7 @@ class ScheduleEnv(gym.Env):
         """Draw the hole's scenario and seed (``options["scenario"]`` fixes the scenario); observe its plan."""
         super().reset(seed=seed)
         if seed is not None or self._rng is None:
-            self._rng = np.random.default_rng(seed)
+            self._rng = training_stream(self.stream_keys, seed)
         if self.episodes is not None:
             scenario, episode_seed = self.episodes[self._visits % len(self.episodes)]
             self._visits += 1
@@ -136,7 +141,7 @@ class ScheduleEnv(gym.Env):
             self.scenario = dict(self._paper)
         else:
             self.scenario = {**self._paper, **sample_scenario(self._rng, self.ranges)}
-        self.episode_seed = int(self._rng.integers(SEED_HIGH))
+        self.episode_seed = draw_seed(self._rng, Purpose.TRAIN)
         return self._plan(), {"scenario": dict(self.scenario), "episode_seed": self.episode_seed}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:

@@ -39,6 +39,7 @@ from scipy import stats
 from drillgym.controllers import Controller, make_controller
 from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
+from drillgym.envs.seeds import Purpose, episode_seed
 from drillgym.training.config import TrainConfig
 from drillgym.training.domain_randomization import VALIDATION_SEED, ScenarioCycle, merged_ranges, validation_scenarios
 
@@ -73,15 +74,18 @@ def candidates(run: Path) -> list[Candidate]:
 
 
 PAPER_SELECTION_SEED = VALIDATION_SEED + 100_000
-"""First seed of the extra paper-scenario selection episodes (far from the benchmark's seeds 0..N-1)."""
+"""Index of the first extra paper-scenario selection episode in the selection namespace."""
 
 
 def validation_episodes(cfg: TrainConfig) -> list[tuple[dict[str, Any], int]]:
-    """The (scenario, seed) pairs of the training's evaluations, plus ``cfg.selection_paper_episodes`` paper ones."""
+    """The (scenario, seed) pairs of the training's evaluations, plus ``cfg.selection_paper_episodes`` paper ones.
+
+    Their seeds lie in the selection namespace (:mod:`drillgym.envs.seeds`): never a judge or training episode.
+    """
     scenarios = validation_scenarios(cfg.eval_episodes, ranges=merged_ranges(cfg.dr_ranges))
-    episodes = [(sc, VALIDATION_SEED + i) for i, sc in enumerate(scenarios)]
+    episodes = [(sc, episode_seed(Purpose.SELECT, VALIDATION_SEED + i)) for i, sc in enumerate(scenarios)]
     paper: list[tuple[dict[str, Any], int]] = [
-        ({}, PAPER_SELECTION_SEED + i) for i in range(cfg.selection_paper_episodes)
+        ({}, episode_seed(Purpose.SELECT, PAPER_SELECTION_SEED + i)) for i in range(cfg.selection_paper_episodes)
     ]
     return episodes + paper
 

@@ -25,6 +25,7 @@ from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.metrics import METRIC_NAMES
 from drillgym.envs.scenario import Scenario
+from drillgym.envs.seeds import Purpose, episode_seed
 
 ENV_ID = SIM_ENV_ID
 ENV_CACHE_SIZE = 2
@@ -53,16 +54,20 @@ class EpisodeJob:
         return (self.suite, self.scenario, self.controller, self.seed)
 
 
-def grid_jobs(suites: list[str], specs: list[str], seeds: int) -> list[EpisodeJob]:
-    """Every (suite scenario, controller spec, seed 0..seeds-1) episode, without logs."""
+def grid_jobs(suites: list[str], specs: list[str], seeds: int, purpose: Purpose = Purpose.JUDGE) -> list[EpisodeJob]:
+    """Every (suite scenario, controller spec, seed) episode, without logs.
+
+    The seeds are episodes 0..seeds-1 of ``purpose``'s namespace (:mod:`drillgym.envs.seeds`): the judge's are
+    plain 0..seeds-1, a tuner's never meet them.
+    """
     from drillgym.eval.bench.suites import suite_scenarios
 
     return [
-        EpisodeJob(suite, sc.name, sc.kwargs, spec, seed)
+        EpisodeJob(suite, sc.name, sc.kwargs, spec, episode_seed(purpose, i))
         for suite in suites
         for sc in suite_scenarios(suite)
         for spec in specs
-        for seed in range(seeds)
+        for i in range(seeds)
     ]
 
 

@@ -4,6 +4,9 @@
 * ``sweep``: β ∈ {10, 20, 30, 40}° × feed ∈ {0.25, 0.5, 0.75, 1.0, 1.25} mm/s, the rest at defaults.
 * ``heldout``: conditions outside :data:`TRAINING_RANGES` (see :func:`heldout`), for testing how a
   residual policy trained inside them generalises.
+* ``generalisation``: 24 plans drawn at random strictly inside the training ranges and bones from a fixed
+  stream of the judge's seed namespace (see :func:`generalisation`): plans no tuner or learner was given,
+  between the anchors a gain-scheduling table is tuned on.
 """
 
 from __future__ import annotations
@@ -12,9 +15,19 @@ from collections.abc import Callable
 from typing import Any, NamedTuple
 
 from drillgym.envs.scenario import Scenario
+from drillgym.envs.seeds import Purpose, stream
 from drillgym.training.domain_randomization import TRAINING_BONES, TRAINING_RANGES
 
-__all__ = ["SUITES", "TRAINING_BONES", "TRAINING_RANGES", "SuiteScenario", "outside_training", "suite_scenarios"]
+__all__ = [
+    "GENERALISATION_PLANS",
+    "JUDGE_ONLY_SUITES",
+    "SUITES",
+    "TRAINING_BONES",
+    "TRAINING_RANGES",
+    "SuiteScenario",
+    "outside_training",
+    "suite_scenarios",
+]
 
 
 class SuiteScenario(NamedTuple):
@@ -60,8 +73,46 @@ def heldout() -> list[SuiteScenario]:
     ]
 
 
-SUITES: dict[str, Callable[[], list[SuiteScenario]]] = {"paper": paper, "sweep": sweep, "heldout": heldout}
+GENERALISATION_PLANS = 24
+"""Plans of the ``generalisation`` suite."""
+GENERALISATION_STREAM_KEY = 2024
+"""Key of the generalisation plans' stream in the judge's namespace (:func:`drillgym.envs.seeds.stream`)."""
+
+
+def generalisation() -> list[SuiteScenario]:
+    """Plans inside the training ranges that no tuner or learner saw, named ``g01`` .. ``g24``.
+
+    Each plan draws β (rounded to 0.5°), feed (0.01 mm/s), stick-out and cortical thickness (0.1 mm) uniformly
+    inside :data:`TRAINING_RANGES` and a bone among :data:`TRAINING_BONES`, from
+    ``stream(JUDGE, GENERALISATION_STREAM_KEY)``; the cell (noise, latency) is the env's default. Tuning and
+    training draw their plans from streams of their own namespaces, so none of these is a plan they were
+    given (the chance that a continuous draw repeats one is nil), and none lies on the edge of a range, where
+    a table's anchors sit.
+    """
+    rng = stream(Purpose.JUDGE, GENERALISATION_STREAM_KEY)
+    rounding = {"beta_deg": 0.5, "feed_mm_s": 0.01, "stickout_mm": 0.1, "cortical_thickness_mm": 0.1}
+    out = []
+    for i in range(GENERALISATION_PLANS):
+        kwargs: dict[str, Any] = {}
+        for name, (lo, hi) in TRAINING_RANGES.items():
+            step = rounding[name]
+            value = round(float(rng.uniform(lo, hi)) / step) * step
+            kwargs[name] = float(min(max(value, lo + step), hi - step))  # strictly inside the range
+            kwargs[name] = round(kwargs[name], 2)
+        kwargs["bone"] = str(TRAINING_BONES[int(rng.integers(len(TRAINING_BONES)))])
+        out.append(SuiteScenario(f"g{i + 1:02d}", kwargs))
+    return out
+
+
+SUITES: dict[str, Callable[[], list[SuiteScenario]]] = {
+    "paper": paper,
+    "sweep": sweep,
+    "heldout": heldout,
+    "generalisation": generalisation,
+}
 """Suite name -> its scenarios."""
+JUDGE_ONLY_SUITES = ("heldout", "generalisation")
+"""Suites that judge tuned and learnt controllers and that no tuner may use."""
 
 
 def suite_scenarios(name: str) -> list[SuiteScenario]:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from drillgym.eval.bench.suites import SUITES
+from drillgym.eval.bench.suites import JUDGE_ONLY_SUITES, SUITES
 from drillgym.eval.bench.tune_entry import TUNING_SUITES, best_candidate, candidate_specs, gain_settings, grid_table
 from drillgym.eval.cli.calibrate import comma_floats
 
@@ -43,7 +43,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "(default: keep the base's)",
     )
     parser.add_argument("--suites", default=",".join(TUNING_SUITES), help="tuning suites (default paper,sweep)")
-    parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 per scenario (default 5)")
+    parser.add_argument(
+        "--seeds",
+        type=int,
+        default=5,
+        help="tuning episodes per scenario (default 5): episodes 0..N-1 of the tuning seed namespace, never a judge episode (drillgym.envs.seeds)",
+    )
     parser.add_argument(
         "--max-time-increase", type=float, default=0.3, help="allowed drill-time increase on paper (default 0.3)"
     )
@@ -59,8 +64,11 @@ def check_arguments(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     unknown = [s for s in suites if s not in SUITES]
     if unknown or not suites:
         raise ValueError(f"unknown suite(s) {unknown}; choose from {', '.join(SUITES)}")
-    if "heldout" in suites:
-        raise ValueError("the heldout suite judges learnt policies; tune on paper and sweep only")
+    judged = [s for s in suites if s in JUDGE_ONLY_SUITES]
+    if judged:
+        raise ValueError(
+            f"the {' and '.join(judged)} suite(s) judge tuned and learnt controllers; tune on paper and sweep only"
+        )
     if args.seeds < 1 or args.workers < 1:
         raise ValueError("--seeds and --workers must be >= 1")
     if args.kps and "kp=" in args.base:
@@ -75,12 +83,13 @@ def check_arguments(args: argparse.Namespace) -> tuple[list[str], list[str]]:
 
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym tune-entry``."""
+    from drillgym.envs.seeds import Purpose
     from drillgym.eval.bench.episode import grid_jobs
     from drillgym.eval.bench.jobs import run_jobs
     from drillgym.eval.bench.report import episodes_frame
 
     suites, specs = check_arguments(args)
-    rows = run_jobs(grid_jobs(suites, specs, args.seeds), args.workers, desc="tune-entry")
+    rows = run_jobs(grid_jobs(suites, specs, args.seeds, Purpose.TUNE), args.workers, desc="tune-entry")
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     episodes = episodes_frame(rows)
@@ -105,7 +114,7 @@ def _write_markdown(out: Path, grid: pd.DataFrame, best: str, args: argparse.Nam
     lines = [
         f"# Slow-entry tuning on `{args.base}`",
         "",
-        f"Suites {args.suites}, seeds 0..{args.seeds - 1}, the same episodes for every candidate"
+        f"Suites {args.suites}, tuning episodes 0..{args.seeds - 1} (seed namespace `tune`), the same episodes for every candidate"
         + (f", gains kp {args.kps}" if args.kps else "")
         + (f", y gains {args.y_gains}" if args.y_gains else "")
         + ". Objective: "

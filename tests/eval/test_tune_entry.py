@@ -78,10 +78,11 @@ def test_tune_entry_runs_the_grid_and_names_the_best(tmp_path):
     assert slow["paper_drill_time_s"] > grid.set_index("controller").iloc[0]["paper_drill_time_s"]
 
 
-def test_tune_entry_rejects_the_heldout_suites_typos_and_bad_schedules(tmp_path, capsys):
+def test_tune_entry_rejects_the_judge_only_suites_typos_and_bad_schedules(tmp_path, capsys):
     assert main(["tune-entry", "--suites", "papr", "--out", str(tmp_path)]) == 2
-    assert main(["tune-entry", "--suites", "paper,heldout", "--out", str(tmp_path)]) == 2
-    assert "judges learnt policies" in capsys.readouterr().err
+    for judged in ("heldout", "generalisation"):
+        assert main(["tune-entry", "--suites", f"paper,{judged}", "--out", str(tmp_path)]) == 2
+        assert f"the {judged} suite(s) judge tuned and learnt controllers" in capsys.readouterr().err
     assert main(["tune-entry", "--scales", "2", "--out", str(tmp_path)]) == 2
     assert "never speeds up" in capsys.readouterr().err
     assert main(["tune-entry", "--base", "li2023:kp=2", "--kps", "3", "--out", str(tmp_path)]) == 2

@@ -208,6 +208,7 @@ def test_the_shipped_policy_is_a_schedule_that_tunes_the_paper_hole_within_its_s
 
 
 def test_a_schedule_run_is_evaluated_on_fixed_holes():
+    from drillgym.envs.seeds import Purpose, episode_seed
     from drillgym.training.env_factory import EVAL_SEED, make_eval_vec_env
     from drillgym.training.selection import validation_episodes
 
@@ -218,5 +219,6 @@ def test_a_schedule_run_is_evaluated_on_fixed_holes():
     venv.close()
     cfg = TrainConfig(**kw, eval_episodes=2, eval_scenarios="paper")
     venv = make_eval_vec_env(cfg)
-    assert venv.envs[0].unwrapped.episodes == [({}, EVAL_SEED), ({}, EVAL_SEED + 1)]
+    select = [episode_seed(Purpose.SELECT, EVAL_SEED + i) for i in range(2)]
+    assert venv.envs[0].unwrapped.episodes == [({}, select[0]), ({}, select[1])]
     venv.close()

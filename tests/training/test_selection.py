@@ -78,11 +78,14 @@ def test_a_run_exports_the_selected_model_and_select_only_repeats_the_choice(tmp
 
 
 def test_extra_paper_episodes_are_the_paper_scenario_on_their_own_seeds():
+    from drillgym.envs.seeds import Purpose, episode_seed
     from drillgym.training.config import TrainConfig
     from drillgym.training.selection import PAPER_SELECTION_SEED, validation_episodes
 
     episodes = validation_episodes(TrainConfig(eval_episodes=3, selection_paper_episodes=2))
-    assert len(episodes) == 5 and episodes[3:] == [({}, PAPER_SELECTION_SEED), ({}, PAPER_SELECTION_SEED + 1)]
+    assert len(episodes) == 5 and episodes[3:] == [
+        ({}, episode_seed(Purpose.SELECT, PAPER_SELECTION_SEED + i)) for i in range(2)
+    ]
     assert min(seed for _, seed in episodes) > 1000  # never the benchmark's seeds 0..N-1
 
 
