@@ -38,6 +38,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "drillgym.eval.cli.tune_entry",
         "Tune a slow entry (feed schedule) on top of a controller on the paper and sweep suites; pick the best.",
     ),
+    "tune-table": (
+        "drillgym.eval.cli.tune_table",
+        "Tune a gain-scheduling table (the schedule residual's fields at 11 anchor plans) on tuning episodes only.",
+    ),
     "train": (
         "drillgym.eval.cli.train",
         "Train a residual policy (SB3) on top of a compensator; resumable; --seeds: several seeds and their report.",

@@ -46,3 +46,23 @@ def test_every_suite_scenario_is_a_valid_scenario_with_a_unique_name(suite):
 def test_unknown_suite_lists_the_known_ones():
     with pytest.raises(ValueError, match="paper, sweep, heldout"):
         suite_scenarios("marathon")
+
+
+def test_generalisation_plans_lie_strictly_inside_the_training_ranges_and_are_fixed():
+    plans = suite_scenarios("generalisation")
+    assert [p.name for p in plans] == [f"g{i:02d}" for i in range(1, 25)]
+    assert plans == suite_scenarios("generalisation")  # a fixed stream: the same plans every time
+    for p in plans:
+        assert outside_training(p.kwargs) == [], p
+        for name, (lo, hi) in TRAINING_RANGES.items():
+            assert lo < p.kwargs[name] < hi, (p.name, name)  # never on an edge, where a table's anchors sit
+    assert {p.kwargs["bone"] for p in plans} == set(TRAINING_BONES)
+    assert len({tuple(sorted(p.kwargs.items())) for p in plans}) == 24
+
+
+def test_no_generalisation_plan_is_a_validation_plan_the_learner_is_selected_on():
+    from drillgym.training.domain_randomization import validation_scenarios
+
+    validation = [{k: v for k, v in sc.items() if k in {*TRAINING_RANGES, "bone"}} for sc in validation_scenarios(200)]
+    plans = [p.kwargs for p in suite_scenarios("generalisation")]
+    assert not [p for p in plans if p in validation]
