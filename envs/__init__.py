@@ -20,9 +20,10 @@ ENV_IDS = [SIM_ENV_ID]
 if ENV_IDS[0] not in registry:
     register(
         id=ENV_IDS[0],
-        entry_point="drillgym.envs.drill_env:UR5BoneDrillEnv",
+        entry_point="drillgym.envs.checker:make_sim_env",  # the env in Gymnasium's passive checker, mended
         vector_entry_point="drillgym.envs.batched:BatchedDrillEnv",
         max_episode_steps=MAX_EPISODE_STEPS,
+        disable_env_checker=True,  # make_sim_env adds the checker itself (drillgym.envs.checker says why)
     )
 
 REAL_ENV_IDS = [REAL_ENV_ID]

@@ -273,21 +273,27 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         ``options={"specimen_seed": k}`` drills the specimen that ``reset(seed=k)`` draws, with the sensor
         noise of this reset's ``seed``: one specimen under many noise draws (the emulator seeds its specimen the
         same way). With ``k == seed`` the episode is the plain ``reset(seed=seed)``'s, bit for bit.
+        Every option is validated first: a reset that raises leaves the env (episode, effects, scenario, random
+        stream) as it was.
         """
-        super().reset(seed=seed)
-        unknown = sorted(set(options or {}) - RESET_OPTIONS)
+        opts = options or {}
+        unknown = sorted(set(opts) - RESET_OPTIONS)
         if unknown:
             raise ValueError(
                 f"reset(options=...): unknown key(s) {unknown}; allowed: {sorted(RESET_OPTIONS)} "
                 '(scenario arguments go inside options={"scenario": {...}})'
             )
-        specimen_seed = _checked_specimen_seed((options or {}).get("specimen_seed"))
-        if options and "effects" in options:
-            self.set_effects(options["effects"])
-        if options and "scenario" in options:
-            changes = dict(options["scenario"])
-            if changes:
-                self._build(Scenario.from_kwargs(**{**self.scenario.to_dict(), **changes}))
+        # Every option is checked before anything changes: a reset that raises leaves the env as it was
+        # (its episode, effects, scenario and random stream), so a corrected reset starts cleanly.
+        specimen_seed = _checked_specimen_seed(opts.get("specimen_seed"))
+        effects = EffectStack(opts["effects"]) if opts.get("effects") else None
+        changes = dict(opts.get("scenario") or {})
+        scenario = Scenario.from_kwargs(**{**self.scenario.to_dict(), **changes}) if changes else None
+        super().reset(seed=seed)
+        if "effects" in opts:
+            self.effects = effects
+        if scenario is not None:
+            self._build(scenario)
         self._reset_state(specimen_seed)
         return self._observation(), self._info()
 

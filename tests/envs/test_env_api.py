@@ -12,6 +12,7 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from drillgym import envs
+from drillgym.envs.effects import build_effects
 from drillgym.envs.observation import OBS_BOUNDS
 
 ENV_ID = envs.ENV_IDS[0]
@@ -242,6 +243,50 @@ def test_reset_options_change_the_scenario_and_validate_it():
         assert env.unwrapped.scenario.beta_deg == 10.0
     finally:
         env.close()
+
+
+def test_a_first_reset_that_raises_leaves_gym_make_env_usable():
+    # Gymnasium's passive checker (which gym.make adds) used to break here: the failed first reset left it
+    # without the reset data its first step compares against (TypeError inside the checker).
+    env = gym.make(ENV_ID, pybullet_world=False)
+    try:
+        for bad in ({"scenario": {"beta_deg": 80.0}}, {"scenario": {"no_such": 1}}, {"effects": ["x"]}, {"bogus": 1}):
+            with pytest.raises((ValueError, TypeError)):
+                env.reset(seed=0, options=bad)
+        env.reset(seed=0)
+        for _ in range(3):
+            env.step(ZERO)
+    finally:
+        env.close()
+
+
+def test_a_reset_that_raises_changes_nothing():
+    env = gym.make(ENV_ID, pybullet_world=False)
+    ref = gym.make(ENV_ID, pybullet_world=False)
+    u = env.unwrapped
+    try:
+        env.reset(seed=1)
+        ref.reset(seed=1)
+        env.step(ZERO)
+        ref.step(ZERO)
+        backlash = {"effects": [build_effects("joint_backlash")[0]]}
+        for bad in (
+            {**backlash, "scenario": {"beta_deg": 80.0}},  # valid effects, invalid scenario: effects not switched
+            {"scenario": {"feed_mm_s": 1.0}, "specimen_seed": -1},
+        ):
+            with pytest.raises(ValueError):
+                env.reset(seed=5, options=bad)  # neither re-seeds nor rebuilds
+        assert u.effects is None
+        assert u.scenario == ref.unwrapped.scenario
+        for _ in range(20):  # the episode under way goes on as if no reset had been tried
+            oa, ra, *_ = env.step(ZERO)
+            ob, rb, *_ = ref.step(ZERO)
+            assert ra == rb
+            for k in oa:
+                np.testing.assert_array_equal(oa[k], ob[k], err_msg=k)
+    finally:
+        env.close()
+        ref.close()
 
 
 def test_reset_options_give_the_same_episode_as_a_fresh_env():
