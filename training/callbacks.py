@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import csv
+import json
+import math
+import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from stable_baselines3.common.callbacks import EvalCallback
+from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import VecEnv
 
@@ -23,6 +27,30 @@ CURVE_COLUMNS = (
 
 BEST_NORMALIZER = "vecnormalize.pkl"
 """Saved beside ``best_model.zip`` whenever a new best model is saved."""
+BEST_RECORD = "best.json"
+"""Saved beside ``best_model.zip`` whenever a new best model is saved: its ``policy_reward`` and ``timesteps``."""
+CURVE_FILE = "curve.csv"
+"""The evaluations of a run (``CURVE_COLUMNS``), in its folder."""
+
+
+def read_curve(path: Path) -> list[dict[str, float]]:
+    """The rows of a run's ``curve.csv`` (every column a float; NaN where a metric was missing); [] if none."""
+    if not path.exists():
+        return []
+    with open(path, newline="") as f:
+        return [
+            {k: float(row[k]) if row.get(k) not in (None, "") else math.nan for k in CURVE_COLUMNS}
+            for row in csv.DictReader(f)
+        ]
+
+
+def read_best_reward(best_dir: Path) -> float:
+    """The mean validation reward of the saved ``best_model.zip`` in ``best_dir`` (-inf if none was recorded)."""
+    record = best_dir / BEST_RECORD
+    if not record.exists():
+        return -math.inf
+    value = json.loads(record.read_text()).get("policy_reward")
+    return float(value) if value is not None else -math.inf
 
 
 class ZeroResidual:
@@ -45,14 +73,26 @@ class BaseComparisonEvalCallback(EvalCallback):
     The base is evaluated once (it does not learn) on the same seeded episodes; every evaluation of the
     policy then logs its reward, deviation and max lateral force beside the base's to TensorBoard
     (``eval/...``) and to ``curve.csv`` in ``log_path``.
+
+    A resumed run passes the evaluations made before its checkpoint (``previous_curve``, kept at the head of
+    ``curve.csv``) and the reward of the best model saved so far (``previous_best_reward``): a later
+    evaluation replaces ``best_model.zip`` only if it beats that.
     """
 
-    def __init__(self, eval_env: VecEnv, action_dim: int, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        eval_env: VecEnv,
+        action_dim: int,
+        previous_curve: Sequence[dict[str, float]] = (),
+        previous_best_reward: float = -math.inf,
+        **kwargs: Any,
+    ) -> None:
         super().__init__(eval_env, **kwargs)
         self.action_dim = action_dim
         self._episode_metrics: list[dict[str, float]] = []
         self.base: dict[str, float] = {}
-        self.curve: list[dict[str, float]] = []
+        self.curve: list[dict[str, float]] = [dict(r) for r in previous_curve]
+        self.best_mean_reward = float(previous_best_reward)
 
     def _init_callback(self) -> None:
         super()._init_callback()
@@ -87,9 +127,12 @@ class BaseComparisonEvalCallback(EvalCallback):
         best_before = self.best_mean_reward
         keep_going = super()._on_step()
         normalizer = self.model.get_vec_normalize_env()
-        if self.best_mean_reward > best_before and self.best_model_save_path is not None and normalizer is not None:
-            # the best model's observation statistics: the ones it was just evaluated with
-            normalizer.save(str(Path(self.best_model_save_path) / BEST_NORMALIZER))
+        if self.best_mean_reward > best_before and self.best_model_save_path is not None:
+            best = Path(self.best_model_save_path)
+            if normalizer is not None:  # the best model's observation statistics: the ones it was just evaluated with
+                normalizer.save(str(best / BEST_NORMALIZER))
+            record = {"policy_reward": float(self.best_mean_reward), "timesteps": int(self.num_timesteps)}
+            (best / BEST_RECORD).write_text(json.dumps(record))
         if evaluating and self.evaluations_results:
             policy = self._summary(self.evaluations_results[-1])
             row = {
@@ -110,7 +153,7 @@ class BaseComparisonEvalCallback(EvalCallback):
             ):
                 self.logger.record(f"eval/{key}", row[key])
             if self.log_path is not None:
-                self._write_curve(Path(self.log_path).parent / "curve.csv")
+                self._write_curve(Path(self.log_path).parent / CURVE_FILE)
         return keep_going
 
     def _write_curve(self, path: Path) -> None:
@@ -118,3 +161,38 @@ class BaseComparisonEvalCallback(EvalCallback):
             w = csv.DictWriter(f, fieldnames=list(CURVE_COLUMNS))
             w.writeheader()
             w.writerows(self.curve)
+
+
+class TimedCheckpointCallback(CheckpointCallback):
+    """SB3's ``CheckpointCallback`` that also saves the run's training time so far beside each checkpoint.
+
+    ``rl_model_time_<steps>_steps.json`` holds ``wall_time_s``: the seconds spent training up to that
+    checkpoint, over every session of the run (``elapsed_before_s`` is what the sessions before this one took
+    up to the checkpoint it resumed from). A resumed run starts its clock from there.
+    """
+
+    def __init__(self, *args: Any, elapsed_before_s: float = 0.0, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.elapsed_before_s = float(elapsed_before_s)
+        self._t0 = time.perf_counter()
+
+    def _on_training_start(self) -> None:
+        self._t0 = time.perf_counter()
+
+    def elapsed_s(self) -> float:
+        """Training time of the run so far (s), this session's included."""
+        return self.elapsed_before_s + time.perf_counter() - self._t0
+
+    def _on_step(self) -> bool:
+        keep_going = super()._on_step()
+        if self.n_calls % self.save_freq == 0:
+            Path(self._checkpoint_path("time_", extension="json")).write_text(
+                json.dumps({"wall_time_s": self.elapsed_s(), "timesteps": int(self.num_timesteps)})
+            )
+        return keep_going
+
+
+def checkpoint_wall_time_s(checkpoints: Path, steps: int) -> float | None:
+    """Training time up to the checkpoint of ``steps`` (s), as :class:`TimedCheckpointCallback` saved it; None if absent."""
+    record = checkpoints / f"rl_model_time_{steps}_steps.json"
+    return float(json.loads(record.read_text())["wall_time_s"]) if record.exists() else None

@@ -10,11 +10,12 @@ and normaliser, so a killed run resumes), TensorBoard logs and the progress bar.
 from __future__ import annotations
 
 import json
+import math
 import re
-import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 from drillgym.training.config import TrainConfig, load_config
@@ -73,16 +74,36 @@ def check_run_folder(out: Path, resume: bool, overwrite: bool) -> None:
         )
 
 
-def _export(out: Path, cfg: Any, model: Any, evaluation: Any, wall_s: float, export: Path | None) -> None:
-    """Write ``summary.json`` and the curves; bundle the selected model as ``out/policy.zip`` (and ``export``)."""
+def json_safe(value: Any) -> Any:
+    """``value`` with every NaN or infinite float replaced by None (strict JSON: ``json.dumps(..., allow_nan=False)``)."""
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def _export(
+    out: Path, cfg: Any, model: Any, evaluation: Any, wall_s: float, export: Path | None, resumed_from: int | None
+) -> None:
+    """Write ``summary.json`` and the curves; bundle the selected model as ``out/policy.zip`` (and ``export``).
+
+    ``wall_s`` is the run's training time over all its sessions (s); ``resumed_from`` the step count of the
+    checkpoint this session resumed from (None for a run in one session).
+    """
     from drillgym.training.plots import plot_curves
 
     summary = {
         "timesteps": int(model.num_timesteps),
         "wall_time_s": wall_s,
+        "resumed_from_timesteps": resumed_from,
         "base_eval": evaluation.base,
         "curve": evaluation.curve,
-        "best_policy_reward": float(evaluation.best_mean_reward),
+        "best_policy_reward": float(evaluation.best_mean_reward),  # None (null) when no evaluation ran
     }
     episodes = "paper scenario" if cfg.eval_scenarios == "paper" else f"{cfg.eval_episodes} validation episodes"
     plot_curves(evaluation.curve, out / "training_curves.png", episodes)
@@ -113,7 +134,7 @@ def export_selected(out: Path, cfg: Any, summary: dict[str, Any], export: Path |
         source, norm = best_zip, best_norm
     else:
         source, norm = out / "model.zip", out / "vecnormalize.pkl"
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    (out / "summary.json").write_text(json.dumps(json_safe(summary), indent=2, allow_nan=False))
     save_bundle(source, norm, cfg, {"training": summary}, out / "policy.zip")
     if export is not None:
         save_bundle(source, norm, cfg, {"training": summary}, export)
@@ -153,10 +174,16 @@ def train(cfg: TrainConfig, out: Path, resume: bool = False, export: Path | None
     Returns:
         The run's policy bundle (``out/policy.zip``).
     """
-    from stable_baselines3.common.callbacks import CheckpointCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from drillgym.training.callbacks import BaseComparisonEvalCallback
+    from drillgym.training.callbacks import (
+        CURVE_FILE,
+        BaseComparisonEvalCallback,
+        TimedCheckpointCallback,
+        checkpoint_wall_time_s,
+        read_best_reward,
+        read_curve,
+    )
     from drillgym.training.env_factory import make_eval_vec_env, make_train_vec_env
     from drillgym.training.model import ALGO_CLASSES, build_model
 
@@ -164,6 +191,11 @@ def train(cfg: TrainConfig, out: Path, resume: bool = False, export: Path | None
     (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
     ckpt_dir = out / "checkpoints"
     ckpt = latest_checkpoint(ckpt_dir) if resume else None
+    # A resumed run carries what its checkpoint had reached: the evaluations up to it (later ones belong to the
+    # interrupted session's steps, which are trained again), the best model's reward and the training time.
+    previous_curve = [r for r in read_curve(out / "eval" / CURVE_FILE) if r["timesteps"] <= ckpt[1]] if ckpt else []
+    previous_best = read_best_reward(out / "best") if ckpt else -math.inf
+    elapsed_before_s = (checkpoint_wall_time_s(ckpt_dir, ckpt[1]) or 0.0) if ckpt else 0.0
 
     venv = make_train_vec_env(cfg)
     if cfg.normalize_obs:
@@ -185,24 +217,27 @@ def train(cfg: TrainConfig, out: Path, resume: bool = False, export: Path | None
         model = build_model(cfg, venv, out / "tb")
     action_dim = int(venv.action_space.shape[0])  # type: ignore[index]
     every = max(cfg.n_envs, 1)
-    checkpoint = CheckpointCallback(
+    checkpoint = TimedCheckpointCallback(
         save_freq=max(cfg.checkpoint_freq // every, 1),
         save_path=str(ckpt_dir),
         name_prefix="rl_model",
         save_replay_buffer=cfg.algo != "ppo",
         save_vecnormalize=cfg.normalize_obs,
+        elapsed_before_s=elapsed_before_s,
     )
     evaluation = BaseComparisonEvalCallback(
         eval_env,
         action_dim,
+        previous_curve=previous_curve,
+        previous_best_reward=previous_best,
         n_eval_episodes=cfg.eval_episodes,
         eval_freq=max(cfg.eval_freq // every, 1),
         best_model_save_path=str(out / "best"),
         log_path=str(out / "eval"),
         deterministic=True,
     )
+    start_steps = model.num_timesteps
     remaining = max(cfg.total_timesteps - model.num_timesteps, 0)
-    t0 = time.perf_counter()
     model.learn(
         total_timesteps=remaining,
         callback=[checkpoint, evaluation],
@@ -210,14 +245,19 @@ def train(cfg: TrainConfig, out: Path, resume: bool = False, export: Path | None
         tb_log_name="residual",
         reset_num_timesteps=ckpt is None,
     )
-    wall_s = time.perf_counter() - t0
+    wall_s = checkpoint.elapsed_s()
     model.save(out / "model.zip")
     if cfg.normalize_obs:
         venv.save(str(out / "vecnormalize.pkl"))  # type: ignore[attr-defined]
-    _export(out, cfg, model, evaluation, wall_s, export)
+    _export(out, cfg, model, evaluation, wall_s, export, ckpt[1] if ckpt else None)
     venv.close()
     eval_env.close()
-    print(f"trained {model.num_timesteps} steps in {wall_s / 60:.1f} min; policy: {(out / 'policy.zip').resolve()}")
+    session = wall_s - elapsed_before_s
+    resumed = f" (this session: {model.num_timesteps - start_steps} steps in {session / 60:.1f} min)" if ckpt else ""
+    print(
+        f"trained {model.num_timesteps} steps in {wall_s / 60:.1f} min{resumed}; "
+        f"policy: {(out / 'policy.zip').resolve()}"
+    )
     if evaluation.curve:
         last = evaluation.curve[-1]
         print(
