@@ -5,15 +5,24 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from drillgym.eval.cli import HelpFormatter
+
+
+class _Formatter(HelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """The commands' formatter, keeping the epilog's lines (the effects' parameter list) as written."""
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """CLI arguments."""
-    from drillgym.eval.diagnosis.reality.library import REALITY_EFFECTS
+    """CLI arguments; the epilog lists every reality effect's parameters (from the effect registry)."""
+    from drillgym.eval.diagnosis.reality.library import REALITY_EFFECTS, parameters_help
 
+    parser.formatter_class = _Formatter
+    parser.epilog = parameters_help()
     parser.add_argument(
         "--effects",
         required=True,
-        help=f"NAME[:PARAM=VALUE,...][+NAME...] or 'none'; effects: {', '.join(REALITY_EFFECTS)}",
+        help=f"NAME:PARAM=VALUE[,...][+NAME...] or 'none'; each effect needs a parameter that switches it on (* below); "
+        f"effects: {', '.join(REALITY_EFFECTS)}",
     )
     parser.add_argument("--episodes", type=int, default=20, help="episodes to write (default 20)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the scenarios, controllers, noise and specimens")

@@ -199,3 +199,56 @@ def test_effects_that_move_the_tool_add_up(order):
     assert np.allclose(tip_l, [0.0, 0.0, 0.003]) and not marker_l.any()
     np.testing.assert_allclose(tip, tip_l + tip_j, atol=1e-9)
     np.testing.assert_allclose(marker, marker_j, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", sorted(REALITY_EFFECTS))
+def test_a_reality_effect_that_switches_nothing_on_is_refused_with_its_parameters_and_an_example(name):
+    from drillgym.eval.diagnosis.reality.library import EXAMPLES, switches
+
+    with pytest.raises(ValueError, match="switches nothing on") as refused:
+        build_reality(name)
+    for p in REALITY_EFFECTS[name].params:
+        assert p.name in str(refused.value)
+    assert EXAMPLES[name] in str(refused.value)
+    shape = [p for p in REALITY_EFFECTS[name].params if p.name not in switches(REALITY_EFFECTS[name])]
+    if shape:  # a shape parameter alone switches nothing on either
+        value = shape[0].high if shape[0].high != shape[0].default else shape[0].low
+        with pytest.raises(ValueError, match="switches nothing on"):
+            build_reality(f"{name}:{shape[0].name}={value}")
+    assert build_reality(EXAMPLES[name])  # the example does
+
+
+def test_every_reality_example_is_the_benchmarks_moderate_case():
+    from drillgym.eval.diagnosis.bench.cases import LATER_SINGLES, OUTSIDE, SINGLES
+    from drillgym.eval.diagnosis.reality.library import EXAMPLES
+
+    moderate = {name: specs[0] for name, specs in {**SINGLES, **LATER_SINGLES}.items()}
+    moderate["bone_void"] = OUTSIDE[0]
+    assert EXAMPLES == {name: moderate[name] for name in REALITY_EFFECTS}
+
+
+def test_the_docs_and_the_help_list_every_reality_effects_parameters(capsys):
+    from pathlib import Path
+
+    from drillgym.eval.cli import main
+    from drillgym.eval.diagnosis.reality.library import parameters_table
+
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "diagnosis.md").read_text()
+    assert parameters_table() in docs  # regenerate the table in docs/diagnosis.md §5 if this fails
+    with pytest.raises(SystemExit):
+        main(["make-reality", "--help"])
+    text = capsys.readouterr().out
+    for name, cls in REALITY_EFFECTS.items():
+        assert f"  {name}: " in text
+        for p in cls.params:
+            assert f" {p.name} [" in text
+
+
+def test_make_reality_refuses_an_effect_without_parameters_before_writing_anything(tmp_path, capsys):
+    from drillgym.eval.cli import main
+
+    out = tmp_path / "r"
+    assert main(["make-reality", "--effects", "density_layer", "--episodes", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "switches nothing on" in err and "hardening" in err and "density_layer:hardening=0.2" in err
+    assert not out.exists() and not (tmp_path / "r.truth.json").exists()

@@ -21,7 +21,7 @@ from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.effects.registry import parse_effect_spec
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 from drillgym.eval.diagnosis.reality.bone import ForceScaleReset
-from drillgym.eval.diagnosis.reality.library import REALITY_EFFECTS
+from drillgym.eval.diagnosis.reality.library import REALITY_EFFECTS, describe_parameters, switched_on, switches
 
 BETAS_DEG = (15.0, 20.0, 25.0, 30.0, 35.0)
 FEEDS_MM_S = (0.4, 0.6, 0.8, 1.0)
@@ -30,14 +30,30 @@ CONTROLLERS = ("none", "li2023", "zhang2005")
 
 
 def build_reality(spec: str) -> list[RealityEffect]:
-    """Reality effects of a spec ``NAME[:P=V,...][+NAME...]`` (``""`` or ``"none"``: clean)."""
+    """Reality effects of a spec ``NAME[:P=V,...][+NAME...]`` (``""`` or ``"none"``: clean).
+
+    Raises:
+        ValueError: an unknown effect or parameter, a value out of range, or an effect whose values switch
+            nothing on (every parameter of :func:`~drillgym.eval.diagnosis.reality.library.switches` at 0): the
+            message lists the effect's parameters and an example.
+    """
     if spec.strip() in ("", "none", "clean"):
         return []
     out: list[RealityEffect] = []
     for name, values in parse_effect_spec(spec):
         if name not in REALITY_EFFECTS:
             raise ValueError(f"unknown reality effect {name!r}; choose from {sorted(REALITY_EFFECTS)}")
-        out.append(REALITY_EFFECTS[name](**values))
+        try:
+            effect = REALITY_EFFECTS[name](**values)
+        except ValueError as e:
+            raise ValueError(f"{e}; {describe_parameters(name)}") from e
+        if not switched_on(effect):
+            on = ", ".join(switches(type(effect)))
+            raise ValueError(
+                f"reality effect {name!r} switches nothing on with {spec!r}: set one of {on} away from 0; "
+                f"{describe_parameters(name)}"
+            )
+        out.append(effect)
     return out
 
 
