@@ -6,6 +6,7 @@ import csv
 import json
 import math
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -13,7 +14,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from stable_baselines3.common.evaluation import evaluate_policy
-from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecEnvWrapper
 
 CURVE_COLUMNS = (
     "timesteps",
@@ -51,6 +52,20 @@ def read_best_reward(best_dir: Path) -> float:
         return -math.inf
     value = json.loads(record.read_text()).get("policy_reward")
     return float(value) if value is not None else -math.inf
+
+
+def vectorised_alike(a: VecEnv, b: VecEnv) -> bool:
+    """Whether ``a`` and ``b`` have the same VecEnv wrappers (outermost first) over a DummyVecEnv or SubprocVecEnv."""
+
+    def layers(v: VecEnv) -> tuple[list[type], type]:
+        wrappers: list[type] = []
+        while isinstance(v, VecEnvWrapper):
+            wrappers.append(type(v))
+            v = v.venv
+        return wrappers, type(v)
+
+    (wrap_a, base_a), (wrap_b, base_b) = layers(a), layers(b)
+    return wrap_a == wrap_b and {base_a, base_b} <= {DummyVecEnv, SubprocVecEnv}
 
 
 class ZeroResidual:
@@ -95,7 +110,14 @@ class BaseComparisonEvalCallback(EvalCallback):
         self.best_mean_reward = float(previous_best_reward)
 
     def _init_callback(self) -> None:
-        super()._init_callback()
+        with warnings.catch_warnings():
+            if vectorised_alike(self.training_env, self.eval_env):
+                # SB3 warns unless the training env is an instance of the eval env's class, to catch an eval env
+                # wrapped otherwise (no VecNormalize, say). With several workers ours are a SubprocVecEnv and a
+                # one-env DummyVecEnv, built by the same factories under the same wrappers: the vectoriser is
+                # all that differs and it changes no observation, so that one warning is noise here.
+                warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
+            super()._init_callback()
         self._episode_metrics = []
         rewards, _ = evaluate_policy(
             ZeroResidual(self.action_dim),

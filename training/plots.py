@@ -25,7 +25,10 @@ def plot_curves(curve: list[dict[str, float]], path: Path, episodes: str = "pape
     for ax in (a, b):
         ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:g}")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        if curve:
+            ax.legend(fontsize=8)
+        else:  # a run shorter than eval_freq: say so rather than leave blank axes
+            ax.text(0.5, 0.5, "no evaluation yet", transform=ax.transAxes, ha="center", va="center", color="0.4")
         ax.title.set_fontsize(9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)

@@ -44,6 +44,7 @@ from drillgym.eval.diagnosis.rank import (
     single_contradicted,
     singles_by_name,
 )
+from drillgym.eval.progress import bar_size
 
 MIN_EPISODES = 4
 """At least two calibration and two held-out episodes."""
@@ -101,6 +102,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
         desc="diagnose",
         file=sys.stderr,
         disable=None if opt.progress else True,
+        **bar_size(sys.stderr),
     )
     timings: dict[str, float] = {}
     bar.set_postfix_str("replaying (nominal + null)")

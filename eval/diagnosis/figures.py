@@ -121,7 +121,8 @@ def plot_spectra(residuals: dict[str, np.ndarray], path: Path) -> Path:
         ax.set_title(LF_CHANNELS[k], fontsize=9)
         ax.set_xlabel("Hz")
     axes[0].set_ylabel("PSD of residual (N²/Hz)")
-    axes[0].legend(fontsize=7)
+    if axes[0].get_legend_handles_labels()[0]:  # no line when every residual is too short for a spectrum
+        axes[0].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
