@@ -157,7 +157,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     registration time limit (4000 steps, which the env applies itself too) or at three times the nominal
     duration; the episode metrics are in ``info["metrics"]`` then too, with ``info["metrics_truncated"] =
     True`` (they describe the part drilled). A shorter limit of your own (``gym.make(...,
-    max_episode_steps=N)``) truncates outside the env: read ``env.unwrapped.episode_metrics()`` then.
+    max_episode_steps=N)``) truncates outside the env, without them: read ``env.unwrapped.episode_metrics()``
+    then, or wrap the env in :class:`drillgym.envs.wrappers.MetricsOnTruncation`, which puts them in ``info``
+    (``metrics_truncated = True``) when a wrapper inside it truncates.
 
     ``reset(options=...)`` takes ``{"scenario": {...}}`` (scenario arguments from the table below, changed
     from this episode on) and ``{"effects": [...]}`` (unmodelled effects, :mod:`drillgym.envs.effects`); other keys

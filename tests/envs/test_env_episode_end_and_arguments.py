@@ -59,3 +59,22 @@ def test_render_frames_have_the_asked_size_and_bad_sizes_are_errors():
     env.close()
     with pytest.raises(ValueError, match="render_width_px=0"):
         gym.make(ENV_ID, render_width_px=0)
+
+
+def test_a_time_limit_of_your_own_reports_the_episode_metrics_under_the_metrics_wrapper():
+    from drillgym.envs.wrappers import MetricsOnTruncation
+
+    # 150 steps: past contact (the tip starts 3 mm above the bone at 0.5 mm/s)
+    env = MetricsOnTruncation(gym.make(ENV_ID, max_episode_steps=150, pybullet_world=False))
+    env.reset(seed=0)
+    steps, done, info = 0, False, {}
+    while not done:
+        _, _, terminated, truncated, info = env.step(np.zeros(4, np.float32))
+        steps, done = steps + 1, terminated or truncated
+        if not done:
+            assert "metrics" not in info
+    assert truncated and not terminated and steps == 150
+    assert info["metrics_truncated"] is True
+    assert info["metrics"] == env.unwrapped.episode_metrics()
+    assert np.isfinite(info["metrics"]["lateral_force_max_n"])
+    env.close()
