@@ -100,6 +100,11 @@ class TrainConfig:
     selection_paper_episodes: int = 0
     """``model_selection: deviation`` also scores this many paper-scenario episodes (their own seeds, never the
     benchmark's 0..N-1) beside the validation draws: the paper scenario has one episode among the draws."""
+    ship_rule: str = "selection_deviation"
+    """Which of several training seeds ships (``drillgym train --seeds``), decided on held-in data only, before
+    any judging: ``selection_deviation``: the seed whose chosen model has the lowest mean deviation on its own
+    selection episodes (``selection.json``), among the seeds whose model beat the base there (all seeds if none
+    did); ``none``: name no seed (:mod:`drillgym.eval.learning.ship_rule`)."""
     model_selection: str = "reward"
     """Which saved model becomes ``policy.zip``: ``reward`` (SB3's best mean validation reward) or
     ``deviation`` (the lowest validation deviation among the models that beat the base without a higher peak
@@ -112,6 +117,8 @@ class TrainConfig:
             raise ValueError(f"selection_paper_episodes={self.selection_paper_episodes} must be >= 0")
         if self.model_selection not in ("reward", "deviation"):
             raise ValueError(f"model_selection={self.model_selection!r}; choose reward or deviation")
+        if self.ship_rule not in ("selection_deviation", "none"):
+            raise ValueError(f"ship_rule={self.ship_rule!r}; choose selection_deviation or none")
         if self.eval_scenarios not in ("paper", "validation"):
             raise ValueError(f"eval_scenarios={self.eval_scenarios!r}; choose paper or validation")
         from drillgym.controllers.residual import check_mode

@@ -85,14 +85,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--retrain", action="store_true", help="train seeds that already have a policy again")
     group.add_argument(
         "--baselines",
-        default=f"li2023,{BEST_CLASSICAL}",
-        help=f"baseline controller specs to judge the policies against (default li2023,{BEST_CLASSICAL})",
+        default=f"li2023,{BEST_CLASSICAL},table:shipped",
+        help=f"baseline controller specs to judge the policies against (default li2023,{BEST_CLASSICAL},table:shipped: "
+        "the gain-scheduling table of drillgym tune-table)",
     )
     group.add_argument(
-        "--best-baseline", default=BEST_CLASSICAL, help=f"the strongest baseline (default {BEST_CLASSICAL})"
+        "--best-baseline",
+        default="auto",
+        help=f"the strongest baseline, or auto (default): {BEST_CLASSICAL} unless another classical baseline beats it "
+        "by the seed report's own checks (drillgym.eval.learning.best_classical)",
     )
     group.add_argument("--reference", default="li2023", help="the paper's compensator (default li2023)")
-    group.add_argument("--eval-suites", default="paper,heldout", help="suites to judge on (default paper,heldout)")
+    group.add_argument(
+        "--eval-suites",
+        default="paper,generalisation,heldout",
+        help="suites to judge on (default paper,generalisation,heldout)",
+    )
     group.add_argument("--eval-seeds", type=int, default=20, help="episode seeds per scenario (default 20)")
     group.add_argument("--workers", type=int, default=2, help="benchmark worker processes (default 2)")
 
@@ -171,9 +179,10 @@ def _check(args: argparse.Namespace) -> list[str]:
         args.config = resolve_config(args.config)
         load_config(args.config)
     baselines = split_controller_specs(args.baselines)
-    for spec in {*baselines, args.best_baseline, args.reference}:
+    named = {args.reference} | ({BEST_CLASSICAL} if args.best_baseline == "auto" else {args.best_baseline})
+    for spec in {*baselines, *named}:
         make_controller(spec)
-    missing = {args.best_baseline, args.reference} - set(baselines)
+    missing = named - set(baselines)
     if missing:
         raise ValueError(f"--baselines {args.baselines!r} must include {sorted(missing)}")
     return baselines
@@ -221,6 +230,28 @@ def train_seeds(args: argparse.Namespace, out: Path) -> list[int]:
     return [seed for seed, rc, _ in results if rc != 0]
 
 
+def _protocol(
+    args: argparse.Namespace, out: Path, frame: Any, baselines: list[str]
+) -> tuple[str, dict[str, Any], list[str]]:
+    """The best classical baseline (``--best-baseline auto``) and the seed the configuration's rule ships."""
+    from drillgym.eval.learning import best_classical, ship_rule
+
+    lines: list[str] = []
+    extra: dict[str, Any] = {}
+    best = args.best_baseline
+    if best == "auto":
+        candidates = [b for b in baselines if b != args.reference]
+        best, rows = best_classical.choose_best_classical(frame, candidates, BEST_CLASSICAL, args.reference)
+        extra["best_classical"] = {"rule": best_classical.RULE, "chosen": best, "candidates": rows}
+        lines += best_classical.describe(best, BEST_CLASSICAL, rows)
+    rule = load_config(args.config).ship_rule
+    rows = ship_rule.selection_rows(out, list(args.seeds))
+    shipped = ship_rule.ship_seed(rows, rule)
+    extra["ship"] = {"rule": rule, "seed": shipped, "seeds": rows}
+    lines += ship_rule.describe(rows, rule, shipped)
+    return best, extra, lines
+
+
 def judge(args: argparse.Namespace, out: Path, baselines: list[str]) -> int:
     """Benchmark every seed's policy and the baselines on the same episodes; write the seed report."""
     import pandas as pd
@@ -243,7 +274,8 @@ def judge(args: argparse.Namespace, out: Path, baselines: list[str]) -> int:
     if len(errors):
         print(f"drillgym train: {len(errors)} evaluation episodes failed; see seed_episodes.csv", file=sys.stderr)
         return 1
-    write_seed_report(pd.DataFrame(frame), out, best_baseline=args.best_baseline, reference=args.reference)
+    best, extra, lines = _protocol(args, out, frame, baselines)
+    write_seed_report(pd.DataFrame(frame), out, best, reference=args.reference, extra=extra, extra_markdown=lines)
     print((out / "seed_report.md").read_text())
     files = "seed_report.md, seed_report.json, seed_report.png, seed_episodes.csv"
     table = schedule_table(policies, suites)

@@ -43,6 +43,7 @@ METRICS = (DEVIATION, FORCE, TIME)
 UNITS = {DEVIATION: "mm", FORCE: "N", TIME: "s"}
 PAPER = "paper"
 HELDOUT = "heldout"
+GENERALISATION = "generalisation"
 KEY = ["scenario", "seed"]
 """An episode of one controller (and run) within a suite: the pairing key of the paired design."""
 CONFIDENCE = 0.95
@@ -53,6 +54,7 @@ TIME_SLACK_PCT = 30.0
 RULES = {
     "paper_better": "paper deviation paired diff vs the best baseline: CI high < 0",
     "paper_force_ok": "paper peak lateral force paired diff vs the best baseline: CI low <= 0 (not significantly higher)",
+    "generalisation_better": "generalisation deviation paired diff vs the best baseline, pooled over plans: CI high < 0",
     "heldout_better": "heldout deviation paired diff vs the best baseline, pooled over scenarios: mean < 0",
     "heldout_none_worse": "no heldout scenario with a deviation significantly worse than the best baseline (CI low > 0)",
     "beats_reference_30pct": "paper deviation at most -30 % relative to the reference",
@@ -221,7 +223,7 @@ def _natural(text: str) -> list[Any]:
     return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", text)]
 
 
-def _normalise(episodes: pd.DataFrame) -> pd.DataFrame:
+def normalise_episodes(episodes: pd.DataFrame) -> pd.DataFrame:
     """A copy with ``run`` as str ("" for NaN, as after a CSV round trip) and float metric columns."""
     required = {"run", "controller", "suite", "scenario", "seed"}
     missing = required - set(episodes.columns)
@@ -259,7 +261,7 @@ def score_matrix(
         ``(scores[runs, tasks], runs, tasks)``; runs in natural order ("seed2" before "seed10"), no rows if the
         controller has no episode in the suite.
     """
-    frame = _normalise(episodes)
+    frame = normalise_episodes(episodes)
     return _score_matrix(frame, controller, suite, metric)
 
 
@@ -308,7 +310,7 @@ def paired_diff(
     Raises:
         ValueError: if a side has two episodes with the same ``(scenario, seed)``.
     """
-    return _paired(_normalise(episodes), run, policy, baseline, suite, metric, scenario, confidence)
+    return _paired(normalise_episodes(episodes), run, policy, baseline, suite, metric, scenario, confidence)
 
 
 def _paired(
@@ -364,6 +366,7 @@ CHECK_COLUMNS = (
     *(f"paper_deviation_{k}" for k in _DIFF_FIELDS),
     *(f"paper_force_{k}" for k in _DIFF_FIELDS),
     "paper_deviation_vs_reference_pct",
+    *(f"generalisation_deviation_{k}" for k in _DIFF_FIELDS),
     *(f"heldout_deviation_{k}" for k in _DIFF_FIELDS),
     "heldout_worse_scenarios",
     "paper_time_vs_best_pct",
@@ -374,13 +377,16 @@ CHECK_COLUMNS = (
 """Columns of :func:`seed_checks`."""
 
 
-def _run_checks(frame: pd.DataFrame, run: str, best: str, reference: str) -> dict[str, Any]:
+def run_checks(frame: pd.DataFrame, run: str, best: str, reference: str) -> dict[str, Any]:
+    """One run's row of :func:`seed_checks` (``frame`` normalised by :func:`normalise_episodes`)."""
     suites = set(frame["suite"])
     row: dict[str, Any] = {"run": run}
     paper = _paired(frame, run, POLICY, best, PAPER, DEVIATION)
     force = _paired(frame, run, POLICY, best, PAPER, FORCE)
     row |= _prefixed("paper_deviation", paper) | _prefixed("paper_force", force)
     row["paper_deviation_vs_reference_pct"] = _relative_pct(_paired(frame, run, POLICY, reference, PAPER, DEVIATION))
+    general = _paired(frame, run, POLICY, best, GENERALISATION, DEVIATION)
+    row |= _prefixed("generalisation_deviation", general)
     held = _paired(frame, run, POLICY, best, HELDOUT, DEVIATION)
     row |= _prefixed("heldout_deviation", held)
     scenarios = sorted(set(frame.loc[frame["suite"] == HELDOUT, "scenario"]))
@@ -390,18 +396,19 @@ def _run_checks(frame: pd.DataFrame, run: str, best: str, reference: str) -> dic
     row["paper_time_vs_best_pct"] = _relative_pct(_paired(frame, run, POLICY, best, PAPER, TIME))
     row["paper_better"] = bool(paper["high"] < 0.0)
     row["paper_force_ok"] = bool(force["low"] <= 0.0)
+    row["generalisation_better"] = bool(general["high"] < 0.0)
     row["heldout_better"] = bool(held["mean"] < 0.0)
     row["heldout_none_worse"] = bool(HELDOUT in suites and held["n"] > 0 and not row["heldout_worse_scenarios"])
     row["beats_reference_30pct"] = bool(row["paper_deviation_vs_reference_pct"] <= REFERENCE_GAIN_PCT)
     row["time_ok"] = bool(row["paper_time_vs_best_pct"] <= TIME_SLACK_PCT)
     row["passes"] = all(row[rule] for rule in RULES)
-    row["notes"] = "; ".join(_notes(suites, paper, held))
+    row["notes"] = "; ".join(_notes(suites, {PAPER: paper, GENERALISATION: general, HELDOUT: held}))
     return row
 
 
-def _notes(suites: set[str], paper: dict[str, float], held: dict[str, float]) -> list[str]:
+def _notes(suites: set[str], diffs: dict[str, dict[str, float]]) -> list[str]:
     notes = []
-    for suite, diff in ((PAPER, paper), (HELDOUT, held)):
+    for suite, diff in diffs.items():
         if suite not in suites:
             notes.append(f"{suite} suite missing: its checks are NaN/False")
         elif diff["n"] == 0:
@@ -416,7 +423,9 @@ def seed_checks(episodes: pd.DataFrame, best_baseline: str, reference: str = "li
 
     All differences are paired (:func:`paired_diff`, policy minus baseline, Student-t 95 % CI); negative is
     better. The acceptance rules are in :data:`RULES`: the paper deviation significantly lower than the best
-    baseline's (CI high < 0), the paper peak lateral force not significantly higher (CI low <= 0), the heldout
+    baseline's (CI high < 0), the paper peak lateral force not significantly higher (CI low <= 0), the deviation
+    over the generalisation suite's plans (inside the training ranges, never trained on) significantly lower
+    (pooled CI high < 0), the heldout
     deviation lower on average over all heldout scenarios (pooled mean < 0), no heldout scenario significantly
     worse (CI low > 0), the paper deviation at least 30 % below the reference's, and the paper drill time at most
     30 % above the best baseline's; ``passes`` is all of them. A missing suite gives NaN figures and False checks,
@@ -433,9 +442,9 @@ def seed_checks(episodes: pd.DataFrame, best_baseline: str, reference: str = "li
         ``*_pct`` relative changes in % (``100 * (mean_policy / mean_baseline - 1)`` over the paired episodes),
         ``heldout_worse_scenarios`` a list of scenario names, the rule columns and ``passes`` booleans.
     """
-    frame = _normalise(episodes)
+    frame = normalise_episodes(episodes)
     runs = sorted(set(frame.loc[frame["controller"] == POLICY, "run"]), key=_natural)
-    rows = [_run_checks(frame, run, best_baseline, reference) for run in runs]
+    rows = [run_checks(frame, run, best_baseline, reference) for run in runs]
     return pd.DataFrame(rows, columns=list(CHECK_COLUMNS))
 
 
@@ -506,7 +515,13 @@ def _jsonable(value: Any) -> Any:
 
 
 def write_seed_report(
-    episodes: pd.DataFrame, out: Path, best_baseline: str, reference: str = "li2023", reps: int = 2000
+    episodes: pd.DataFrame,
+    out: Path,
+    best_baseline: str,
+    reference: str = "li2023",
+    reps: int = 2000,
+    extra: dict[str, Any] | None = None,
+    extra_markdown: Sequence[str] = (),
 ) -> dict[str, Any]:
     """Write ``seed_report.json``, ``seed_report.md`` and ``seed_report.png`` into ``out``.
 
@@ -522,11 +537,13 @@ def write_seed_report(
         best_baseline: the strongest baseline's label.
         reference: the paper's compensator's label.
         reps: bootstrap samples of every interval.
+        extra: more entries for the JSON (e.g. how the best baseline and the shipped seed were chosen).
+        extra_markdown: lines appended to ``seed_report.md`` after the per-seed tables' summary line.
 
     Returns:
         The dict written to ``seed_report.json`` (NaN written as null).
     """
-    frame = _normalise(episodes)
+    frame = normalise_episodes(episodes)
     out.mkdir(parents=True, exist_ok=True)
     checks = seed_checks(frame, best_baseline, reference)
     suites = _ordered_suites(frame)
@@ -553,10 +570,11 @@ def write_seed_report(
         "passing": passing,
         "passing_runs": len(passing),
         "n_runs": len(checks),
+        **(extra or {}),
     }
     report = _jsonable(report)
     (out / "seed_report.json").write_text(json.dumps(report, indent=2, allow_nan=False) + "\n")
-    (out / "seed_report.md").write_text(_markdown(report))
+    (out / "seed_report.md").write_text(_markdown(report, extra_markdown))
     _plot(report, out / "seed_report.png")
     return report
 
@@ -586,6 +604,7 @@ def _seed_tables(report: dict[str, Any]) -> list[str]:
         f"paper Δdeviation vs {best} (mm)",
         f"paper Δpeak force vs {best} (N)",
         f"paper deviation vs {ref} (%)",
+        f"generalisation Δdeviation vs {best} (mm)",
         f"heldout Δdeviation vs {best} (mm)",
         "heldout scenarios worse",
         f"paper drill time vs {best} (%)",
@@ -593,10 +612,13 @@ def _seed_tables(report: dict[str, Any]) -> list[str]:
     rows = []
     for r in report["per_seed"]:
         d = [_ci(r[f"{p}_mean"], r[f"{p}_low"], r[f"{p}_high"], 3) for p in ("paper_deviation", "paper_force")]
+        general = _ci(
+            r["generalisation_deviation_mean"], r["generalisation_deviation_low"], r["generalisation_deviation_high"], 3
+        )
         held = _ci(r["heldout_deviation_mean"], r["heldout_deviation_low"], r["heldout_deviation_high"], 3)
         worse = ", ".join(r["heldout_worse_scenarios"]) or ("none" if r["heldout_deviation_n"] else "n/a")
         rel = _num(r["paper_deviation_vs_reference_pct"], 1)
-        rows.append([r["run"], *d, rel, held, worse, _num(r["paper_time_vs_best_pct"], 1)])
+        rows.append([r["run"], *d, rel, general, held, worse, _num(r["paper_time_vs_best_pct"], 1)])
     lines = ["## Per training seed", "", *_table(header, rows), ""]
     checks = [[r["run"], *("✓" if r[k] else "✗" for k in (*RULES, "passes")), r["notes"]] for r in report["per_seed"]]
     lines += _table(["run", *RULES, "passes", "notes"], checks)
@@ -642,7 +664,7 @@ def _improvement_table(report: dict[str, Any]) -> list[str]:
     ]
 
 
-def _markdown(report: dict[str, Any]) -> str:
+def _markdown(report: dict[str, Any], extra: Sequence[str] = ()) -> str:
     lines = [
         "# Training seeds against the baselines",
         "",
@@ -652,6 +674,7 @@ def _markdown(report: dict[str, Any]) -> str:
         "",
         f"**{report['passing_runs']} of {report['n_runs']} training seeds pass every check**",
         "",
+        *extra,
     ]
     lines += _seed_tables(report) + _aggregate_tables(report) + _improvement_table(report)
     failed = report["failed_episodes"]

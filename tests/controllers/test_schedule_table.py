@@ -96,3 +96,9 @@ def test_a_zero_table_drills_exactly_as_its_base():
     env.close()
     assert a == b
 
+
+def test_the_shipped_table_loads_and_names_its_tuning():
+    table = load_table("shipped")
+    assert table.anchors[0].name == "nominal" and len(table.anchors) == 11
+    assert table.meta["seed_namespace"] == "tune"
+    assert table.spec.base == "li2023_tuned"

@@ -24,6 +24,7 @@ from drillgym.eval.learning.seed_report import (
 BEST = "li2023_slow_entry"
 REF = "li2023"
 HELDOUT = [f"h{i}" for i in range(8)]
+GENERAL = [f"g{i}" for i in range(4)]
 SEEDS = 10
 
 
@@ -32,7 +33,8 @@ def _episodes(policies: dict[str, dict[str, float]], heldout: bool = True, noise
     baseline's plus ``policies[run][scenario]`` (default ``policies[run]["*"]``), force 0.1 N lower, time 10 % longer.
     """
     rng = np.random.default_rng(1)
-    cells = [("paper", "paper")] + ([("heldout", h) for h in HELDOUT] if heldout else [])
+    cells = [("paper", "paper"), *(("generalisation", g) for g in GENERAL)]
+    cells += [("heldout", h) for h in HELDOUT] if heldout else []
     rows = []
     for suite, scenario in cells:
         for seed in range(SEEDS):
@@ -215,3 +217,32 @@ def test_write_seed_report_writes_the_three_files_and_counts_the_passing_runs(tm
     assert "2 of 3 training seeds pass every check" in md
     assert "IQM [95 % CI]" in md and "Probability of improvement" in md
     assert (tmp_path / "seed_report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_generalisation_gain_whose_ci_straddles_zero_fails_its_check_though_the_mean_is_lower():
+    """Differences of −0.02 ± 0.2 mm (alternating) over 40 pairs: the CI straddles 0, so no "better"."""
+    frame = _episodes({"seed0": GOOD})
+    general = frame["suite"] == "generalisation"
+    base = frame[general & (frame["controller"] == BEST)]["deviation_mean_mm"].to_numpy()
+    frame.loc[general & (frame["controller"] == "policy"), "deviation_mean_mm"] = (
+        base - 0.02 + 0.2 * (-1.0) ** np.arange(len(base))
+    )
+    row = seed_checks(frame, BEST, REF).iloc[0]
+    assert row["generalisation_deviation_mean"] < 0.0
+    assert row["generalisation_deviation_low"] < 0.0 < row["generalisation_deviation_high"]
+    assert not row["generalisation_better"] and not row["passes"]
+    assert row["paper_better"] and row["heldout_better"]  # only the generalisation check fails
+
+
+def test_a_paper_force_rise_whose_ci_straddles_zero_passes_and_a_significant_one_fails():
+    frame = _episodes({"seed0": GOOD})
+    policy = frame["controller"] == "policy"
+    rng = np.random.default_rng(5)
+    straddling = frame.copy()
+    straddling.loc[policy, "lateral_force_max_n"] += 0.1 + 0.05 + rng.normal(0.0, 0.5, policy.sum())
+    row = seed_checks(straddling, BEST, REF).iloc[0]
+    assert row["paper_force_low"] <= 0.0 < row["paper_force_mean"] and row["paper_force_ok"]
+    higher = frame.copy()
+    higher.loc[policy, "lateral_force_max_n"] += 0.5
+    row = seed_checks(higher, BEST, REF).iloc[0]
+    assert row["paper_force_low"] > 0.0 and not row["paper_force_ok"] and not row["passes"]

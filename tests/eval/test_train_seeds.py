@@ -59,6 +59,9 @@ def test_two_seeds_train_then_are_judged_against_the_baselines_and_reproduce_alo
         assert (out / name).exists(), name
     report = json.loads((out / "seed_report.json").read_text())
     assert report  # the report module's own tests check its figures
+    assert report["best_classical"]["chosen"] in {"li2023_tuned", "table:shipped"}  # the rule ran on the baselines
+    assert [r["run"] for r in report["best_classical"]["candidates"]] == ["table:shipped"]
+    assert report["ship"]["rule"] == "selection_deviation" and len(report["ship"]["seeds"]) == 2
     # seed 1 alone, with the single-seed command, gives the same weights
     alone = tmp_path / "alone"
     assert main(["train", *common, "--seed", "1", "--out", str(alone)]) == 0

@@ -51,3 +51,9 @@ def test_tune_table_writes_a_table_that_loads_and_never_overwrites_it(tmp_path, 
     assert (out / "tune_table.png").stat().st_size > 0
     assert main(argv) == 2
     assert "never overwritten" in capsys.readouterr().err
+
+
+def test_an_anchor_search_is_reproducible():
+    """The table is reproducible from its command: the episodes are fixed and Nelder–Mead is deterministic."""
+    job = anchor_jobs(seeds=2, evals=3)[3]
+    assert tune_anchor(job) == tune_anchor(job)
