@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs.effects.registry import EFFECTS
 from drillgym.eval.diagnosis.channels import FORCE, STAGES
 from drillgym.eval.diagnosis.context import build, make_spec
 from drillgym.eval.diagnosis.diagnose import Diagnosis
@@ -76,17 +77,76 @@ def _pct(v: Any) -> str:
     return "–" if v is None or not math.isfinite(v) else f"{100 * v:.0f} %"
 
 
+INTERVAL_CALIBRATION_EPISODES = 6
+"""Calibration episodes behind the parameter intervals and the held-out CIs whose coverage the withheld-effect
+benchmark measured (its 12-episode cases, ``docs/diagnosis.md`` §6); fewer get a warning in ``report.md``."""
+
+
+def at_bound(effect: str, param: str, value: float) -> str | None:
+    """``"lower"`` or ``"upper"`` if ``value`` sits at that end of the parameter's search range, else None."""
+    spec = next((p for p in getattr(EFFECTS.get(effect), "params", ()) if p.name == param), None)
+    if spec is None:
+        return None
+    tol = 1e-6 * (spec.high - spec.low)
+    if value <= spec.low + tol:
+        return "lower"
+    if value >= spec.high - tol:
+        return "upper"
+    return None
+
+
 def param_text(effect: dict[str, Any]) -> str:
-    """``"dl_m=-0.00058 [-0.0011, -0.00054]"``: each fitted parameter with its 95 % interval where it has one."""
+    """``"dl_m=-0.00058 [-0.0011, -0.00054]"``: each fitted parameter with its 95 % interval where it has one.
+
+    A value at an end of its search range is flagged (``at its upper bound``): the fit may want a value outside
+    the range, so the value is a limit, not an estimate. The lower end is flagged only where it is not the off
+    value (0).
+    """
     intervals = effect.get("param_intervals") or {}
     parts = []
     for name, vals in effect["params"].items():
         items = []
         for p, v in vals.items():
             ci = (intervals.get(name) or {}).get(p)
-            items.append(f"{p}={v:.3g}" + (f" [{ci['low']:.3g}, {ci['high']:.3g}]" if ci else ""))
+            text = f"{p}={v:.3g}" + (f" [{ci['low']:.3g}, {ci['high']:.3g}]" if ci else "")
+            end = at_bound(name, p, v)
+            if end is not None and not (end == "lower" and v == 0.0):
+                text += f" (**at its {end} bound**)"
+            items.append(text)
         parts.append(", ".join(items))
     return "; ".join(parts)
+
+
+def distinct_models(effects: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """``effects`` (best first) with one row per set of effects.
+
+    A pair fitted in both orders (``latency+joint_friction``, ``joint_friction+latency``) keeps its better-ranked
+    order, or its named one.
+    """
+    named = {frozenset(e["effects"]) for e in effects if e.get("named")}
+    seen: set[frozenset[str]] = set()
+    out = []
+    for e in effects:
+        key = frozenset(e["effects"])
+        if key in seen or (key in named and not e.get("named")):
+            continue
+        seen.add(key)
+        out.append(e)
+    return out
+
+
+def episode_warning(res: dict[str, Any]) -> list[str]:
+    """A warning paragraph when fewer calibration episodes than :data:`INTERVAL_CALIBRATION_EPISODES` back the figures."""
+    n_cal, n_ho = len(res["episodes"]["calibration"]), len(res["episodes"]["heldout"])
+    if n_cal >= INTERVAL_CALIBRATION_EPISODES:
+        return []
+    return [
+        "",
+        f"> **Few episodes:** {n_cal} calibration and {n_ho} held-out episodes. The parameter intervals and the "
+        f"held-out confidence intervals were checked for coverage with {INTERVAL_CALIBRATION_EPISODES} of each "
+        f"({2 * INTERVAL_CALIBRATION_EPISODES} episodes); with fewer they are wide or too narrow and the verdict is "
+        f"fragile. Log {2 * INTERVAL_CALIBRATION_EPISODES} or more episodes.",
+    ]
 
 
 def why_not_named(effect: dict[str, Any], res: dict[str, Any]) -> str:
@@ -162,17 +222,18 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
         f"{sig['median_episode_ratio']:.3g}×; significant: {sig['significant']}). Gaps are mean squared block-mean "
         "differences in units of the simulator's noise after profiling out each specimen's hardness "
         "(see docs/diagnosis.md).",
+        *episode_warning(res),
         "",
         "## Which effect",
         "",
         "Rows are ordered by the penalised held-out score (best first); a row above the named model says why "
-        "it was not named.",
+        "it was not named. A pair fitted in both orders is shown once.",
         "",
         "| rank | model | parameters (95 % CI) | held-out gap before | after | left (× sim) | shrink (95 % CI) | "
         "P(best) | named |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    for k, e in enumerate(res["effects"][:12], 1):
+    for k, e in enumerate(distinct_models(res["effects"])[:12], 1):
         params = param_text(e)
         left = e.get("leftover_ratio")
         lines.append(

@@ -182,3 +182,75 @@ def test_the_excess_peak_is_where_the_real_residuals_ring_above_the_null_ones():
     peaks = excess_peaks_hz(lateral, null)  # the axial axis rings at 25 Hz, the lateral ones most at 15
     assert peaks["axial"] == pytest.approx(25.0, abs=100.0 / 128)
     assert peaks["lateral"] == pytest.approx(15.0, abs=100.0 / 128)
+
+
+def _report_of(effects, calibration=6, heldout=6):
+    from drillgym.eval.diagnosis.report import _markdown
+
+    res = {
+        "verdict": "explained",
+        "summary": "test",
+        "significance": {"gap": 2.0, "null": 1.0, "median_episode_ratio": 2.0, "significant": True},
+        "episodes": {
+            "n": calibration + heldout,
+            "calibration": [f"c{i}" for i in range(calibration)],
+            "heldout": [f"h{i}" for i in range(heldout)],
+            "repairs": {},
+        },
+        "effects": effects,
+        "where": {"largest_excess": []},
+        "timing": {
+            "total_s": 1,
+            "workers": 1,
+            "baseline_s": 0,
+            "singles_s": 0,
+            "pairs_s": 0,
+            "candidates": 2,
+            "pairs": 2,
+        },
+    }
+    return _markdown(res, {})
+
+
+def _model(name, params, named=False):
+    return {
+        "name": name,
+        "effects": name.split("+"),
+        "params": params,
+        "heldout_gap_before": 2.0,
+        "heldout_gap_after": 1.0,
+        "shrink": 0.5,
+        "ci_low": 0.3,
+        "ci_high": 0.7,
+        "p_best": 0.5,
+        "named": named,
+        "param_intervals": {},
+    }
+
+
+def test_the_report_shows_a_pair_fitted_in_both_orders_once():
+    lat, fric = {"extra_latency_s": 0.05}, {"coulomb_rad": 2e-4, "viscous_s": 0.0}
+    effects = [
+        _model("latency", {"latency": lat}, named=True),
+        _model("latency+joint_friction", {"latency": lat, "joint_friction": fric}),
+        _model("joint_friction+latency", {"joint_friction": fric, "latency": lat}),
+        _model("joint_friction", {"joint_friction": fric}),
+    ]
+    text = _report_of(effects)
+    assert "| latency+joint_friction |" in text and "| joint_friction+latency |" not in text
+    assert "| joint_friction |" in text
+
+
+def test_the_report_flags_a_parameter_at_its_search_bound():
+    effects = [_model("latency", {"latency": {"extra_latency_s": 0.3}}, named=True)]
+    assert "extra_latency_s=0.3 (**at its upper bound**)" in _report_of(effects)
+    inside = [_model("latency", {"latency": {"extra_latency_s": 0.05}}, named=True)]
+    assert "bound" not in _report_of(inside)
+    off = [_model("joint_friction", {"joint_friction": {"coulomb_rad": 2e-4, "viscous_s": 0.0}}, named=True)]
+    assert "bound" not in _report_of(off)  # 0 at the lower end is the off value, not a limit
+
+
+def test_the_report_warns_when_fewer_episodes_back_it_than_its_intervals_need():
+    effects = [_model("latency", {"latency": {"extra_latency_s": 0.05}}, named=True)]
+    assert "Few episodes" in _report_of(effects, calibration=2, heldout=2)
+    assert "Few episodes" not in _report_of(effects, calibration=6, heldout=6)

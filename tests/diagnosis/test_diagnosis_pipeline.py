@@ -63,6 +63,7 @@ def test_diagnose_cli_writes_json_report_and_figures_on_all_cores(tmp_path):
     assert res["timing"]["workers"] == 2
     report = (out / "report.md").read_text()
     assert "gap_map.png" in report and (out / "gap_map.png").stat().st_size > 1000
+    assert "Few episodes" in report  # 4 episodes: 2 calibration, 2 held-out
     assert (out / "overlays.png").is_file() and (out / "spectra.png").is_file()
 
 
