@@ -82,8 +82,18 @@ def _hold(t_src: np.ndarray, values: np.ndarray, t_at: np.ndarray) -> np.ndarray
 
 
 def import_session(session: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:
-    """Read a session folder; return ``(header, rows)`` in the episode-log schema (``source: "real"``)."""
+    """Read a session folder; return ``(header, rows)`` in the episode-log schema (``source: "real"``).
+
+    Raises:
+        FileNotFoundError: ``session`` does not exist; NotADirectoryError: it is a file, not a session folder.
+    """
     d = Path(session)
+    if not d.exists():
+        raise FileNotFoundError(f"session folder {d} does not exist")
+    if not d.is_dir():
+        raise NotADirectoryError(
+            f"{d} is a file; a session is a folder (rtde.csv, ft.csv, tracker.csv, commands.csv, header.json)"
+        )
     meta, host_t0 = _read_meta(d)
     repairs: list[str] = []
     t_rtde, q, tcp = _read_rtde(d, float(meta["clock"]["rtde_timestamp_at_t0_s"]), repairs)

@@ -136,3 +136,15 @@ def _drop_rtde_rows(d, a, b):
 def _rename_ft(d, old, new):
     ft = pd.read_csv(d / "ft.csv")
     ft.rename(columns={old: new}).to_csv(d / "ft.csv", index=False)
+
+
+def test_import_rtde_says_a_missing_session_folder_does_not_exist(tmp_path, capsys):
+    from drillgym.eval.cli import main
+
+    missing, a_file = tmp_path / "nonexistent", tmp_path / "notes.txt"
+    a_file.write_text("not a session")
+    assert main(["import-rtde", str(missing), str(a_file), "--out", str(tmp_path / "logs")]) == 2
+    err = capsys.readouterr().err
+    assert f"session folder {missing} does not exist" in err and "header.json: missing" not in err
+    assert "is a file; a session is a folder" in err
+    assert not (tmp_path / "logs").exists()
