@@ -12,6 +12,7 @@ BAD_INPUT = {
     "calibrate": ["--seeds", "0"],
     "explain-paper": ["--candidates", "no_such_candidate"],
     "tune-entry": ["--suites", "papr"],
+    "tune-table": ["--seeds", "1"],
     "train": ["--config", "no_such_config.yaml"],
     "bench": ["--suite", "nope"],
     "run": ["--robot", "127.0.0.1", "--scenario", "beta_deg=99", "--dry-run"],
