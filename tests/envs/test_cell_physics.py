@@ -125,6 +125,9 @@ def test_full_sim_max_lateral_force_grows_with_beta_and_linearly_with_feed():
 
 
 def test_calibrated_uncompensated_paper_run_matches_li_over_five_seeds():
+    """Tolerances: ``CALIBRATION_TOLERANCE``, whose docstring gives their reasons. Measured (seeds 0-4):
+    deviation 0.717 mm (+2.0 %), peak lateral force 1.316 N (+1.2 %), both fitted, within 5 %; stable force
+    0.994 N (-17 %) and hole offset 0.786 mm (-1.8 %), predicted, within 25 %."""
     runs = [run_zero_action(seed).metrics for seed in range(5)]
     for name, paper in LI2023_UNCOMPENSATED.items():
         mean = float(np.mean([m[name] for m in runs]))
