@@ -244,6 +244,12 @@ def _protocol(
         best, rows = best_classical.choose_best_classical(frame, candidates, BEST_CLASSICAL, args.reference)
         extra["best_classical"] = {"rule": best_classical.RULE, "chosen": best, "candidates": rows}
         lines += best_classical.describe(best, BEST_CLASSICAL, rows)
+        suites = [s for s in ("paper", "generalisation", "heldout") if s in set(frame["suite"])]
+        each = best_classical.against_each(
+            frame, [BEST_CLASSICAL, *(c for c in candidates if c != BEST_CLASSICAL)], suites
+        )
+        extra["against_each_classical"] = each
+        lines += best_classical.describe_against_each(each, suites)
     rule = load_config(args.config).ship_rule
     rows = ship_rule.selection_rows(out, list(args.seeds))
     shipped = ship_rule.ship_seed(rows, rule)

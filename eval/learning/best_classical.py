@@ -25,7 +25,15 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from drillgym.eval.learning.seed_report import DEVIATION, POLICY, RULES, normalise_episodes, run_checks
+from drillgym.eval.learning.seed_report import (
+    DEVIATION,
+    POLICY,
+    RULES,
+    _natural,
+    normalise_episodes,
+    paired_diff,
+    run_checks,
+)
 
 RULE = (
     "a classical candidate replaces the default best baseline when it passes every seed-report check against it "
@@ -89,3 +97,36 @@ def describe(best: str, default: str, rows: list[dict[str, Any]]) -> list[str]:
         marks = " | ".join("✓" if r[k] else "✗" for k in (*RULES, "passes"))
         lines.append(f"| `{r['run']}` | {marks} | {r['mean_deviation_mm']:.4f} |")
     return [*lines, "", f"**Best classical baseline: `{best}`**", ""]
+
+
+def against_each(episodes: pd.DataFrame, candidates: Sequence[str], suites: Sequence[str]) -> list[dict[str, Any]]:
+    """Every policy run against every classical candidate: paired deviation difference per suite (pooled).
+
+    Whatever the rule chose, a reader sees how each seed fares against each classical controller; rows hold
+    ``run``, ``baseline``, and per suite ``{suite}_mean/low/high`` (mm, policy minus baseline, 95 % t CI).
+    """
+    frame = normalise_episodes(episodes)
+    runs = sorted(set(frame.loc[frame["controller"] == POLICY, "run"]), key=_natural)
+    rows = []
+    for run in runs:
+        for baseline in candidates:
+            row: dict[str, Any] = {"run": run, "baseline": baseline}
+            for suite in suites:
+                d = paired_diff(frame, run, POLICY, baseline, suite, DEVIATION)
+                row |= {f"{suite}_{k}": d[k] for k in ("mean", "low", "high")}
+            rows.append(row)
+    return rows
+
+
+def describe_against_each(rows: list[dict[str, Any]], suites: Sequence[str]) -> list[str]:
+    """Markdown table of :func:`against_each` (bold: the CI excludes 0)."""
+    lines = ["## Each training seed against each classical baseline (Δ deviation, mm, pooled per suite)", ""]
+    lines += ["| run | baseline | " + " | ".join(suites) + " |", "|---|---|" + "---|" * len(suites)]
+    for r in rows:
+        cells = []
+        for s in suites:
+            mean, low, high = r[f"{s}_mean"], r[f"{s}_low"], r[f"{s}_high"]
+            text = f"{mean:+.4f} [{low:+.4f}, {high:+.4f}]"
+            cells.append(f"**{text}**" if (high < 0.0 or low > 0.0) else text)
+        lines.append(f"| {r['run']} | `{r['baseline']}` | " + " | ".join(cells) + " |")
+    return [*lines, ""]

@@ -72,3 +72,16 @@ def test_the_ship_rule_takes_the_lowest_held_in_deviation_among_seeds_that_beat_
     assert ship_seed(rows, "selection_deviation") == 0  # none beat the base: the lowest of all
     with pytest.raises(ValueError, match="unknown ship rule"):
         ship_seed(rows, "best_on_judge")
+
+
+def test_every_seed_is_compared_with_every_classical_baseline_whatever_the_rule_chose():
+    from drillgym.eval.learning.best_classical import against_each, describe_against_each
+
+    frame = _frame({"table:a": {"*": -0.004}, "policy": {"*": -0.01}}, noise=0.002)
+    frame.loc[frame["controller"] == "policy", "run"] = "seed0"
+    rows = against_each(frame, [DEFAULT, "table:a"], ["paper", "generalisation"])
+    assert [(r["run"], r["baseline"]) for r in rows] == [("seed0", DEFAULT), ("seed0", "table:a")]
+    assert rows[0]["paper_mean"] == pytest.approx(-0.01, abs=0.002)
+    assert rows[1]["paper_mean"] == pytest.approx(-0.006, abs=0.002)
+    assert rows[0]["paper_high"] < 0.0
+    assert "**" in "\n".join(describe_against_each(rows, ["paper", "generalisation"]))
