@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= results/demo
 
-.PHONY: demo test lint format type pytest install clean
+.PHONY: demo test lint format type pytest install clean mutation
 
 # torch is installed first, as its CPU build: an unpinned torch would pull a multi-GB CUDA build. Where pip
 # finds no CPU wheel of its own (an ordinary machine), take it from PyTorch's CPU index:
@@ -42,5 +42,21 @@ pytest: $(STAMP)
 
 test: lint type pytest
 
+# Mutation testing of the modules behind the published numbers (docs/testing.md); not part of `make test`.
+# Configuration: [tool.mutmut] in pyproject.toml. Writes score.txt, stats.json, survivors.txt, survivors.diff.
+MUTATION_OUT      ?= results/mutation
+MUTATION_CHILDREN ?= 2
+mutation: $(STAMP)
+	rm -rf mutants
+	$(VENV)/bin/mutmut run --max-children $(MUTATION_CHILDREN)
+	mkdir -p $(MUTATION_OUT)
+	$(VENV)/bin/mutmut export-cicd-stats
+	cp mutants/mutmut-cicd-stats.json $(MUTATION_OUT)/stats.json
+	$(VENV)/bin/mutmut results > $(MUTATION_OUT)/survivors.txt
+	for m in $$(sed -n 's/^ *\([^ :]*\): .*/\1/p' $(MUTATION_OUT)/survivors.txt); do $(VENV)/bin/mutmut show $$m; done > $(MUTATION_OUT)/survivors.diff
+	$(PY) -c "import json, sys; s = json.load(open(sys.argv[1])); n = s['total'] - s['skipped']; k = s['killed'] + s['timeout']; \
+	print(f'mutation score {k}/{n} = {100 * k / max(n, 1):.1f} % (killed or timed out; survived {s[\"survived\"]}, no tests {s[\"no_tests\"]}, suspicious {s[\"suspicious\"]})')" \
+	$(MUTATION_OUT)/stats.json | tee $(MUTATION_OUT)/score.txt
+
 clean:
-	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache results
+	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache results mutants
