@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drillgym.envs.real.net_errors import connect_error
+
 RDT_PORT = 49152
 RDT_HEADER = 0x1234
 CMD_STOP = 0x0000
@@ -120,12 +122,16 @@ class NetFTClient:
         self._stop = threading.Event()
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.settimeout(recv_timeout_s)
-        self.sock.connect(self.address)
         self.received = 0
         self.status_errors = 0
         self.malformed = 0
         self._thread = threading.Thread(target=self._receive_loop, name="netft-rx", daemon=True)
-        self.sock.send(pack_request(CMD_START_REALTIME, 0))
+        try:
+            self.sock.connect(self.address)
+            self.sock.send(pack_request(CMD_START_REALTIME, 0))
+        except OSError as e:
+            self.sock.close()
+            raise connect_error(e, host, int(port), "the F/T sensor's RDT stream (UDP)") from e
         self._thread.start()
 
     def _receive_loop(self) -> None:

@@ -18,6 +18,7 @@ import socket
 import struct
 from dataclasses import dataclass
 
+from drillgym.envs.real.net_errors import connect_error
 from drillgym.envs.real.netft import RDT_HEADER, NetFTCalibration
 
 CAL_PORT = 49151
@@ -74,15 +75,22 @@ def unpack_calinfo(data: bytes) -> DeviceCalibration:
 
 
 def read_calibration(host: str, port: int = CAL_PORT, timeout_s: float = 2.0) -> DeviceCalibration:
-    """Ask the sensor at ``host`` for its calibration (``OSError`` if it does not answer)."""
-    with socket.create_connection((host, port), timeout=timeout_s) as s:
-        s.sendall(pack_calinfo_request())
-        data = b""
-        while len(data) < CAL_RESPONSE.size:
-            chunk = s.recv(CAL_RESPONSE.size - len(data))
-            if not chunk:
-                break
-            data += chunk
+    """Ask the sensor at ``host`` for its calibration.
+
+    Raises ``OSError`` if it does not answer (its message names ``host:port`` and what to check), ``ValueError``
+    if the answer is not a calibration.
+    """
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s) as s:
+            s.sendall(pack_calinfo_request())
+            data = b""
+            while len(data) < CAL_RESPONSE.size:
+                chunk = s.recv(CAL_RESPONSE.size - len(data))
+                if not chunk:
+                    break
+                data += chunk
+    except OSError as e:
+        raise connect_error(e, host, port, "the F/T sensor's calibration (Net F/T TCP interface)") from e
     return unpack_calinfo(data)
 
 

@@ -29,7 +29,11 @@ def _mean_force_n(ft: Any, duration_s: float) -> tuple[np.ndarray, float, int]:
     time.sleep(duration_s)
     records = ft.since(t0)
     if len(records) < 10:
-        raise OSError(f"only {len(records)} F/T records in {duration_s:g} s: is the sensor streaming?")
+        where = "{}:{}".format(*ft.address) if hasattr(ft, "address") else "the sensor"
+        raise OSError(
+            f"only {len(records)} F/T records from {where} in {duration_s:g} s: is the sensor streaming? "
+            "check its RDT port (--ft HOST:PORT) and that no firewall drops UDP from it"
+        )
     forces = np.array([r.wrench[:3] for r in records])
     return forces.mean(axis=0), float(np.linalg.norm(forces.std(axis=0))), len(records)
 

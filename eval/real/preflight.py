@@ -11,7 +11,7 @@ from typing import Any
 from drillgym.envs import REAL_ENV_ID
 from drillgym.envs.real.devices import split_host_port
 from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
-from drillgym.envs.real.netft_calibration import CAL_PORT, check_calibration, read_calibration
+from drillgym.envs.real.netft_calibration import check_calibration, read_calibration
 
 ENV_ID = REAL_ENV_ID
 
@@ -26,7 +26,8 @@ def ft_calibration(ft_address: str, given: NetFTCalibration | None) -> tuple[Net
     try:
         device = read_calibration(host, timeout_s=1.0)
     except OSError as e:
-        print(f"warning: could not read the F/T sensor's calibration at {host}:{CAL_PORT} ({e})", file=sys.stderr)
+        used = "the given calibration" if given else "the default calibration (unchecked)"
+        print(f"warning: {e}; using {used}", file=sys.stderr)  # e names host:CAL_PORT and what to check
         return (given or NetFTCalibration()), ("command line" if given else "default, unchecked")
     return check_calibration(given, device), "sensor" if given is None else "sensor, matches the command line"
 

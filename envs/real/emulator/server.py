@@ -28,6 +28,7 @@ from drillgym.envs.real.emulator.script import ControlProgram
 from drillgym.envs.real.emulator.sensor_streams import SensorStreams
 from drillgym.envs.real.emulator.state import controller_state
 from drillgym.envs.real.emulator.world import EmulatedCell
+from drillgym.envs.real.net_errors import bind_error
 from drillgym.envs.real.netft_calibration import CAL_REQUEST, CMD_READCALINFO, pack_calinfo
 
 CONTROLLER_DT_S = 1.0 / CB3_RATE_HZ
@@ -36,6 +37,18 @@ SCRIPT_KINDS = ("script", "primary", "secondary")
 UNLOCK_WAIT_S = 5.0
 """A protective stop cannot be unlocked sooner than this after it occurred (UR Dashboard Server manual)."""
 """Listeners that a dropped link takes down (the control port stays up)."""
+PORT_NAMES = {
+    "rtde": ("RTDE (TCP)", "--rtde-port"),
+    "dashboard": ("the dashboard (TCP)", "--dashboard-port"),
+    "script": ("the script port (TCP)", "--script-port"),
+    "primary": ("the primary interface (TCP)", "--primary-port"),
+    "secondary": ("the secondary interface (TCP)", "--secondary-port"),
+    "control": ("the control port (TCP)", "--control-port"),
+    "ft_cal": ("the Net F/T calibration port (TCP)", "--ft-cal-port"),
+    "ft": ("the Net F/T RDT stream (UDP)", "--ft-port"),
+    "tracker": ("the marker stream (UDP)", "--tracker-port"),
+}
+"""Each listener's name in an error message and the option that moves its port."""
 
 
 class Emulator:
@@ -78,15 +91,25 @@ class Emulator:
     def _bind_udp(self, port: int, on_read: Callable[[socket.socket], None]) -> socket.socket:
         s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        s.bind((self.config.host, port))
+        name = "ft" if port == self.config.ft_port else "tracker"
+        self._bind(s, name, port)
         s.setblocking(False)
         self.sel.register(s, selectors.EVENT_READ, on_read)
         return s
 
+    def _bind(self, s: socket.socket, name: str, port: int) -> None:
+        """Bind ``s`` to ``host:port``; an ``OSError`` that names them and says what to check (the socket closed)."""
+        try:
+            s.bind((self.config.host, port))
+        except OSError as e:
+            s.close()
+            what, option = PORT_NAMES[name]
+            raise bind_error(e, self.config.host, port, what, option) from e
+
     def _listen(self, name: str, port: int) -> None:
         s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        s.bind((self.config.host, port))
+        self._bind(s, name, port)
         s.listen(8)
         s.setblocking(False)
         self.listeners[name] = s
@@ -266,10 +289,14 @@ class Emulator:
     def run(self) -> int:
         """Serve until shutdown, SIGTERM, the parent's exit or the lifetime limit. Returns the exit code."""
         cfg = self.config
-        self.open_robot_ports()
-        self._listen("control", cfg.control_port)
-        self._listen("ft_cal", cfg.ft_cal_port)
-        self.sensors.open()
+        try:
+            self.open_robot_ports()
+            self._listen("control", cfg.control_port)
+            self._listen("ft_cal", cfg.ft_cal_port)
+            self.sensors.open()
+        except OSError:  # a port in use: free the ones already bound, say which one
+            self.close()
+            raise
         ports = {
             "rtde": cfg.rtde_port,
             "dashboard": cfg.dashboard_port,
