@@ -3,7 +3,9 @@
 Asks for confirmation before anything moves (unless ``--yes``; ``--dry-run`` moves nothing and sends nothing),
 writes each episode's log incrementally (``<out>/logs/*.parquet``, the sim's schema with ``source: "real"``),
 and prints the metrics a real cell can measure (forces, drilling time, tracker deviation; the true tip
-deviation and the entry-hole offset need the specimen measured).
+deviation and the entry-hole offset need the specimen measured). A dry run also prints how far the commanded
+targets went from the entry point, the plan's reach and its worst case under the correction limit, and writes them
+to ``<out>/dry_run.json`` (:mod:`drillgym.eval.real.dry_run`).
 Exit codes: 0 done, 1 could not connect or start, 2 bad arguments or not confirmed, 3 an episode ended on a fault.
 """
 
@@ -65,7 +67,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="longest pause tolerated in the servo stream, the RTDE state and the F/T stream before a stop (ms; "
         "the robot's own RTDE watchdog stops at twice this)",
     )
-    parser.add_argument("--dry-run", action="store_true", help="connect and stream nothing: log what would be sent")
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="connect and stream nothing: log what would be sent (commands.jsonl) and say how far the "
+        "targets go from the entry point (dry_run.json)",
+    )
     parser.add_argument("--yes", action="store_true", help="do not ask before moving the robot")
     parser.add_argument(
         "--servo-thread",
@@ -204,8 +211,26 @@ def run(args: argparse.Namespace) -> int:
     finally:
         env.close()
         (args.out / "metrics.json").write_text(json.dumps(_finite(results), indent=2))
+    _summarise_dry_run(env, args)
     print(f"results in {args.out.resolve()}")
     return code
+
+
+def _summarise_dry_run(env: gym.Env[Any, Any], args: argparse.Namespace) -> None:
+    """A dry run: print how far the commanded targets went from the entry point, write ``<out>/dry_run.json``."""
+    from drillgym.eval.real.dry_run import describe_reach, target_reach
+
+    if not args.dry_run:
+        return
+    cell, out = env.unwrapped, args.out
+    commands = out / "commands.jsonl"
+    try:
+        reach = target_reach(commands, cell.T_base_task, cell.scenario.depth_m, cell.limits)  # type: ignore[attr-defined]
+    except (OSError, ValueError) as e:
+        print(f"DRY RUN: no reach summary: {e}", file=sys.stderr)
+        return
+    print(describe_reach(reach, commands))
+    (out / "dry_run.json").write_text(json.dumps(reach, indent=2))
 
 
 def _finite(value: Any) -> Any:
