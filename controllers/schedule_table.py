@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -182,7 +181,3 @@ def load_table_controller(text: str) -> PlanScheduledController:
     """``table:PATH`` -> controller (registered for :func:`drillgym.controllers.make_controller`)."""
     return load_table(text).controller()
 
-
-def anchor_names(anchors: Sequence[Anchor]) -> list[str]:
-    """The anchors' names, in order."""
-    return [a.name for a in anchors]
