@@ -180,4 +180,3 @@ def load_table(text: str) -> ScheduleTable:
 def load_table_controller(text: str) -> PlanScheduledController:
     """``table:PATH`` -> controller (registered for :func:`drillgym.controllers.make_controller`)."""
     return load_table(text).controller()
-
