@@ -12,10 +12,12 @@ Exit codes: 0 done, 1 could not connect or start, 2 bad arguments or not confirm
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import shutil
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -79,6 +81,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="run the 125 Hz servo loop as a thread of this process instead of a process of its own at real-time "
         "priority (the default; a thread starves under load: docs/deployment.md)",
+    )
+    parser.add_argument(
+        "--record-rtde",
+        action="store_true",
+        help="also write each episode as a recording session for `drillgym import-rtde` (<out>/rtde/<log name>/: "
+        "ur_rtde's own file recording of the robot state, on a receive interface of its own, and the F/T, "
+        "tracker, commands and header files from the log)",
     )
     parser.add_argument("--out", type=Path, required=True, help="output folder (logs, metrics.json, commands.jsonl)")
 
@@ -178,13 +187,15 @@ def run(args: argparse.Namespace) -> int:
             header = build_header(env, controller.describe(), seed, source="real", extra=extra)
             logger = EpisodeLogger(env, args.out / "logs" / name, header, overwrite=True)
             try:
-                info = run_episode(logger, controller, seed, keep_trace=False).info
+                with _rtde_session(args, env, args.out / "logs" / name, extra):
+                    try:
+                        info = run_episode(logger, controller, seed, keep_trace=False).info
+                    finally:
+                        logger.close_log()
             except RuntimeError as e:  # refused to start (safety bits, too far from the start pose, ...)
                 print(f"episode {k}: could not start: {e}", file=sys.stderr)
                 code = 1
                 break
-            finally:
-                logger.close_log()
             metrics = dict(info.get("metrics") or {})
             results.append(
                 {
@@ -214,6 +225,34 @@ def run(args: argparse.Namespace) -> int:
     _summarise_dry_run(env, args)
     print(f"results in {args.out.resolve()}")
     return code
+
+
+@contextlib.contextmanager
+def _rtde_session(args: argparse.Namespace, env: gym.Env[Any, Any], log: Path, run: dict[str, Any]) -> Iterator[None]:
+    """With ``--record-rtde``: record the episode run inside as a session for ``drillgym import-rtde``.
+
+    ``ur_rtde``'s file recording of the robot state (a receive interface of its own) goes to
+    ``<out>/rtde/<log name>/rtde.csv``; once the episode's log is closed, the F/T, tracker, commands and header
+    files are written from it, with the episode's t0 put on the RTDE clock.
+    """
+    if not args.record_rtde:
+        yield
+        return
+    from drillgym.eval.logs import read_episode_log
+    from drillgym.eval.real.record_session import RtdeFileRecorder, write_side_files
+
+    session = args.out / "rtde" / log.stem
+    session.mkdir(parents=True, exist_ok=True)
+    recorder = RtdeFileRecorder(args.robot, session / "rtde.csv")
+    try:
+        yield
+    finally:
+        recorder.stop()
+    header, frame = read_episode_log(log, allow_partial=True)
+    t0 = env.unwrapped.streams.t0  # type: ignore[attr-defined]
+    run = {**run, "rtde_clock_offset_s": round(recorder.offset_s, 6)}
+    write_side_files(session, header, frame, recorder.rtde_timestamp_at(t0), run)
+    print(f"recording session for drillgym import-rtde: {session}")
 
 
 def _summarise_dry_run(env: gym.Env[Any, Any], args: argparse.Namespace) -> None:
