@@ -232,14 +232,16 @@ def _rtde_session(args: argparse.Namespace, env: gym.Env[Any, Any], log: Path, r
     """With ``--record-rtde``: record the episode run inside as a session for ``drillgym import-rtde``.
 
     ``ur_rtde``'s file recording of the robot state (a receive interface of its own) goes to
-    ``<out>/rtde/<log name>/rtde.csv``; once the episode's log is closed, the F/T, tracker, commands and header
-    files are written from it, with the episode's t0 put on the RTDE clock.
+    ``<out>/rtde/<log name>/rtde.csv``; once the episode's log is closed, the recording is cut to the episode
+    ± 0.5 s (whole lines, as the shipped session's generator does: the robot's approach before t0 is no part of
+    the episode, and a busy start-up there can leave gaps the importer rightly refuses), and the F/T, tracker,
+    commands and header files are written from the log, with the episode's t0 put on the RTDE clock.
     """
     if not args.record_rtde:
         yield
         return
     from drillgym.eval.logs import read_episode_log
-    from drillgym.eval.real.record_session import RtdeFileRecorder, write_side_files
+    from drillgym.eval.real.record_session import RECORDING_MARGIN_S, RtdeFileRecorder, trim_recording, write_side_files
 
     session = args.out / "rtde" / log.stem
     session.mkdir(parents=True, exist_ok=True)
@@ -250,8 +252,11 @@ def _rtde_session(args: argparse.Namespace, env: gym.Env[Any, Any], log: Path, r
         recorder.stop()
     header, frame = read_episode_log(log, allow_partial=True)
     t0 = env.unwrapped.streams.t0  # type: ignore[attr-defined]
+    rtde_t0 = recorder.rtde_timestamp_at(t0)
+    end_s = float(frame["t_s"].max()) if len(frame) else 0.0
+    trim_recording(session / "rtde.csv", rtde_t0 - RECORDING_MARGIN_S, rtde_t0 + end_s + RECORDING_MARGIN_S)
     run = {**run, "rtde_clock_offset_s": round(recorder.offset_s, 6)}
-    write_side_files(session, header, frame, recorder.rtde_timestamp_at(t0), run)
+    write_side_files(session, header, frame, rtde_t0, run)
     print(f"recording session for drillgym import-rtde: {session}")
 
 

@@ -128,6 +128,10 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"not JSON: {type(value).__name__}")
 
 
+RECORDING_MARGIN_S = 0.5
+"""A session's RTDE recording is kept from this long before the episode's t0 to this long after its last step (s)."""
+
+
 def trim_recording(path: Path, t_from: float, t_to: float) -> int:
     """Keep the header line and the rows with ``t_from <= timestamp <= t_to``; returns the rows kept.
 
@@ -144,7 +148,7 @@ def record_emulator_session(
     scenario: dict[str, Any] | None = None,
     controller_spec: str = "li2023",
     seed: int = 0,
-    margin_s: float = 0.5,
+    margin_s: float = RECORDING_MARGIN_S,
     log_path: Path | None = None,
 ) -> Path:
     """Drill one hole on an emulator of its own (random loopback address) and write its session to ``out``.
