@@ -450,12 +450,14 @@ def _summary(
         assert location is not None
         return f"unexplained — located at {location['channel']}, {location['stage']}"
     s = chosen
-    pct = lambda v: "nan" if not math.isfinite(v) else f"{100 * v:.0f} %"  # noqa: E731
+    pct = lambda v: "nan" if not math.isfinite(v) else (f"{100 * v:.1f} %" if 0.995 <= v < 1.0 else f"{100 * v:.0f} %")  # noqa: E731
     text = f"explained by {' + '.join(s.fit.names)}: held-out gap shrinks by {pct(s.shrink)} ({pct(s.ci_low)} to {pct(s.ci_high)})"
     if leftover is not None and leftover["ratio"] > LEFTOVER_REPORT_RATIO and leftover["cells"]:
         cell = leftover["cells"][0]
+        was = leftover["ratio"] * s.before / s.after if s.after > 0 and math.isfinite(s.before) else math.nan
+        before = f" (it was {was:.3g}x before)" if math.isfinite(was) else ""
         text += (
-            f"; left: {leftover['ratio']:.3g}x the simulator's own level, most of it at "
+            f"; what is left is still {leftover['ratio']:.3g}x the simulator's own level{before}, most of it at "
             f"{cell['channel']}, {cell['stage']} ({pct(cell['share'])})"
         )
     if alts:

@@ -245,10 +245,15 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
     left = res.get("leftover")
     if left:
         cells = ", ".join(f"{c['channel']} in {c['stage']} ({_pct(c['share'])})" for c in left["cells"])
+        named = [e for e in res.get("effects", []) if e.get("named")]
+        was = ""
+        if named and named[0]["heldout_gap_after"] > 0:
+            before_ratio = left["ratio"] * named[0]["heldout_gap_before"] / named[0]["heldout_gap_after"]
+            was = f" (before it, the gap was {before_ratio:.3g}× that level)" if math.isfinite(before_ratio) else ""
         lines += [
             "",
             f"Left after the named model: **{left['ratio']:.3g}× the simulator's own level** on the held-out "
-            f"episodes, most of it at {cells or '–'}.",
+            f"episodes{was}, most of it at {cells or '–'}.",
         ]
     ev = res.get("second_effect_evidence")
     if ev:

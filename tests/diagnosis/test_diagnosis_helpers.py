@@ -184,7 +184,7 @@ def test_the_excess_peak_is_where_the_real_residuals_ring_above_the_null_ones():
     assert peaks["lateral"] == pytest.approx(15.0, abs=100.0 / 128)
 
 
-def _report_of(effects, calibration=6, heldout=6):
+def _report_of(effects, calibration=6, heldout=6, leftover=None):
     from drillgym.eval.diagnosis.report import _markdown
 
     res = {
@@ -198,6 +198,7 @@ def _report_of(effects, calibration=6, heldout=6):
             "repairs": {},
         },
         "effects": effects,
+        "leftover": leftover,
         "where": {"largest_excess": []},
         "timing": {
             "total_s": 1,
@@ -254,3 +255,12 @@ def test_the_report_warns_when_fewer_episodes_back_it_than_its_intervals_need():
     effects = [_model("latency", {"latency": {"extra_latency_s": 0.05}}, named=True)]
     assert "Few episodes" in _report_of(effects, calibration=2, heldout=2)
     assert "Few episodes" not in _report_of(effects, calibration=6, heldout=6)
+
+
+def test_the_rest_after_the_named_model_is_put_beside_the_gap_before_it_on_the_same_scale():
+    """449x the simulator's level left reads as a contradiction of a 99.8 % shrink unless the gap before is
+    given in the same units: before/G0 = after/G0 · before/after (here 449 · 2 / 1 = 898)."""
+    named = _model("latency", {"latency": {"delay_s": 0.01}}, named=True)
+    leftover = {"ratio": 449.0, "cells": [{"channel": "ty_nm", "stage": "retract", "share": 0.67}]}
+    text = _report_of([named], leftover=leftover)
+    assert "**449× the simulator's own level**" in text and "(before it, the gap was 898× that level)" in text

@@ -38,10 +38,25 @@ def test_a_model_leaving_far_more_than_the_sims_level_has_the_rest_and_its_place
     assert s.leftover_ratio > LEFTOVER_REPORT_RATIO
     leftover = {"ratio": s.leftover_ratio, "cells": locate(fit.ho_terms, null)}
     text = _summary("explained", s, None, [], [], leftover)
-    assert text.startswith("explained by b") and f"; left: {s.leftover_ratio:.3g}x" in text
+    assert text.startswith("explained by b") and f"what is left is still {s.leftover_ratio:.3g}x" in text
     assert f"{ALL_CHANNELS[5]}, {STAGES[3]}" in text
     small = {**leftover, "ratio": LEFTOVER_REPORT_RATIO / 2}
-    assert "left:" not in _summary("explained", s, None, [], [], small)
+    assert "what is left" not in _summary("explained", s, None, [], [], small)
+
+
+def test_a_near_total_shrink_beside_a_large_rest_says_how_large_the_gap_was_before():
+    """'shrinks by 100 %' beside 'left: 449x' read as a contradiction: a shrink of 99.5 % or more gets a decimal,
+    and the rest is put beside what the gap was before, on the same scale (after/G0 · before/after = before/G0)."""
+    null = [_terms(1.0) for _ in range(4)]
+    before = [_terms(1.0, (3, 5), 2_000_000.0) for _ in range(4)]
+    fit = FitResult(("b",), [{}], 1, ho_terms=[_terms(1.0, (3, 5), 5000.0) for _ in range(4)])
+    s = score_models([fit], before, null)[0]
+    assert 0.995 <= s.shrink < 1.0
+    leftover = {"ratio": s.leftover_ratio, "cells": locate(fit.ho_terms, null)}
+    text = _summary("explained", s, None, [], [], leftover)
+    assert f"shrinks by {100 * s.shrink:.1f} %" in text
+    was = s.leftover_ratio * s.before / s.after
+    assert f"(it was {was:.3g}x before)" in text and was > 100 * s.leftover_ratio
 
 
 def test_a_single_effect_that_predicts_a_force_before_contact_the_data_lack_is_contradicted():
