@@ -12,7 +12,7 @@ so the seeds of two purposes are different integers by construction, whatever nu
 judge's namespace is purpose 0: judge seed ``i`` is plain ``reset(seed=i)``, so ``drillgym bench --seeds
 20`` drills seeds 0..19 as it always has. A job whose episodes come from a generator (a training run's
 draws) takes the generator from :func:`stream` and its seeds from :func:`draw_seed`; a training run's
-workers take independent child streams (:func:`child_seed`), never ``seed + rank``.
+workers take independent streams keyed by (run seed, rank) (:func:`training_stream`), never ``seed + rank``.
 """
 
 from __future__ import annotations
@@ -70,11 +70,6 @@ def in_namespace(seed: int, purpose: Purpose) -> bool:
     return int(seed) >= 0 and (int(seed) >> INDEX_BITS) == int(purpose)
 
 
-def judge_seeds(n: int, offset: int = 0) -> list[int]:
-    """The judge's episode seeds ``offset .. offset + n - 1`` (plain integers, the benchmark's seeds)."""
-    return [episode_seed(Purpose.JUDGE, offset + i) for i in range(n)]
-
-
 def stream(purpose: Purpose, *keys: int) -> np.random.Generator:
     """An independent generator for ``purpose`` and ``keys`` (e.g. a run's seed and a worker's rank).
 
@@ -97,19 +92,3 @@ def training_stream(keys: tuple[int, ...], seed: int | None) -> np.random.Genera
 def draw_seed(rng: np.random.Generator, purpose: Purpose) -> int:
     """A random episode seed in ``purpose``'s namespace, drawn from ``rng``."""
     return episode_seed(purpose, int(rng.integers(INDEX_LIMIT)))
-
-
-def child_seed(purpose: Purpose, *keys: int) -> int:
-    """One episode seed in ``purpose``'s namespace derived from ``keys`` (the first draw of :func:`stream`)."""
-    return draw_seed(stream(purpose, *keys), purpose)
-
-
-def require_purpose(seed: int, purpose: Purpose, what: str) -> int:
-    """``seed`` if it lies in ``purpose``'s namespace; else a ``ValueError`` naming ``what`` and the namespaces."""
-    found = purpose_of(seed)
-    if found != purpose:
-        raise ValueError(
-            f"{what}: seed {seed} lies in the {found.name.lower()} namespace, not {purpose.name.lower()}'s "
-            f"({purpose.name.lower()} seeds are drillgym.envs.seeds.episode_seed(Purpose.{purpose.name}, i))"
-        )
-    return int(seed)

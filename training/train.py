@@ -15,9 +15,9 @@ import re
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import yaml
 
+from drillgym.envs.json_safe import json_safe
 from drillgym.training.config import TrainConfig, load_config
 
 
@@ -72,19 +72,6 @@ def check_run_folder(out: Path, resume: bool, overwrite: bool) -> None:
         raise ValueError(
             f"{out} already holds a training run ({', '.join(held)}): --resume continues it, --overwrite starts over"
         )
-
-
-def json_safe(value: Any) -> Any:
-    """``value`` with every NaN or infinite float replaced by None (strict JSON: ``json.dumps(..., allow_nan=False)``)."""
-    if isinstance(value, dict):
-        return {k: json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_safe(v) for v in value]
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    return value
 
 
 def _export(

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from types import SimpleNamespace
 from typing import Any
 
 import gymnasium as gym
@@ -71,18 +70,6 @@ def anchor_scenarios(
     return out
 
 
-def plan_of(scenario: dict[str, Any]) -> SimpleNamespace:
-    """The plan features' sources of a scenario (what :func:`normalized_plan` reads), without building an env."""
-    sc = Scenario.from_kwargs(**scenario)
-    return SimpleNamespace(
-        beta_rad=sc.beta_rad,
-        feed_m_s=sc.feed_m_s,
-        stickout_m=sc.stickout_m,
-        cortical_thickness_m=sc.cortical_thickness_m,
-        bone=sc.bone,
-    )
-
-
 def tuning_seeds(seeds: int, offset: int = 0) -> tuple[int, ...]:
     """Episodes ``offset .. offset + seeds - 1`` of the tuning namespace (:mod:`drillgym.envs.seeds`)."""
     return tuple(episode_seed(Purpose.TUNE, offset + i) for i in range(seeds))
@@ -92,8 +79,9 @@ def tune_anchor(job: AnchorJob) -> dict[str, Any]:
     """Nelder–Mead on one anchor: its best action and every evaluation (a worker's job).
 
     Returns:
-        ``{"name", "action", "reward", "evaluations": [{"eval", "action", "reward", "deviation_mm",
-        "force_n", "time_s"}, ...], "base": {deviation_mm, force_n, time_s}}``.
+        ``{"name", "action", "reward", "chosen", "evaluations": [{"eval", "action", "reward", "deviation_mm",
+        "force_n", "time_s"}, ...], "base": {deviation_mm, force_n, time_s}}``; ``chosen`` is the kept candidate's
+        evaluation (the base's, ``a = 0``, when none beat it).
     """
     env = gym.make(SIM_ENV_ID, **job.scenario)
     try:
@@ -138,11 +126,12 @@ def tune_anchor(job: AnchorJob) -> dict[str, Any]:
     finally:
         env.close()
     best = max(evaluations, key=lambda e: e["reward"])
-    action = best["action"] if best["reward"] > 0.0 else [0.0] * dims
+    chosen = best if best["reward"] > 0.0 else evaluations[0]  # evaluations[0] is the base, a = 0
     return {
         "name": job.name,
-        "action": action,
-        "reward": max(best["reward"], 0.0),
+        "action": chosen["action"],
+        "reward": chosen["reward"],
+        "chosen": chosen,
         "evaluations": evaluations,
         "base": {
             "deviation_mm": float(np.mean([b["deviation_mean_mm"] for b in base])),
@@ -175,7 +164,7 @@ def build_table(jobs: list[AnchorJob], results: list[dict[str, Any]], meta: dict
         Anchor(
             job.name,
             job.scenario,
-            tuple(float(v) for v in normalized_plan(plan_of(job.scenario), spec.plan_support)),
+            tuple(float(v) for v in normalized_plan(Scenario.from_kwargs(**job.scenario), spec.plan_support)),
             tuple(float(v) for v in res["action"]),
         )
         for job, res in zip(jobs, results, strict=True)

@@ -44,9 +44,7 @@ def write_report(out: Path, table: ScheduleTable, results: list[dict[str, Any]])
     ]
     for anchor, res in zip(table.anchors, results, strict=True):
         values = spec.values(np.asarray(anchor.action))
-        best = max(res["evaluations"], key=lambda e: e["reward"])
-        kept = best if res["reward"] > 0 else res["evaluations"][0]
-        b = res["base"]
+        kept, b = res["chosen"], res["base"]
         lines.append(
             f"| {anchor.name} | {res['reward']:+.4f} | "
             + " | ".join(f"{values[f]:.3g}" for f in spec.fields)

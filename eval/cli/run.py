@@ -24,6 +24,7 @@ from typing import Any
 import gymnasium as gym
 
 from drillgym.controllers.rollout import run_episode
+from drillgym.envs.json_safe import json_safe
 from drillgym.envs.real.config import SafetyLimits
 from drillgym.envs.real.emulator.cli import parse_scenario
 from drillgym.envs.real.metrics import OBSERVABLE_METRICS
@@ -221,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
         code = 3
     finally:
         env.close()
-        (args.out / "metrics.json").write_text(json.dumps(_finite(results), indent=2))
+        (args.out / "metrics.json").write_text(json.dumps(json_safe(results), indent=2))
     _summarise_dry_run(env, args)
     print(f"results in {args.out.resolve()}")
     return code
@@ -275,14 +276,3 @@ def _summarise_dry_run(env: gym.Env[Any, Any], args: argparse.Namespace) -> None
         return
     print(describe_reach(reach, commands))
     (out / "dry_run.json").write_text(json.dumps(reach, indent=2))
-
-
-def _finite(value: Any) -> Any:
-    """JSON-safe copy: NaN and inf become null."""
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_finite(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import sys
+import shlex
 import time
 from pathlib import Path
 
@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     done = [r for r in results if r is not None]
     holes = sum(args.seeds * (len(r["evaluations"]) + 1) for r in done)
     meta = {
-        "command": "drillgym " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["tune-table"] else "drillgym tune-table",
+        "command": _command(args),
         "base": args.base,
         "seeds_per_anchor": args.seeds,
         "seed_offset": args.seed_offset,
@@ -79,3 +79,10 @@ def run(args: argparse.Namespace) -> int:
         f"Results: {out.resolve()}/ (table.json: make_controller('table:{out / 'table.json'}'), tune_table.md, tune_table.png)"
     )
     return 0
+
+
+def _command(args: argparse.Namespace) -> str:
+    """The ``drillgym tune-table`` command that reproduces this table, every option spelled out."""
+    options = {"--base": args.base, "--seeds": args.seeds, "--seed-offset": args.seed_offset, "--evals": args.evals}
+    options |= {"--step": f"{args.step:g}", "--out": args.out}
+    return shlex.join(["drillgym", "tune-table", *(str(x) for kv in options.items() for x in kv)])

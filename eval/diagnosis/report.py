@@ -7,9 +7,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from drillgym.envs.effects.registry import EFFECTS
+from drillgym.envs.json_safe import json_safe
 from drillgym.eval.diagnosis.channels import FORCE, STAGES
 from drillgym.eval.diagnosis.context import build, make_spec
 from drillgym.eval.diagnosis.diagnose import Diagnosis
@@ -28,7 +27,7 @@ def write_outputs(
     res = dict(diag.result)
     res["skipped_logs"] = list(skipped or [])
     paths = {"json": out / "diagnosis.json", "report": out / "report.md"}
-    paths["json"].write_text(json.dumps(_clean(res), indent=2))
+    paths["json"].write_text(json.dumps(json_safe(res), indent=2))
     figs: dict[str, Path] = {}
     if figures:
         figs = _figures(diag, out)
@@ -303,15 +302,3 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
         "",
     ]
     return "\n".join(lines)
-
-
-def _clean(v: Any) -> Any:
-    if isinstance(v, dict):
-        return {str(k): _clean(x) for k, x in v.items()}
-    if isinstance(v, list | tuple):
-        return [_clean(x) for x in v]
-    if isinstance(v, np.generic):
-        v = v.item()
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v

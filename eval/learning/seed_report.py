@@ -33,6 +33,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from scipy import stats
 
+from drillgym.envs.json_safe import json_safe
+
 POLICY = "policy"
 """``controller`` label of the trained policy's rows (its training run is in ``run``)."""
 DEVIATION = "deviation_mean_mm"
@@ -499,21 +501,6 @@ def _failed(frame: pd.DataFrame) -> dict[str, dict[str, int]]:
     return counts
 
 
-def _jsonable(value: Any) -> Any:
-    """NaN and infinities become None; NumPy scalars and arrays become Python ones."""
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple | np.ndarray):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, bool | np.bool_):
-        return bool(value)
-    if isinstance(value, int | np.integer):
-        return int(value)
-    if isinstance(value, float | np.floating):
-        return float(value) if math.isfinite(value) else None
-    return value
-
-
 def write_seed_report(
     episodes: pd.DataFrame,
     out: Path,
@@ -572,7 +559,7 @@ def write_seed_report(
         "n_runs": len(checks),
         **(extra or {}),
     }
-    report = _jsonable(report)
+    report = json_safe(report)
     (out / "seed_report.json").write_text(json.dumps(report, indent=2, allow_nan=False) + "\n")
     (out / "seed_report.md").write_text(_markdown(report, extra_markdown))
     _plot(report, out / "seed_report.png")

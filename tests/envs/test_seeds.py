@@ -8,12 +8,9 @@ from hypothesis import strategies as st
 from drillgym.envs.seeds import (
     INDEX_LIMIT,
     Purpose,
-    child_seed,
     draw_seed,
     episode_seed,
-    judge_seeds,
     purpose_of,
-    require_purpose,
     stream,
     training_stream,
 )
@@ -23,8 +20,8 @@ purposes = st.sampled_from(list(Purpose))
 
 
 def test_judge_seeds_are_the_plain_benchmark_seeds():
-    assert judge_seeds(5) == [0, 1, 2, 3, 4]
-    assert judge_seeds(2, offset=7) == [7, 8]
+    assert [episode_seed(Purpose.JUDGE, i) for i in range(5)] == [0, 1, 2, 3, 4]
+    assert [episode_seed(Purpose.JUDGE, 7 + i) for i in range(2)] == [7, 8]
 
 
 @settings(max_examples=500, deadline=None)
@@ -41,7 +38,7 @@ def test_two_purposes_never_share_a_seed_whatever_the_indices(p, i, q, j):
 @settings(max_examples=200, deadline=None)
 @given(st.integers(min_value=0, max_value=2**40), st.integers(min_value=0, max_value=64), purposes)
 def test_child_seeds_stay_in_their_purposes_namespace(run_seed, rank, p):
-    assert purpose_of(child_seed(p, run_seed, rank)) == p
+    assert purpose_of(draw_seed(stream(p, run_seed, rank), p)) == p
 
 
 def test_runs_s_and_s_plus_one_share_no_worker_stream():
@@ -56,16 +53,13 @@ def test_runs_s_and_s_plus_one_share_no_worker_stream():
     assert training_stream((0, 1), None).integers(1 << 30) != training_stream((1, 0), None).integers(1 << 30)
 
 
-def test_out_of_range_indices_and_foreign_seeds_are_refused():
+def test_out_of_range_indices_and_seeds_outside_every_namespace_are_refused():
     with pytest.raises(ValueError, match=r"must be in \[0, 2\^48\)"):
         episode_seed(Purpose.TUNE, -1)
     with pytest.raises(ValueError, match=r"must be in \[0, 2\^48\)"):
         episode_seed(Purpose.TUNE, INDEX_LIMIT)
     with pytest.raises(ValueError, match="no purpose's namespace"):
         purpose_of(len(Purpose) << 48)
-    with pytest.raises(ValueError, match="lies in the judge namespace, not tune's"):
-        require_purpose(3, Purpose.TUNE, "tuner")
-    assert require_purpose(episode_seed(Purpose.TUNE, 3), Purpose.TUNE, "tuner") == (1 << 48) + 3
 
 
 def test_a_namespaced_seed_seeds_a_gymnasium_generator_of_its_own():
