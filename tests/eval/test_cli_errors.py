@@ -2,7 +2,13 @@
 
 import pytest
 
+from drillgym.envs.real.emulator.process import free_loopback_host
 from drillgym.eval.cli import COMMANDS, main
+
+NO_ROBOT = free_loopback_host()
+"""A loopback address whose UR and F/T ports are all free: nothing, a URSim on this machine included, answers there,
+so a test that connects is refused by the network stack, and one that must fail before connecting cannot reach a
+robot if it does not."""
 
 BAD_INPUT = {
     "demo": ["--seeds", "0"],
@@ -15,10 +21,10 @@ BAD_INPUT = {
     "tune-table": ["--seeds", "1"],
     "train": ["--config", "no_such_config.yaml"],
     "bench": ["--suite", "nope"],
-    "run": ["--robot", "127.0.0.1", "--scenario", "beta_deg=99", "--dry-run"],
+    "run": ["--robot", NO_ROBOT, "--scenario", "beta_deg=99", "--dry-run"],
     "emulate": ["--scenario", "beta_deg=99"],
     "bench-rtde": ["--seconds", "-1"],
-    "ft-check": ["--ft", "127.0.0.1", "--mass-kg", "-0.5"],
+    "ft-check": ["--ft", NO_ROBOT, "--mass-kg", "-0.5"],
     "diagnose": ["--real", "no_such_folder"],
     "make-reality": ["--effects", "no_such_effect"],
     "bench-diagnosis": ["--only", "no_such_case"],
@@ -76,7 +82,7 @@ def test_a_user_error_deep_in_a_command_shows_its_traceback_on_request(tmp_path,
     [
         ["make-reality", "--effects", "no_such_effect"],
         ["import-rtde", "no_such_session"],
-        ["run", "--robot", "127.0.0.1", "--yes"],  # nothing listens on this loopback address's UR ports
+        ["run", "--robot", NO_ROBOT, "--yes"],  # nothing listens on this loopback address's UR ports
     ],
 )
 def test_a_failed_command_leaves_no_output_folder(argv, tmp_path, capsys):

@@ -3,6 +3,7 @@ this folder's ``conftest.py``)."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -47,3 +48,18 @@ def run_steps(
         if terminated or truncated:
             return steps, info, True
     return steps, info, False
+
+
+def wait_until(predicate: Callable[[], Any], timeout_s: float = 2.0, poll_s: float = 0.004) -> bool:
+    """Poll ``predicate`` until it holds or ``timeout_s`` (s) has passed; returns its last value as a bool.
+
+    The tests' synchronisation with the emulator's 125 Hz clock: a condition a command or fault brings about shows
+    within a few controller cycles on a quiet machine, later on a busy one, so a test waits for the condition (up
+    to a deadline that only a broken emulator reaches) instead of sleeping a fixed time and hoping.
+    """
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() >= deadline:
+            return bool(predicate())
+        time.sleep(poll_s)
+    return True

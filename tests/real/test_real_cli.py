@@ -61,12 +61,15 @@ def test_run_asks_before_moving(start_emulator, tmp_path):
 
 
 def test_run_rejects_an_unknown_controller_before_connecting(tmp_path, capsys):
-    assert main(["run", "--robot", "127.0.0.1", "--controller", "pid9000", "--out", str(tmp_path)]) == 2
+    """The robot address is a loopback one whose UR ports are free (so no controller, a URSim on this machine
+    included, could answer there): the refusal comes from the arguments, not from a connection."""
+    assert main(["run", "--robot", free_loopback_host(), "--controller", "pid9000", "--out", str(tmp_path)]) == 2
     assert "pid9000" in capsys.readouterr().err
 
 
 def test_run_rejects_a_non_positive_timing_limit_before_connecting(tmp_path, capsys):
-    assert main(["run", "--robot", "127.0.0.1", "--max-gap-ms", "0", "--out", str(tmp_path)]) == 2
+    """As above: an address no controller listens on."""
+    assert main(["run", "--robot", free_loopback_host(), "--max-gap-ms", "0", "--out", str(tmp_path)]) == 2
     assert "max_cycle_gap_s=0.0" in capsys.readouterr().err
 
 

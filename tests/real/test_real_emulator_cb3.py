@@ -19,6 +19,7 @@ import pytest
 import rtde_control
 import rtde_io
 import rtde_receive
+from real_cell import wait_until
 
 from drillgym.envs.real.emulator import rtde_protocol as rp
 from drillgym.envs.real.emulator.config import DASHBOARD_PORT, PRIMARY_PORT, SCRIPT_PORT, SECONDARY_PORT
@@ -28,15 +29,10 @@ pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefi
 
 def _send_script(host, port, text):
     with socket.create_connection((host, port), timeout=2.0) as s:
-        s.sendall(text.encode())
-    time.sleep(0.1)  # the controller runs it within a few cycles
+        s.sendall(text.encode())  # the controller runs it within a few cycles: the tests wait for its effects
 
 
-def _wait(predicate, timeout_s=1.0):
-    deadline = time.monotonic() + timeout_s
-    while not predicate() and time.monotonic() < deadline:
-        time.sleep(0.008)
-    return predicate()
+_wait = wait_until
 
 
 @pytest.mark.parametrize("port", [SCRIPT_PORT, PRIMARY_PORT, SECONDARY_PORT])
@@ -67,7 +63,7 @@ def test_bare_statements_replace_the_program_and_a_secondary_program_does_not(st
         _send_script(emu.host, SECONDARY_PORT, "sec io():\n  set_standard_digital_out(3, True)\nend\n")
         assert _wait(lambda: r.getActualDigitalOutputBits() & 0b1000) and c.isProgramRunning()
         _send_script(emu.host, PRIMARY_PORT, "set_standard_digital_out(3, False)\n")
-        assert _wait(lambda: not c.isProgramRunning()) and not r.getActualDigitalOutputBits() & 0b1000
+        assert _wait(lambda: not c.isProgramRunning() and not r.getActualDigitalOutputBits() & 0b1000)
     finally:
         c.disconnect()
         r.disconnect()
@@ -121,14 +117,15 @@ def test_async_movel_moves_reports_speeds_and_stops_on_stopl(start_emulator):
         assert c.moveL(target, 0.02, 0.5, True)
         assert time.monotonic() - t0 < 0.3  # returned at once (the move takes 0.5 s)
         assert c.getAsyncOperationProgress() >= 0  # running
-        time.sleep(0.15)
+        # mid-move (the ramp to 0.02 m/s at 0.5 m/s^2 takes 40 ms of the 0.5 s move): the speed is along z
+        assert _wait(lambda: r.getActualTCPSpeed()[2] == pytest.approx(0.02, rel=0.15), 0.4)
         speed = np.array(r.getActualTCPSpeed())
-        assert speed[2] == pytest.approx(0.02, rel=0.15) and np.linalg.norm(speed[:2]) < 1e-3
+        assert np.linalg.norm(speed[:2]) < 1e-3
         assert np.linalg.norm(r.getActualQd()) > 1e-3
         c.stopL(2.0)  # ur_rtde returns nothing
         assert _wait(lambda: np.allclose(r.getActualTCPSpeed(), 0.0, atol=1e-6))  # the next states show it stopped
         z_stopped = r.getActualTCPPose()[2]
-        time.sleep(0.1)
+        time.sleep(0.1)  # not a synchronisation: nothing may move in this time, however long it takes
         assert r.getActualTCPPose()[2] == pytest.approx(z_stopped, abs=1e-6)  # and it stays, short of the target
         assert z_stopped < target[2] - 0.002
         assert c.getAsyncOperationProgress() < 0  # done

@@ -7,8 +7,9 @@ force and TCP noise of the approach (KP = 4), so the entry skid depends on the n
 the sim alone, under 12 noise draws, gives a maximum true deviation of 0.235-0.275 mm (SD 0.013 mm) and a stable
 lateral force of 0.195-0.217 N (SD 0.0065 N); the plain seed-0 run (0.2745 mm) is the largest of the 12. So one
 emulated run is compared with the sim's *distribution* on that specimen (``reset(options={"specimen_seed": 0})``
-over SIM_NOISE_DRAWS noise seeds): it must lie in the sims' 99.9 % prediction interval, or within the real
-pipeline's timing allowance (LI2023_TOL) of their mean, whichever is wider. The allowance: the sim applies each
+over SIM_NOISE_DRAWS noise seeds): it must lie in the sims' prediction interval at a family-wise level of
+1 - 1e-4 (FALSE_FAILURE_RATE, Bonferroni over the 8 metrics), or within the real pipeline's timing allowance
+(LI2023_TOL) of their mean, whichever is wider. The allowance: the sim applies each
 action after exactly 14 ms on a fixed grid, the emulator after the real pipeline (servo process 0-8 ms + controller
 cycle 0-8 ms + physics update 0-10 ms) with jitter; constant latencies from 4 to 22 ms move the sim's metrics by
 < 1 % (docs/deployment.md §7).
@@ -50,10 +51,13 @@ LI2023_TOL = {  # metric: (relative, absolute) timing allowance around the sims'
     "truth_deviation_max_mm": (0.08, 0.0),
     "truth_hole_offset_mm": (0.08, 0.0),
 }
-SIM_NOISE_DRAWS = 10
-"""Sim runs on the emulated specimen, one per noise seed (0 .. n-1; seed 0 is the plain run): ~1 s each."""
-PREDICTION_LEVEL = 0.999
-"""Two-sided level of the prediction interval for one more draw (8 metrics: ~1 % false failures per run)."""
+SIM_NOISE_DRAWS = 20
+"""Sim runs on the emulated specimen, one per noise seed (0 .. n-1; seed 0 is the plain run): ~1 s each. Twenty
+rather than ten: at the level below, Student's t for one more draw is 6.0 sample SDs with 20 draws, 9.0 with 10."""
+FALSE_FAILURE_RATE = 1e-4
+"""The chance, for a pipeline that behaves like the sim, that this suite's one distribution test fails: the issue's
+bound for the whole suite (this is the suite's only prediction-interval test). Split evenly over the metrics
+(Bonferroni, which holds whatever their correlation): each metric's two-sided level is 1 - 1e-4 / 8."""
 RESIDUAL_TOL = {  # only what the pipeline's timing does not move (docs/deployment.md §7)
     "thrust_max_n": (0.2, 0.0),
     "tracker_deviation_mean_mm": (0.15, 0.06),
@@ -83,7 +87,8 @@ def _within_sim_spread(real, spec, specimen_seed, tolerances):
     """Each metric of one emulated run against the sims on its specimen under SIM_NOISE_DRAWS noise draws."""
     sims = [_sim_metrics(spec, seed, specimen_seed) for seed in range(SIM_NOISE_DRAWS)]
     n = len(sims)
-    t = stats.t.ppf(0.5 + PREDICTION_LEVEL / 2, n - 1)
+    alpha = FALSE_FAILURE_RATE / len(tolerances)
+    t = stats.t.ppf(1 - alpha / 2, n - 1)
     for name, (rel, abs_) in tolerances.items():
         values = np.array([sim[name] for sim in sims])
         mean, sd = float(values.mean()), float(values.std(ddof=1))
