@@ -1,13 +1,15 @@
 """The emulator's RTDE output-rate divider against a table of requested frequencies.
 
-Rule pinned (``envs/real/emulator/rtde_server.py`` and docs/deployment.md): the request is clipped to the CB3's
-1-125 Hz and a data package goes out every ``round(125 / f)`` controller cycles (Python's round: halves to even).
-UR's RTDE guide (docs.universal-robots.com, "Real-Time Data Exchange (RTDE) Guide") and the PolyScope RTDE
-manual page state the controller rates (125 Hz on CB-Series, 500 Hz on e-Series) and that the client asks for
-an output frequency, but, in the copies searched for this test, no rule for a frequency that 125 Hz does not
-divide: so the table pins the emulator's documented choice, not UR's. The rows marked ``floor differs`` are
-the ones a ``floor(125 / f)`` rule (issue 43's proposal) would change; the others hold under either rule.
+Rule pinned (``envs/real/emulator/rtde_server.py`` and docs/deployment.md §6): the request is clipped to the CB3's
+1-125 Hz and a data package goes out every ``floor(125 / f)`` controller cycles, so the served rate is never below
+the request. Source: UR's RTDE guide ("Real-Time Data Exchange (RTDE) Guide", RTDE_CONTROL_PACKAGE_SETUP_OUTPUTS,
+output frequency), which issue 43 reports documents ``floor(125 / f)`` for CB-Series controllers (500 Hz and
+``floor(500 / f)`` on e-Series, which the emulator does not emulate: an e-Series rate on a CB3 is clipped to
+125 Hz). The copies of the guide this project could read did not show that passage, and no controller checked it.
+The rows marked ``round differs`` are those the emulator's earlier ``round(125 / f)`` served differently.
 """
+
+import math
 
 import pytest
 
@@ -17,21 +19,25 @@ TABLE = [
     # requested Hz, cycles between packages
     (125.0, 1),
     (500.0, 1),  # an e-Series rate on a CB3: clipped to 125 Hz
+    (math.inf, 1),
     (100.0, 1),  # 1.25
     (84.0, 1),  # 1.49
-    (70.0, 2),  # 1.79: floor differs (1)
+    (70.0, 1),  # 1.79: round differs (2)
     (62.5, 2),
-    (50.0, 2),  # 2.5: half to even
-    (45.0, 3),  # 2.78: floor differs (2)
+    (50.0, 2),  # 2.5
+    (45.0, 2),  # 2.78: round differs (3)
+    (125.0 / 3.0, 3),  # 3 in floating point arithmetic is 2.9999...: the rule must not fall to 2
     (40.0, 3),  # 3.125
     (30.0, 4),  # 4.17
     (25.0, 5),
     (20.0, 6),  # 6.25
-    (10.0, 12),  # 12.5: half to even
-    (9.0, 14),  # 13.9: floor differs (13)
+    (125.0 / 7.0, 7),  # 6.999... in floating point
+    (10.0, 12),  # 12.5
+    (9.0, 13),  # 13.9: round differs (14)
     (1.0, 125),
     (0.5, 125),  # clipped to 1 Hz
     (0.0, 125),
+    (-5.0, 125),
 ]
 
 
@@ -41,8 +47,17 @@ def test_requested_frequency_to_divider(frequency_hz, divider):
     assert output_divider(frequency_hz) == divider
 
 
-def test_the_served_rate_is_the_nearest_125_hz_over_a_whole_number():
-    """No whole divider serves a request in 1-125 Hz closer (in cycles) than the chosen one: |125/f − n| ≤ ½."""
+def test_the_served_rate_is_the_slowest_125_hz_over_a_whole_number_not_below_the_request():
+    """125 / n >= f > 125 / (n + 1) for every f in 1-125 Hz: floor's divider, checked on a grid of requests.
+
+    The 1e-9 slack is floating point's: 125 / (125 / n) is n only to within a few ulps.
+    """
     for f in [1.0 + 0.37 * k for k in range(335)]:
         n = output_divider(f)
-        assert abs(CB3_RATE_HZ / f - n) <= 0.5 + 1e-12, (f, n)
+        assert CB3_RATE_HZ / n >= f - 1e-9, (f, n)
+        assert CB3_RATE_HZ / (n + 1) < f, (f, n)
+
+
+def test_a_frequency_that_is_not_a_number_is_refused():
+    with pytest.raises(ValueError, match="not a number"):
+        output_divider(math.nan)

@@ -9,6 +9,7 @@ Answer texts are UR's (Dashboard Server manual for CB3, "Dashboard Server, port 
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 
 from drillgym.envs.real.emulator.script import ControlProgram, RuntimeState
@@ -20,6 +21,7 @@ UNLOCK_REFUSED = (
 )
 """UR's answer to ``unlock protective stop`` sent within 5 s of the stop (Dashboard Server manual)."""
 POLYSCOPE_VERSION = "URSoftware 3.15.7.106331 (Sep 07 2022)"
+COMMANDS_KEPT = 100
 
 
 class Dashboard:
@@ -37,7 +39,8 @@ class Dashboard:
         self.program = program
         self.protective_stopped = protective_stopped
         self.unlock = unlock
-        self.commands: list[str] = []
+        self.commands: deque[str] = deque(maxlen=COMMANDS_KEPT)
+        """The latest commands (bounded: a client may send any number)."""
         self.notes: list[str] = []
         """What a reply left out (the emulator's log prints these)."""
 

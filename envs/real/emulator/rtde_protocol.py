@@ -1,8 +1,12 @@
-"""RTDE wire format (protocol version 2) as a UR controller serves it on TCP 30004.
+"""RTDE wire format (protocol versions 1 and 2) as a UR controller serves it on TCP 30004.
 
 Every package: ``uint16 size`` (including the 3-byte header), ``uint8 type``, payload; big-endian.
 Types and sizes follow UR's RTDE guide; ``ur_rtde`` decodes data packages with its own table, so the
-types here must be the guide's exactly.
+types here must be the guide's exactly. Where the versions differ (UR's RTDE guide, the package tables; read
+the same way by UR's Client Library, ``src/rtde/*.cpp``, and UR's Python client, ``rtde/serialize.py``): a
+version 1 output setup carries no frequency and its answer no recipe id, a version 1 output data package no recipe
+id, and a version 1 text message is ``uint8 level`` then the message, where version 2 has ``uint8`` length-prefixed
+message and source, then ``uint8 level``.
 """
 
 from __future__ import annotations
@@ -21,6 +25,13 @@ PAUSE = ord("P")
 
 NOT_FOUND = "NOT_FOUND"
 IN_USE = "IN_USE"
+PROTOCOL_VERSIONS = (1, 2)
+"""The versions a CB3 (PolyScope 3.15) accepts in ``REQUEST_PROTOCOL_VERSION``; a client that asks for none
+speaks version 1 (UR's Client Library sets its parser to version 1 before negotiating)."""
+MAX_PACKAGE_BYTES = 0xFFFF
+"""The ``uint16`` size field's limit (header included)."""
+EXCEPTION_MESSAGE, ERROR_MESSAGE, WARNING_MESSAGE, INFO_MESSAGE = 0, 1, 2, 3
+"""``TEXT_MESSAGE`` levels (UR's RTDE guide, "RTDE_TEXT_MESSAGE")."""
 
 TYPE_FORMATS = {
     "BOOL": "?",
@@ -142,13 +153,24 @@ INPUT_TYPES: dict[str, str] = {
 
 
 def pack(kind: int, payload: bytes = b"") -> bytes:
-    """One RTDE package."""
+    """One RTDE package; ``ValueError`` if it would not fit the size field (:data:`MAX_PACKAGE_BYTES`)."""
+    if HEADER.size + len(payload) > MAX_PACKAGE_BYTES:
+        raise ValueError(f"RTDE package of {HEADER.size + len(payload)} bytes, more than {MAX_PACKAGE_BYTES}")
     return HEADER.pack(HEADER.size + len(payload), kind) + payload
 
 
-def recipe_struct(types: list[str]) -> struct.Struct:
-    """Struct of a data package of a recipe: recipe id byte, then the fields in order."""
-    return struct.Struct(">B" + "".join(TYPE_FORMATS[t] for t in types))
+def text_message(message: str, level: int, protocol_version: int, source: str = "RTDE") -> bytes:
+    """A ``TEXT_MESSAGE`` package in the given protocol version's layout (message and source cut to 255 bytes)."""
+    text = message.encode(errors="replace")[:255]
+    if protocol_version == 1:
+        return pack(TEXT_MESSAGE, bytes([level]) + text)
+    src = source.encode(errors="replace")[:255]
+    return pack(TEXT_MESSAGE, bytes([len(text)]) + text + bytes([len(src)]) + src + bytes([level]))
+
+
+def recipe_struct(types: list[str], recipe_id: bool = True) -> struct.Struct:
+    """Struct of a data package of a recipe: the recipe id byte (not in version 1 outputs), then the fields in order."""
+    return struct.Struct((">B" if recipe_id else ">") + "".join(TYPE_FORMATS[t] for t in types))
 
 
 def flatten(values: list, types: list[str]) -> list:

@@ -5,6 +5,11 @@ too; their client state stream is not emulated), the ATI Net F/T RDT stream (UDP
 49152), a marker stream (UDP 49153) and a JSON control port (30100, fault injection and truth) on one
 loopback address. Ticks: physics 100 Hz (the simulator's F/T rate), controller 125 Hz (program cycle and
 RTDE output, as a CB3), F/T records at ``ft_rate_hz``, marker records at ``tracker_rate_hz``.
+
+No client can stall the loop or end the process: sockets are non-blocking, replies wait in bounded outboxes
+(a client that does not read them is dropped and logged), reads are bounded per loop turn
+(:mod:`~drillgym.envs.real.emulator.nonblocking`), and an exception while handling one client's input is logged
+with its traceback and closes that client only.
 """
 
 from __future__ import annotations
@@ -13,8 +18,10 @@ import json
 import os
 import selectors
 import socket
+import struct
 import sys
 import time
+import traceback
 from collections.abc import Callable
 
 from drillgym.envs.constants import PHYSICS_DT_S
@@ -22,6 +29,16 @@ from drillgym.envs.real.emulator.config import EmulatorConfig
 from drillgym.envs.real.emulator.control import handle_control
 from drillgym.envs.real.emulator.dashboard import WELCOME, Dashboard
 from drillgym.envs.real.emulator.faults import FaultState
+from drillgym.envs.real.emulator.nonblocking import (
+    MAX_LINE_BYTES,
+    MAX_SCRIPT_BYTES,
+    READ_CHUNK_BYTES,
+    SCRIPT_CHUNK_BYTES,
+    STREAM_OUTBOX_BYTES,
+    LogBudget,
+    Outbox,
+    StreamClient,
+)
 from drillgym.envs.real.emulator.registers import Registers
 from drillgym.envs.real.emulator.rtde_server import CB3_RATE_HZ, RtdeConnection
 from drillgym.envs.real.emulator.script import ControlProgram
@@ -65,7 +82,7 @@ class Emulator:
         self.sensors = SensorStreams(self.world, config, self._bind_udp)
         self.listeners: dict[str, socket.socket] = {}
         self.rtde: list[RtdeConnection] = []
-        self.streams: dict[socket.socket, tuple[str, bytearray]] = {}
+        self.streams: dict[socket.socket, StreamClient] = {}
         self.owners: dict[str, int] = {}
         self.output_recipes: list[list[str]] = []
         self.input_recipes: list[list[list[str]]] = []
@@ -132,7 +149,7 @@ class Emulator:
                 s.close()
         for conn in list(self.rtde):
             self._close_rtde(conn)
-        for s in [s for s, (kind, _) in self.streams.items() if kind in ROBOT_PORTS]:
+        for s in [s for s, client in self.streams.items() if client.kind in ROBOT_PORTS]:
             self._close_stream(s)
         self.log("link dropped: robot ports closed")
 
@@ -162,16 +179,17 @@ class Emulator:
             self.input_recipes.append(conn.input_recipe_log)
             self.sel.register(sock, selectors.EVENT_READ, lambda s, c=conn: self._read_rtde(c))
             return
-        self.streams[sock] = (name, bytearray())
+        client = StreamClient(name, bytearray(), Outbox(sock, STREAM_OUTBOX_BYTES), LogBudget(self.log, name))
+        self.streams[sock] = client
         self.sel.register(sock, selectors.EVENT_READ, self._read_stream)
         if name == "dashboard":
-            self._send_all(sock, WELCOME.encode())
+            client.outbox.queue(WELCOME.encode())
         elif name in ("primary", "secondary"):
             self.log(f"{name} interface: client connected; it takes URScript, its robot state stream is not emulated")
 
     def _read_rtde(self, conn: RtdeConnection) -> None:
         try:
-            data = conn.sock.recv(65536)
+            data = conn.sock.recv(READ_CHUNK_BYTES["rtde"])
         except BlockingIOError:
             return
         except OSError:
@@ -181,8 +199,8 @@ class Emulator:
             return
         try:
             conn.receive(data, self.now())
-        except (ValueError, UnicodeDecodeError) as e:
-            self.log(f"rtde#{conn.conn_id}: protocol error {e}; closing")
+        except ValueError:  # the framing is lost: the client was told, and is closed
+            conn.flush(self.now())
             self._close_rtde(conn)
             return
         if conn.output_names and conn.output_names not in self.output_recipes:
@@ -195,43 +213,56 @@ class Emulator:
         conn.release()
 
     def _read_stream(self, sock: socket.socket) -> None:
-        kind, buf = self.streams[sock]
+        client = self.streams[sock]
+        kind = client.kind
         try:
-            data = sock.recv(65536)
+            data = sock.recv(SCRIPT_CHUNK_BYTES if kind in SCRIPT_KINDS else READ_CHUNK_BYTES[kind])
         except BlockingIOError:
             return
         except OSError:
             data = b""
         if not data:
-            if kind == "script" and buf:
-                self.log(f"script port: connection closed with {len(buf)} bytes of an incomplete program")
+            if kind in SCRIPT_KINDS and client.inbox.strip():
+                self.log(f"{kind} port: connection closed with {len(client.inbox)} bytes of an incomplete program")
             self._close_stream(sock)
             return
-        buf.extend(data)
+        if client.closing:  # input after quit / shutdown / a one-shot reply is not read
+            return
+        client.inbox.extend(data)
         if kind == "ft_cal":
-            self._answer_ft_tcp(sock, buf)
-            return
-        if kind in SCRIPT_KINDS:
-            self._read_script(kind, buf)
-            return
-        while b"\n" in buf:
-            line, _, rest = bytes(buf).partition(b"\n")
-            buf[:] = rest
-            if kind == "dashboard":
-                reply, close = self.dashboard.reply(line.decode(errors="replace"), self.now())
-                for note in self.dashboard.notes:
-                    self.log(f"dashboard: {note}")
-                self.dashboard.notes.clear()
-                self._send_all(sock, (reply + "\n").encode())
-            else:
-                reply_obj, close = handle_control(self, line.decode(errors="replace"))
-                self._send_all(sock, (json.dumps(reply_obj) + "\n").encode())
-            if close:
+            self._answer_ft_tcp(client)
+        elif kind in SCRIPT_KINDS:
+            self._read_script(client)
+            if len(client.inbox) > MAX_SCRIPT_BYTES:
+                self.log(f"{kind} port: more than {MAX_SCRIPT_BYTES} bytes of an incomplete program; closing")
                 self._close_stream(sock)
-                return
+        else:
+            self._read_lines(sock, client)
 
-    def _read_script(self, kind: str, buf: bytearray) -> None:
+    def _read_lines(self, sock: socket.socket, client: StreamClient) -> None:
+        """Answer each complete line of a dashboard or control client (replies queued, sent without waiting)."""
+        while not client.closing:
+            end = client.inbox.find(b"\n")
+            if end < 0:
+                break
+            line = client.inbox[:end].decode(errors="replace")
+            del client.inbox[: end + 1]
+            if client.kind == "dashboard":
+                reply, client.closing = self.dashboard.reply(line, self.now())
+                for note in self.dashboard.notes:
+                    client.log(note)
+                self.dashboard.notes.clear()
+            else:
+                reply_obj, client.closing = handle_control(self, line)
+                reply = json.dumps(reply_obj)
+            client.outbox.queue((reply + "\n").encode())
+        if len(client.inbox) > MAX_LINE_BYTES:
+            self.log(f"{client.kind}: a line of more than {MAX_LINE_BYTES} bytes without a newline; closing")
+            self._close_stream(sock)
+
+    def _read_script(self, client: StreamClient) -> None:
         """A ``def``/``sec`` program once its ``end`` line arrived; bare statements line by line."""
+        kind, buf = client.kind, client.inbox
         port = {"script": self.config.script_port, "primary": self.config.primary_port}.get(
             kind, self.config.secondary_port
         )
@@ -244,32 +275,53 @@ class Emulator:
         buf.clear()
         if text:
             self.program.run_script(text.decode(errors="replace"), self.now(), port)
-            self.log(f"{kind} port {port}: program of {len(text)} bytes received")
+            client.log(f"port {port}: program of {len(text)} bytes received")
 
-    def _answer_ft_tcp(self, sock: socket.socket, buf: bytearray) -> None:
+    def _answer_ft_tcp(self, client: StreamClient) -> None:
         """The Net F/T's TCP interface: ``READCALINFO`` answered with the configured calibration, nothing else."""
+        buf = client.inbox
         if len(buf) < CAL_REQUEST.size:
             return
         if buf[0] == CMD_READCALINFO:
-            self._send_all(sock, pack_calinfo(self.config.calibration))
+            client.outbox.queue(pack_calinfo(self.config.calibration))
         else:
             self.log(f"ft tcp: command {buf[0]} not emulated (only READCALINFO); closing")
-        self._close_stream(sock)
+        client.closing = True
 
     def _close_stream(self, sock: socket.socket) -> None:
         if self.streams.pop(sock, None) is not None:
             self.sel.unregister(sock)
         sock.close()
 
-    @staticmethod
-    def _send_all(sock: socket.socket, data: bytes) -> None:
-        sock.setblocking(True)
+    def _flush_streams(self) -> None:
+        """Send the queued replies without waiting; drop (and log) a client that does not read them."""
+        for sock, client in list(self.streams.items()):
+            if not client.outbox.flush():
+                unsent = len(client.outbox.pending)
+                if unsent:
+                    self.log(f"{client.kind}: client does not read its replies ({unsent} bytes unsent); dropped")
+                self._close_stream(sock)
+            elif client.closing and not client.outbox.pending:
+                self._close_stream(sock)
+
+    def _dispatch(self, key: selectors.SelectorKey) -> None:
+        """Run one ready socket's handler; an exception is logged with its traceback and closes that client only."""
         try:
-            sock.sendall(data)
-        except OSError:
-            pass
-        finally:
-            sock.setblocking(False)
+            key.data(key.fileobj)
+        except Exception as e:
+            sock = key.fileobj
+            where = next((f"rtde#{c.conn_id}" for c in self.rtde if c.sock is sock), None)
+            if where is None and sock in self.streams:
+                where = f"{self.streams[sock].kind} client"
+            tb = traceback.format_exc().strip().splitlines()
+            self.log(
+                f"internal error handling {where or 'a listener'}: {type(e).__name__}: {e}; " + " | ".join(tb[-6:])
+            )
+            for conn in [c for c in self.rtde if c.sock is sock]:
+                self._close_rtde(conn)
+            if sock in self.streams:
+                assert isinstance(sock, socket.socket)
+                self._close_stream(sock)
 
     # ------------------------------------------------------------------ ticks
     def controller_tick(self, t_s: float) -> None:
@@ -283,7 +335,13 @@ class Emulator:
         release = t_s + self.faults.delay_s if self.faults.delay_s > 0 else None
         for conn in list(self.rtde):
             if conn.started and not self.faults.rtde_frozen(t_s) and self.controller_ticks % conn.divider == 0:
-                conn.send(conn.data_package(state), release)
+                try:
+                    package = conn.data_package(state)
+                except (ValueError, TypeError, OverflowError, struct.error) as e:
+                    self.log(f"rtde#{conn.conn_id}: output package not packable ({e}); closing")
+                    self._close_rtde(conn)
+                    continue
+                conn.send(package, release)
                 conn.sent_packages += 1
 
     def run(self) -> int:
@@ -328,7 +386,7 @@ class Emulator:
         now = self.now()
         deadline = min(self.next_phys, self.next_ctrl, self.next_check, self.sensors.next_due_s())
         for key, _ in self.sel.select(max(deadline - now, 0.0)):
-            key.data(key.fileobj)
+            self._dispatch(key)
         now = self.now()
         if now >= self.next_phys:
             self.world.physics_tick(self.next_phys)
@@ -347,6 +405,7 @@ class Emulator:
             if not conn.flush(now):
                 self.log(f"rtde#{conn.conn_id}: send failed or backlog; closing")
                 self._close_rtde(conn)
+        self._flush_streams()
         if now >= self.next_check:
             self.next_check = now + 0.5
             self.faults.expire(self, now)
@@ -358,7 +417,8 @@ class Emulator:
                 self.shutdown = True
 
     def close(self) -> None:
-        """Close every socket."""
+        """Close every socket (the replies already queued are sent first, without waiting)."""
+        self._flush_streams()
         for conn in list(self.rtde):
             self._close_rtde(conn)
         for sock in list(self.streams):
