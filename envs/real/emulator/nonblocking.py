@@ -3,7 +3,8 @@
 The emulator serves every port from one thread that also runs the 125 Hz controller, the physics and the F/T
 stream, so a socket call that waits for a client stops all of them. Here every send is non-blocking into a
 bounded :class:`Outbox` (a client that lets :attr:`Outbox.limit_bytes` pile up is dropped by its owner, and
-logged), every read takes at most one chunk per loop turn (:data:`READ_CHUNK_BYTES`), and a client's complaints
+logged), every read takes at most one chunk per loop turn (:data:`READ_CHUNK_BYTES`), a line client's commands
+at most :data:`LINE_TURN_BUDGET_S` of each turn, and a client's complaints
 and notes reach the log at most :data:`LINES_LOGGED` times (:class:`LogBudget`).
 """
 
@@ -13,11 +14,14 @@ import socket
 from collections.abc import Callable
 from dataclasses import dataclass
 
-READ_CHUNK_BYTES = {"rtde": 16384, "dashboard": 4096, "control": 65536, "ft_cal": 4096}
+READ_CHUNK_BYTES = {"rtde": 16384, "dashboard": 4096, "control": 4096, "ft_cal": 4096, "ft_http": 4096}
 """Bytes read from one client per loop turn (the rest waits in the kernel for the next turn), by port kind; the
 script ports read :data:`SCRIPT_CHUNK_BYTES`. 16 KiB of RTDE is several seconds of ``ur_rtde``'s input packages
 and 4 KiB at most 2048 dashboard commands, a few milliseconds of work."""
 SCRIPT_CHUNK_BYTES = 65536
+LINE_TURN_BUDGET_S = 0.002
+"""Time one dashboard or control client's commands may take per loop turn (s); lines left over wait for the next
+turns (a control port ``status`` takes about 0.1 ms, so 4 KiB of them would otherwise hold the loop ~20 ms)."""
 STREAM_OUTBOX_BYTES = 65536
 """Unsent replies a dashboard, control or calibration client may let pile up before it is dropped (bytes)."""
 MAX_LINE_BYTES = 4096

@@ -1,10 +1,11 @@
 """The UR controller emulator's event loop: one thread, one ``selectors`` loop, fixed-rate ticks.
 
 Serves RTDE (30004), the dashboard (29999), the script ports (30003, and 30001 / 30002, which take URScript
-too; their client state stream is not emulated), the ATI Net F/T RDT stream (UDP
-49152), a marker stream (UDP 49153) and a JSON control port (30100, fault injection and truth) on one
-loopback address. Ticks: physics 100 Hz (the simulator's F/T rate), controller 125 Hz (program cycle and
-RTDE output, as a CB3), F/T records at ``ft_rate_hz``, marker records at ``tracker_rate_hz``.
+too; with their client state streams, :mod:`~drillgym.envs.real.emulator.state_streams`), the ATI Net F/T RDT
+stream (UDP 49152) and web page (HTTP, :mod:`~drillgym.envs.real.emulator.netft_http`), a marker stream (UDP 49153)
+and a JSON control port (30100, fault injection and truth) on one loopback address. Ticks: physics 100 Hz (the
+simulator's F/T rate), controller 125 Hz (program cycle, RTDE output and the 30003 packet, as a CB3), F/T records
+at ``ft_rate_hz``, marker records at ``tracker_rate_hz``.
 
 No client can stall the loop or end the process: sockets are non-blocking, replies wait in bounded outboxes
 (a client that does not read them is dropped and logged), reads are bounded per loop turn
@@ -29,7 +30,9 @@ from drillgym.envs.real.emulator.config import EmulatorConfig
 from drillgym.envs.real.emulator.control import handle_control
 from drillgym.envs.real.emulator.dashboard import WELCOME, Dashboard
 from drillgym.envs.real.emulator.faults import FaultState
+from drillgym.envs.real.emulator.netft_http import serve_http
 from drillgym.envs.real.emulator.nonblocking import (
+    LINE_TURN_BUDGET_S,
     MAX_LINE_BYTES,
     MAX_SCRIPT_BYTES,
     READ_CHUNK_BYTES,
@@ -42,8 +45,10 @@ from drillgym.envs.real.emulator.nonblocking import (
 from drillgym.envs.real.emulator.registers import Registers
 from drillgym.envs.real.emulator.rtde_server import CB3_RATE_HZ, RtdeConnection
 from drillgym.envs.real.emulator.script import ControlProgram
+from drillgym.envs.real.emulator.script_framing import split_programs
 from drillgym.envs.real.emulator.sensor_streams import SensorStreams
 from drillgym.envs.real.emulator.state import controller_state
+from drillgym.envs.real.emulator.state_streams import StateStreams
 from drillgym.envs.real.emulator.world import EmulatedCell
 from drillgym.envs.real.net_errors import bind_error
 from drillgym.envs.real.netft_calibration import CAL_REQUEST, CMD_READCALINFO, pack_calinfo
@@ -62,6 +67,7 @@ PORT_NAMES = {
     "secondary": ("the secondary interface (TCP)", "--secondary-port"),
     "control": ("the control port (TCP)", "--control-port"),
     "ft_cal": ("the Net F/T calibration port (TCP)", "--ft-cal-port"),
+    "ft_http": ("the Net F/T web page (HTTP)", "--ft-http-port"),
     "ft": ("the Net F/T RDT stream (UDP)", "--ft-port"),
     "tracker": ("the marker stream (UDP)", "--tracker-port"),
 }
@@ -79,10 +85,13 @@ class Emulator:
         self.program = ControlProgram(self.regs, self.world)
         self.faults = FaultState(list(config.faults))
         self.dashboard = Dashboard(self.program, lambda: self.world.halted, self.unlock_protective_stop)
-        self.sensors = SensorStreams(self.world, config, self._bind_udp)
+        self.sensors = SensorStreams(self.world, config, self._bind_udp, self.log)
+        self.state_streams = StateStreams()
         self.listeners: dict[str, socket.socket] = {}
         self.rtde: list[RtdeConnection] = []
         self.streams: dict[socket.socket, StreamClient] = {}
+        self.backlogged: set[socket.socket] = set()
+        """Line clients whose received lines are not all answered yet (see :meth:`_read_lines`)."""
         self.owners: dict[str, int] = {}
         self.output_recipes: list[list[str]] = []
         self.input_recipes: list[list[list[str]]] = []
@@ -185,7 +194,7 @@ class Emulator:
         if name == "dashboard":
             client.outbox.queue(WELCOME.encode())
         elif name in ("primary", "secondary"):
-            self.log(f"{name} interface: client connected; it takes URScript, its robot state stream is not emulated")
+            client.outbox.queue(self.state_streams.greeting(self.now()))
 
     def _read_rtde(self, conn: RtdeConnection) -> None:
         try:
@@ -215,6 +224,8 @@ class Emulator:
     def _read_stream(self, sock: socket.socket) -> None:
         client = self.streams[sock]
         kind = client.kind
+        if sock in self.backlogged:  # earlier lines still unanswered: leave the rest in the kernel for now
+            return
         try:
             data = sock.recv(SCRIPT_CHUNK_BYTES if kind in SCRIPT_KINDS else READ_CHUNK_BYTES[kind])
         except BlockingIOError:
@@ -231,6 +242,8 @@ class Emulator:
         client.inbox.extend(data)
         if kind == "ft_cal":
             self._answer_ft_tcp(client)
+        elif kind == "ft_http":
+            serve_http(client, self.config)
         elif kind in SCRIPT_KINDS:
             self._read_script(client)
             if len(client.inbox) > MAX_SCRIPT_BYTES:
@@ -240,11 +253,20 @@ class Emulator:
             self._read_lines(sock, client)
 
     def _read_lines(self, sock: socket.socket, client: StreamClient) -> None:
-        """Answer each complete line of a dashboard or control client (replies queued, sent without waiting)."""
+        """Answer the complete lines of a dashboard or control client (replies queued, sent without waiting).
+
+        At most :data:`LINE_TURN_BUDGET_S` of work per loop turn: lines left over make the client backlogged,
+        answered on the next turns before anything more is read from it.
+        """
+        deadline = time.monotonic() + LINE_TURN_BUDGET_S
+        self.backlogged.discard(sock)
         while not client.closing:
             end = client.inbox.find(b"\n")
             if end < 0:
                 break
+            if time.monotonic() > deadline:
+                self.backlogged.add(sock)
+                return
             line = client.inbox[:end].decode(errors="replace")
             del client.inbox[: end + 1]
             if client.kind == "dashboard":
@@ -256,25 +278,18 @@ class Emulator:
                 reply_obj, client.closing = handle_control(self, line)
                 reply = json.dumps(reply_obj)
             client.outbox.queue((reply + "\n").encode())
-        if len(client.inbox) > MAX_LINE_BYTES:
+        if len(client.inbox) > MAX_LINE_BYTES and not client.closing:
             self.log(f"{client.kind}: a line of more than {MAX_LINE_BYTES} bytes without a newline; closing")
             self._close_stream(sock)
 
     def _read_script(self, client: StreamClient) -> None:
-        """A ``def``/``sec`` program once its ``end`` line arrived; bare statements line by line."""
-        kind, buf = client.kind, client.inbox
+        """Run each program complete in the inbox (LF or CRLF, several per chunk: :func:`split_programs`)."""
+        kind = client.kind
         port = {"script": self.config.script_port, "primary": self.config.primary_port}.get(
             kind, self.config.secondary_port
         )
-        text = bytes(buf).lstrip()
-        if text.startswith((b"def ", b"sec ")):
-            if not text.rstrip(b" \t").endswith(b"\nend\n"):
-                return
-        elif not text.endswith(b"\n"):
-            return
-        buf.clear()
-        if text:
-            self.program.run_script(text.decode(errors="replace"), self.now(), port)
+        for text in split_programs(client.inbox):
+            self.program.run_script(text, self.now(), port)
             client.log(f"port {port}: program of {len(text)} bytes received")
 
     def _answer_ft_tcp(self, client: StreamClient) -> None:
@@ -289,6 +304,7 @@ class Emulator:
         client.closing = True
 
     def _close_stream(self, sock: socket.socket) -> None:
+        self.backlogged.discard(sock)
         if self.streams.pop(sock, None) is not None:
             self.sel.unregister(sock)
         sock.close()
@@ -304,12 +320,11 @@ class Emulator:
             elif client.closing and not client.outbox.pending:
                 self._close_stream(sock)
 
-    def _dispatch(self, key: selectors.SelectorKey) -> None:
-        """Run one ready socket's handler; an exception is logged with its traceback and closes that client only."""
+    def _guarded(self, handler: Callable[[socket.socket], None], sock: socket.socket) -> None:
+        """Run one socket's handler; an exception is logged with its traceback and closes that client only."""
         try:
-            key.data(key.fileobj)
+            handler(sock)
         except Exception as e:
-            sock = key.fileobj
             where = next((f"rtde#{c.conn_id}" for c in self.rtde if c.sock is sock), None)
             if where is None and sock in self.streams:
                 where = f"{self.streams[sock].kind} client"
@@ -320,7 +335,6 @@ class Emulator:
             for conn in [c for c in self.rtde if c.sock is sock]:
                 self._close_rtde(conn)
             if sock in self.streams:
-                assert isinstance(sock, socket.socket)
                 self._close_stream(sock)
 
     # ------------------------------------------------------------------ ticks
@@ -343,6 +357,7 @@ class Emulator:
                     continue
                 conn.send(package, release)
                 conn.sent_packages += 1
+        self.state_streams.tick(t_s, state, list(self.streams.values()))
 
     def run(self) -> int:
         """Serve until shutdown, SIGTERM, the parent's exit or the lifetime limit. Returns the exit code."""
@@ -351,6 +366,7 @@ class Emulator:
             self.open_robot_ports()
             self._listen("control", cfg.control_port)
             self._listen("ft_cal", cfg.ft_cal_port)
+            self._listen("ft_http", cfg.ft_http_port)
             self.sensors.open()
         except OSError:  # a port in use: free the ones already bound, say which one
             self.close()
@@ -364,6 +380,7 @@ class Emulator:
             "control": cfg.control_port,
             "ft": cfg.ft_port,
             "ft_cal": cfg.ft_cal_port,
+            "ft_http": cfg.ft_http_port,
             "tracker": cfg.tracker_port,
         }
         print("READY " + json.dumps({"host": cfg.host, "ports": ports, "pid": os.getpid()}), flush=True)
@@ -382,11 +399,9 @@ class Emulator:
 
     def _loop_once(self) -> None:
         """Wait for sockets or the next tick, then run what is due."""
-        cfg = self.config
         now = self.now()
         deadline = min(self.next_phys, self.next_ctrl, self.next_check, self.sensors.next_due_s())
-        for key, _ in self.sel.select(max(deadline - now, 0.0)):
-            self._dispatch(key)
+        self._serve_clients(0.0 if self.backlogged else max(deadline - now, 0.0))
         now = self.now()
         if now >= self.next_phys:
             self.world.physics_tick(self.next_phys)
@@ -408,13 +423,25 @@ class Emulator:
         self._flush_streams()
         if now >= self.next_check:
             self.next_check = now + 0.5
-            self.faults.expire(self, now)
-            if now > cfg.max_lifetime_s:
-                self.log(f"lifetime limit {cfg.max_lifetime_s} s reached; exiting")
-                self.shutdown = True
-            elif cfg.parent_pid is not None and os.getppid() != cfg.parent_pid:
-                self.log(f"parent process {cfg.parent_pid} is gone; exiting")
-                self.shutdown = True
+            self._housekeeping(now)
+
+    def _serve_clients(self, timeout_s: float) -> None:
+        """Handle the sockets that are ready within ``timeout_s`` (s), then the backlogged line clients' next lines."""
+        for key, _ in self.sel.select(timeout_s):
+            self._guarded(key.data, key.fileobj)  # type: ignore[arg-type]
+        for sock in list(self.backlogged):
+            self._guarded(lambda s: self._read_lines(s, self.streams[s]), sock)
+
+    def _housekeeping(self, now: float) -> None:
+        """Twice a second: faults that expire, the lifetime limit, the parent process."""
+        cfg = self.config
+        self.faults.expire(self, now)
+        if now > cfg.max_lifetime_s:
+            self.log(f"lifetime limit {cfg.max_lifetime_s} s reached; exiting")
+            self.shutdown = True
+        elif cfg.parent_pid is not None and os.getppid() != cfg.parent_pid:
+            self.log(f"parent process {cfg.parent_pid} is gone; exiting")
+            self.shutdown = True
 
     def close(self) -> None:
         """Close every socket (the replies already queued are sent first, without waiting)."""
