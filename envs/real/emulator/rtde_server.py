@@ -157,7 +157,7 @@ class RtdeConnection:
         v2 = self.protocol_version == 2
         no_id = None if not v2 else 0
         if v2 and len(payload) < 8:
-            self.refuse(f"SETUP_OUTPUTS with a {len(payload)}-byte payload: protocol version 2 starts with a double")
+            self.refuse(f"SETUP_OUTPUTS with a {len(payload)}-byte payload, shorter than its 8-byte output frequency")
             self._answer_setup(rp.SETUP_OUTPUTS, no_id, [])
             return
         frequency = struct.unpack_from(">d", payload)[0] if v2 else CB3_RATE_HZ
