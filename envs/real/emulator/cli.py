@@ -24,6 +24,7 @@ from drillgym.envs.real.emulator.config import (
     EmulatorConfig,
     ScheduledFault,
 )
+from drillgym.envs.real.emulator.netft_http import FT_HTTP_PORT
 from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
 from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT
@@ -71,6 +72,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--counts-per-torque", type=float, default=NetFTCalibration.counts_per_torque, help="counts per N·m"
     )
     parser.add_argument("--ft-cal-port", type=int, default=CAL_PORT, help="the Net F/T's TCP port (calibration)")
+    parser.add_argument(
+        "--ft-http-port",
+        type=int,
+        default=FT_HTTP_PORT,
+        help=f"the Net F/T's web server (/netftapi2.xml; a real sensor: 80, here {FT_HTTP_PORT}: no root needed)",
+    )
+    parser.add_argument(
+        "--ft-rdt-buffer-size", type=int, default=1, help="records per packet of buffered RDT streaming (1-40)"
+    )
     parser.add_argument("--max-lifetime-s", type=float, default=3600.0, help="exit by itself after this long (s)")
     parser.add_argument("--parent-pid", type=int, default=None, help="exit when this parent process is gone")
     for name, port in (
@@ -100,6 +110,8 @@ def config_from_args(args: argparse.Namespace) -> EmulatorConfig:
         control_port=args.control_port,
         ft_port=args.ft_port,
         ft_cal_port=args.ft_cal_port,
+        ft_http_port=args.ft_http_port,
+        ft_rdt_buffer_size=args.ft_rdt_buffer_size,
         calibration=NetFTCalibration(args.counts_per_force, args.counts_per_torque),
         tracker_port=args.tracker_port,
         ft_rate_hz=args.ft_rate_hz,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from drillgym.envs.real.emulator.netft_http import FT_HTTP_PORT
 from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
 from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT
@@ -63,6 +64,10 @@ class EmulatorConfig:
     ft_port: int = RDT_PORT
     ft_cal_port: int = CAL_PORT
     """The Net F/T's TCP interface (``READCALINFO``: its counts per N and per N·m)."""
+    ft_http_port: int = FT_HTTP_PORT
+    """The Net F/T's web server (``/netftapi2.xml``); a real sensor serves it on 80."""
+    ft_rdt_buffer_size: int = 1
+    """Records per packet of buffered RDT streaming (the sensor's "RDT buffer size", 1-40)."""
     tracker_port: int = TRACKER_PORT
     ft_rate_hz: float = 500.0
     """Net F/T record rate (Hz)."""
@@ -79,5 +84,7 @@ class EmulatorConfig:
             raise ValueError(f"host={self.host!r}: the emulator serves on loopback (127.0.0.0/8) only")
         if not 100.0 <= self.ft_rate_hz <= 7000.0:
             raise ValueError(f"ft_rate_hz={self.ft_rate_hz} outside [100, 7000]")
+        if not 1 <= self.ft_rdt_buffer_size <= 40:
+            raise ValueError(f"ft_rdt_buffer_size={self.ft_rdt_buffer_size} outside [1, 40]")
         if not 1.0 <= self.tracker_rate_hz <= 500.0:
             raise ValueError(f"tracker_rate_hz={self.tracker_rate_hz} outside [1, 500]")

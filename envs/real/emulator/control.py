@@ -21,62 +21,86 @@ if TYPE_CHECKING:
     from drillgym.envs.real.emulator.host import EmulatorHost
 
 
+BAD_ARGUMENT_ERRORS = (KeyError, ValueError, TypeError, ArithmeticError, IndexError)
+"""What a request's arguments can raise (a missing key, text for a number, ``1e999`` to ``int``, a short vector):
+answered ``"ok": false``, the connection and the emulator go on."""
+
+
 def handle_control(emulator: EmulatorHost, line: str) -> tuple[dict[str, Any], bool]:
-    """Reply to one request line, and whether to close the control connection."""
+    """Reply to one request line, and whether to close the control connection.
+
+    Any line gets a reply: one that is not a JSON object with a string ``"cmd"`` (nesting too deep for the parser
+    included) and any bad argument get ``"ok": false`` with the error.
+    """
     try:
-        request = json.loads(line)
-        cmd = request["cmd"]
-    except (ValueError, KeyError, TypeError) as e:
-        return {"ok": False, "error": f"bad request {line!r}: {e}"}, False
-    t = emulator.now()
+        request, cmd = parse_request(line)
+    except (ValueError, KeyError, TypeError, RecursionError) as e:
+        return {"ok": False, "error": f"bad request {line[:200]!r}: {type(e).__name__}: {e}"}, False
     try:
-        if cmd == "status":
-            return {"ok": True, **status(emulator)}, False
-        if cmd == "fault":
-            emulator.faults.apply(emulator, str(request["kind"]), float(request.get("value", 0.0)), t)
-            return {"ok": True}, False
-        if cmd == "clear_faults":
-            emulator.faults.clear(emulator, t)
-            return {"ok": True}, False
-        if cmd == "truth":
-            world = emulator.world
-            centre = world.cell.hole.centre_at(world.scenario.entry_depth_m)
-            metrics = world.truth.metrics(centre)
-            return {
-                "ok": True,
-                "specimen": world.specimen,
-                "specimen_seed": world.specimen_seed,
-                "hardness_factor": world.hardness_factor,
-                **metrics,
-            }, False
-        if cmd == "specimen":
-            world = emulator.world
-            now = world.seed_specimen(int(request["seed"]))
-            return {
-                "ok": True,
-                "replaced_now": now,
-                "specimen": world.specimen,
-                "seed": world.specimen_seed if now else world.next_specimen_seed,
-                "hardness_factor": world.hardness_factor if now else None,
-            }, False
-        if cmd == "ft_load":
-            return {"ok": True, "force_n": ft_load(emulator, request)}, False
-        if cmd == "events":
-            events = [{"t_s": e.t_s, "cmd": e.cmd, "detail": e.detail} for e in emulator.program.events]
-            return {"ok": True, "events": events}, False
-        if cmd == "contract":
-            return {
-                "ok": True,
-                "output_recipes": emulator.output_recipes,
-                "input_recipes": emulator.input_recipes,
-                "script": emulator.program.script_text,
-            }, False
-        if cmd == "shutdown":
-            emulator.shutdown = True
-            return {"ok": True}, True
-    except (KeyError, ValueError, TypeError) as e:
+        return _answer(emulator, request, cmd)
+    except BAD_ARGUMENT_ERRORS as e:
         return {"ok": False, "error": f"{cmd}: {e}"}, False
-    return {"ok": False, "error": f"unknown cmd {cmd!r}"}, False
+
+
+def parse_request(line: str) -> tuple[dict[str, Any], str]:
+    """The request object of one line and its ``cmd``; ``ValueError`` / ``TypeError`` / ``KeyError`` if it is none."""
+    request = json.loads(line)
+    if not isinstance(request, dict):
+        raise TypeError(f"expected a JSON object, got {type(request).__name__}")
+    cmd = request["cmd"]
+    if not isinstance(cmd, str):
+        raise TypeError(f"cmd must be a string, got {type(cmd).__name__}")
+    return request, cmd
+
+
+def _answer(emulator: EmulatorHost, request: dict[str, Any], cmd: str) -> tuple[dict[str, Any], bool]:
+    """The reply to one parsed request (its arguments may raise :data:`BAD_ARGUMENT_ERRORS`)."""
+    t = emulator.now()
+    if cmd == "status":
+        return {"ok": True, **status(emulator)}, False
+    if cmd == "fault":
+        emulator.faults.apply(emulator, str(request["kind"]), float(request.get("value", 0.0)), t)
+        return {"ok": True}, False
+    if cmd == "clear_faults":
+        emulator.faults.clear(emulator, t)
+        return {"ok": True}, False
+    if cmd == "truth":
+        world = emulator.world
+        centre = world.cell.hole.centre_at(world.scenario.entry_depth_m)
+        metrics = world.truth.metrics(centre)
+        return {
+            "ok": True,
+            "specimen": world.specimen,
+            "specimen_seed": world.specimen_seed,
+            "hardness_factor": world.hardness_factor,
+            **metrics,
+        }, False
+    if cmd == "specimen":
+        world = emulator.world
+        now = world.seed_specimen(int(request["seed"]))
+        return {
+            "ok": True,
+            "replaced_now": now,
+            "specimen": world.specimen,
+            "seed": world.specimen_seed if now else world.next_specimen_seed,
+            "hardness_factor": world.hardness_factor if now else None,
+        }, False
+    if cmd == "ft_load":
+        return {"ok": True, "force_n": ft_load(emulator, request)}, False
+    if cmd == "events":
+        events = [{"t_s": e.t_s, "cmd": e.cmd, "detail": e.detail} for e in emulator.program.events]
+        return {"ok": True, "events": events}, False
+    if cmd == "contract":
+        return {
+            "ok": True,
+            "output_recipes": emulator.output_recipes,
+            "input_recipes": emulator.input_recipes,
+            "script": emulator.program.script_text,
+        }, False
+    if cmd == "shutdown":
+        emulator.shutdown = True
+        return {"ok": True}, True
+    return {"ok": False, "error": f"unknown cmd {cmd[:80]!r}"}, False
 
 
 def ft_load(emulator: EmulatorHost, request: dict[str, Any]) -> list[float]:

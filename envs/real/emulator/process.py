@@ -26,11 +26,12 @@ from drillgym.envs.real.emulator.config import (
     SCRIPT_PORT,
     SECONDARY_PORT,
 )
+from drillgym.envs.real.emulator.netft_http import FT_HTTP_PORT
 from drillgym.envs.real.netft import RDT_PORT
 from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT
 
-TCP_PORTS = (RTDE_PORT, DASHBOARD_PORT, SCRIPT_PORT, PRIMARY_PORT, SECONDARY_PORT, CONTROL_PORT, CAL_PORT)
+TCP_PORTS = (RTDE_PORT, DASHBOARD_PORT, SCRIPT_PORT, PRIMARY_PORT, SECONDARY_PORT, CONTROL_PORT, CAL_PORT, FT_HTTP_PORT)
 UDP_PORTS = (RDT_PORT, TRACKER_PORT)
 
 

@@ -9,9 +9,17 @@ drilling cell uses; any other command is logged as unsupported and answered "don
 Any other program sent to a script port (30001, 30002, 30003) replaces the running one, as on a CB3 (URScript
 manual: a program sent to the primary, secondary or real-time interface is executed at once; a ``def``
 program or bare statements replace the running program, a ``sec`` program runs beside it). The emulator does
-not interpret URScript: of such a program it runs only ``set_standard_digital_out(n, b)`` statements, and logs an
-event naming what it did not run; the program then ends (runtime state STOPPED, ``ur_rtde`` sees its control
-script stopped).
+not interpret URScript: of such a program it runs only the statements :data:`EMULATED_STATEMENTS` names, top to
+bottom and at once (a ``sleep`` takes no time), and logs an event naming what it did not run; the program then ends
+(runtime state STOPPED, ``ur_rtde`` sees its control script stopped). The register writes are what
+``ur_rtde``'s ``sendCustomScriptFunction`` waits for: it wraps the function in
+``write_output_integer_register(0 +OFFSET, 1)`` ... ``write_output_integer_register(0 +OFFSET, 2)`` and polls that
+register until it reads 2 (``UR_CONTROLLER_DONE_WITH_CMD``, up to 300 s), then uploads its control program again
+(``ur_rtde/rtde_control_interface.cpp``, ``sendCustomScript``).
+
+A program is ``ur_rtde``'s control program only if it is named ``rtde_control`` *and* carries the register offset
+``ur_rtde`` injects (0 or 24, its lower and upper register range); a user's program that is merely named so runs as
+any other program.
 """
 
 from __future__ import annotations
@@ -23,7 +31,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from drillgym.envs.real.emulator.registers import Registers
+from drillgym.envs.real.emulator.registers import N_REGISTERS, Registers
 from drillgym.envs.real.emulator.world import EmulatedCell
 
 
@@ -58,10 +66,35 @@ READY = 1
 DONE = 2
 PROGRAM_HEADER = "def rtde_control():"
 INT_OFFSET_RE = re.compile(r"reg_offset_int = # int register offset\n(\d+)")
+CONTROL_SCRIPT_OFFSETS = (0, 24)
+"""Register offsets ``ur_rtde`` injects into its control program (lower and upper register range)."""
 DIGITAL_OUT_RE = re.compile(r"^\s*set_standard_digital_out\(\s*(\d)\s*,\s*(True|False)\s*\)\s*$")
-"""The one URScript statement the emulator runs in a foreign program (standard digital output n := b)."""
+"""Standard digital output n := b."""
+_INDEX = r"(\d{1,3}(?:\s*\+\s*\d{1,3})?)"
+"""A register number, or a sum of two as ``ur_rtde`` writes it (``0 +24``)."""
+INT_REGISTER_RE = re.compile(rf"^\s*write_output_integer_register\(\s*{_INDEX}\s*,\s*([+-]?\d{{1,10}})\s*\)\s*$")
+FLOAT_REGISTER_RE = re.compile(
+    rf"^\s*write_output_float_register\(\s*{_INDEX}\s*,\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*\)\s*$"
+)
+EMULATED_STATEMENTS = ("set_standard_digital_out", "write_output_integer_register", "write_output_float_register")
+"""The URScript statements the emulator runs in a program other than ``ur_rtde``'s (output registers 0-47)."""
+INT32_RANGE = (-(2**31), 2**31 - 1)
 ASYNC_RUNNING_BIT = 1 << 15
 """``ur_rtde``'s async progress register (output int 2 + offset): bit 15 set while an async move runs."""
+
+
+def control_script_offset(text: str) -> int | None:
+    """The register offset of ``ur_rtde``'s control program, or None if ``text`` is another program.
+
+    It is ``ur_rtde``'s program when it starts with :data:`PROGRAM_HEADER` and carries the integer register offset
+    ``ur_rtde`` injects, one of :data:`CONTROL_SCRIPT_OFFSETS`.
+    """
+    if not text.startswith(PROGRAM_HEADER):
+        return None
+    m = INT_OFFSET_RE.search(text)
+    if m is None or len(m.group(1)) > 3 or int(m.group(1)) not in CONTROL_SCRIPT_OFFSETS:
+        return None
+    return int(m.group(1))
 
 
 @dataclass
@@ -110,53 +143,73 @@ class ControlProgram:
     # ------------------------------------------------------------------ lifecycle
     def run_script(self, text: str, t_s: float, port: int) -> None:
         """A program or statements received on a script port (see the module docstring)."""
-        if text.startswith(PROGRAM_HEADER):
-            self.load(text, t_s)
+        offset = control_script_offset(text)
+        if offset is not None:
+            self.load(text, t_s, offset)
             return
         first = text.strip().splitlines()[0][:60] if text.strip() else ""
         secondary = text.lstrip().startswith("sec ")
         if not secondary:
             self.foreign_programs += 1
             self.stop(f"replaced by the program {first!r} sent to port {port}", t_s)
-        ran, skipped = self._run_io_statements(text)
+        ran, skipped = self._run_statements(text)
         kind = "secondary program (runs beside the running one)" if secondary else "program (replaced the running one)"
         self._event(
             t_s,
             -1,
-            f"{kind} {first!r} on port {port}: ran {ran} set_standard_digital_out statement(s); "
+            f"{kind} {first!r} on port {port}: ran {ran} statement(s) of {', '.join(EMULATED_STATEMENTS)}; "
             f"{skipped} other line(s) not emulated (URScript is not interpreted); it has ended",
         )
 
-    def _run_io_statements(self, text: str) -> tuple[int, int]:
+    def _run_statements(self, text: str) -> tuple[int, int]:
+        """Run the :data:`EMULATED_STATEMENTS` of ``text`` in order; (statements run, other lines)."""
         ran = skipped = 0
         for line in text.splitlines():
             body = line.strip()
             if not body or body.startswith("#") or body == "end" or body.startswith(("def ", "sec ")):
                 continue
-            m = DIGITAL_OUT_RE.match(body)
-            if m is None:
+            if self._run_statement(body):
+                ran += 1
+            else:
                 skipped += 1
-                continue
+        return ran, skipped
+
+    def _run_statement(self, body: str) -> bool:
+        """Run one statement if the emulator knows it (arguments in range); whether it ran."""
+        m = DIGITAL_OUT_RE.match(body)
+        if m is not None:
             bit = 1 << int(m.group(1))
             self.digital_out_bits = (
                 (self.digital_out_bits | bit) if m.group(2) == "True" else (self.digital_out_bits & ~bit)
             )
-            ran += 1
-        return ran, skipped
+            return True
+        m = INT_REGISTER_RE.match(body) or FLOAT_REGISTER_RE.match(body)
+        if m is None:
+            return False
+        index = sum(int(part) for part in m.group(1).split("+"))
+        if not 0 <= index < N_REGISTERS:
+            return False
+        if m.re is INT_REGISTER_RE:
+            value = int(m.group(2))
+            if not INT32_RANGE[0] <= value <= INT32_RANGE[1]:
+                return False
+            self.regs.output_int[index] = value
+        else:
+            self.regs.output_double[index] = float(m.group(2))
+        return True
 
     def set_digital_outputs(self, mask: int, values: int, shift: int) -> None:
         """RTDE ``*_digital_output_mask`` / ``*_digital_output`` inputs (8 bits at ``shift``)."""
         m, v = (mask & 0xFF) << shift, (values & 0xFF) << shift
         self.digital_out_bits = (self.digital_out_bits & ~m) | (v & m)
 
-    def load(self, text: str, t_s: float) -> bool:
-        """Start an uploaded ``def rtde_control():`` program (False, and an event, if the arm is powered off)."""
+    def load(self, text: str, t_s: float, offset: int) -> bool:
+        """Start ``ur_rtde``'s control program with its register ``offset`` (False, and an event, if powered off)."""
         if self.robot_mode != "RUNNING":
             self.stop_reason = f"program not started: robot mode {self.robot_mode} (dashboard power on, brake release)"
             self._event(t_s, -1, self.stop_reason)
             return False
-        m = INT_OFFSET_RE.search(text)
-        self.offset = int(m.group(1)) if m else 0
+        self.offset = offset
         self.script_text = text
         self.scripts_loaded += 1
         self.runtime_state = RuntimeState.PLAYING

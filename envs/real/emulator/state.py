@@ -4,6 +4,10 @@ Registers are read live by the connection; everything else is here. Modes and bi
 ``robot_mode`` 3 POWER_OFF, 5 IDLE, 7 RUNNING; ``safety_mode`` 1 NORMAL, 3 PROTECTIVE_STOP; ``robot_status_bits``
 bit 0 power on, bit 1 program running; ``safety_status_bits`` bit 0 normal mode, bit 2 protective stopped.
 
+Targets: ``target_q`` is the joint position of the servo target (:meth:`EmulatedCell.target_q_rad`: it leads
+``actual_q`` while the arm moves and equals it at rest); ``target_TCP_pose`` the newest ``servoL`` pose while a servo
+stream runs, else the pose of the servo target (the interpolated point of a ``moveL``, the held pose at rest).
+
 Motion: ``actual_qd`` / ``target_qd`` and ``actual_TCP_speed`` / ``target_TCP_speed`` are the joint and TCP
 velocities over the last 10 ms physics step (rad/s; m/s, the angular part 0: the orientation is held);
 ``speed_scaling`` and ``target_speed_fraction`` the speed slider; ``actual_digital_output_bits`` the outputs set
@@ -83,9 +87,11 @@ def controller_state(emulator: EmulatorHost, t_s: float) -> dict[str, object]:
     state.update(
         timestamp=t_s,
         actual_q=q,
-        target_q=q,
+        target_q=tuple(world.target_q_rad().tolist()),
         actual_TCP_pose=tcp,
-        target_TCP_pose=tuple(program.last_servo_pose) if program.servo_active and program.last_servo_pose else tcp,
+        target_TCP_pose=tuple(program.last_servo_pose)
+        if program.servo_active and program.last_servo_pose
+        else tuple(np.asarray(world.tcp_pose(world.target_task), dtype=float).tolist()),
         actual_TCP_force=tuple(world.tcp_force_base().tolist()),
         safety_mode=SAFETY_MODE_PROTECTIVE_STOP if halted else SAFETY_MODE_NORMAL,
         safety_status_bits=SAFETY_BIT_PROTECTIVE_STOP if halted else SAFETY_BIT_NORMAL,

@@ -151,6 +151,20 @@ class EmulatedCell:
         t_tip[:3, 3] = self.entry + self.R @ tip
         return matrix_to_pose(t_tip @ np.linalg.inv(self.T_tcp_true) @ self.T_tcp_cfg)
 
+    def target_q_rad(self) -> np.ndarray:
+        """Joint angles of the servo target (rad), leading the reported angles while the arm moves.
+
+        The reported (motor) angles plus the joint step that takes the servo-held tip to the target: J⁻¹ of the tip
+        offset in base axes, first order, the orientation held. Equal to the reported angles once the servo arrived.
+        """
+        q = np.asarray(self.cell.q_motor_rad, dtype=float)
+        offset = self.R @ (np.asarray(self.target_task, dtype=float) - np.asarray(self.cell.rigid_tip, dtype=float))
+        try:
+            step = np.linalg.solve(self.cell.J_tcp, np.concatenate([offset, np.zeros(3)]))
+        except np.linalg.LinAlgError:
+            return q
+        return q + step if np.all(np.isfinite(step)) else q
+
     def set_tcp(self, tcp_pose: np.ndarray) -> None:
         """Configure the TCP (``setTcp``): a UR pose in the flange frame."""
         self.T_tcp_cfg = pose_to_matrix(tcp_pose)
