@@ -17,6 +17,7 @@ import json
 import math
 import shlex
 import sys
+from collections.abc import Sequence
 from dataclasses import fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -109,12 +110,23 @@ TEXT_COLUMNS = (
 """Columns of ``episodes.csv`` read back as text (an empty cell is ``""``, a name such as ``1`` stays a name)."""
 
 
-def previous_run(out: Path) -> list[str]:
-    """Names of a previous run's files in ``out`` (empty when there is none)."""
-    found = [name for name in RUN_FILES if (out / name).exists()]
-    logs = out / "logs"
-    if logs.is_dir() and any(logs.glob("*.parquet")):
-        found.append("logs/")
+LOG_FOLDERS = (("logs", "*.parquet"),)
+"""Folders of a benchmark run's logs, each with the pattern of what it holds."""
+
+
+def previous_run(
+    out: Path, files: Sequence[str] = RUN_FILES, folders: Sequence[tuple[str, str]] = LOG_FOLDERS
+) -> list[str]:
+    """Names of a previous run's files in ``out`` (empty when there is none).
+
+    ``files``: what a run writes at the top of its folder; ``folders``: ``(folder, pattern)`` of what it writes in
+    sub-folders, reported as ``folder/``. The defaults are a benchmark run's; ``drillgym run`` and ``diagnose`` pass
+    their own (a run's record is never overwritten).
+    """
+    found = [name for name in files if (out / name).exists()]
+    for folder, pattern in folders:
+        if (out / folder).is_dir() and any((out / folder).glob(pattern)):
+            found.append(f"{folder}/")
     return found
 
 

@@ -1,4 +1,8 @@
-"""``drillgym diagnose --real DIR --out OUT``: diagnose the sim-to-real gap of a folder of episode logs."""
+"""``drillgym diagnose --real DIR --out OUT``: diagnose the sim-to-real gap of a folder of episode logs.
+
+A diagnosis is a record: an ``--out`` that holds one (:data:`RECORD_FILES`) is refused before any log is read, as
+``drillgym run`` refuses a previous run's record; there is no ``--overwrite``.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +12,10 @@ import sys
 from pathlib import Path
 
 from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS, parse_candidates
+from drillgym.eval.cli.bench import previous_run
+
+RECORD_FILES = ("diagnosis.json", "report.md", "gap_map.png", "ranking.png", "overlays.png", "spectra.png")
+"""What a diagnosis writes into its ``--out`` (:func:`drillgym.eval.diagnosis.report.write_outputs`)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -15,7 +23,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--real", required=True, type=Path, help="folder of real episode logs (*.parquet, ur_rtde sessions)"
     )
-    parser.add_argument("--out", required=True, type=Path, help="output folder: diagnosis.json, report.md, figures")
+    parser.add_argument(
+        "--out",
+        required=True,
+        type=Path,
+        help="output folder: diagnosis.json, report.md, figures; one that holds a previous diagnosis is refused",
+    )
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     parser.add_argument(
         "--candidates",
@@ -34,6 +47,12 @@ def run(args: argparse.Namespace) -> int:
     from drillgym.eval.diagnosis.episodes import load_episodes
     from drillgym.eval.diagnosis.report import write_outputs
 
+    found = previous_run(args.out, RECORD_FILES, ())
+    if found:
+        raise ValueError(
+            f"{args.out} holds a previous diagnosis ({', '.join(found)}): a diagnosis is never overwritten; "
+            "pass another --out"
+        )
     candidates = parse_candidates(args.candidates)
     episodes, skipped = load_episodes(args.real, strict=args.strict)
     for s in skipped:

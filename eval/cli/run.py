@@ -1,12 +1,25 @@
 """``drillgym run``: run a controller on the real cell (or the emulator) and log it like a simulated run.
 
-Asks for confirmation before anything moves (unless ``--yes``; ``--dry-run`` moves nothing and sends nothing),
-writes each episode's log incrementally (``<out>/logs/*.parquet``, the sim's schema with ``source: "real"``),
-and prints the metrics a real cell can measure (forces, drilling time, tracker deviation; the true tip
-deviation and the entry-hole offset need the specimen measured). A dry run also prints how far the commanded
-targets went from the entry point, the plan's reach and its worst case under the correction limit, and writes them
-to ``<out>/dry_run.json`` (:mod:`drillgym.eval.real.dry_run`).
-Exit codes: 0 done, 1 could not connect or start, 2 bad arguments or not confirmed, 3 an episode ended on a fault.
+What it drills: one hole (``--episodes N``: N holes at the same entry point, one after the other, for the emulator,
+which puts a fresh specimen in after each), or the holes of a plan file (``--plan FILE``, one entry point per hole,
+:mod:`drillgym.eval.real.plan_file`), each with an env of its own: connected, reset at its entry point, drilled and
+closed before the next hole. It asks before anything moves: once for a single-hole run (unless ``--yes``), before
+each hole of a plan (unless ``--yes-all``); ``--dry-run`` moves nothing and sends nothing.
+
+What it writes: each hole's log incrementally (``<out>/logs/*.parquet``, the sim's schema with ``source: "real"``),
+the commands sent (``<out>/commands.jsonl``; for a plan ``<out>/commands/<hole>.jsonl``), the metrics of every hole
+(``<out>/metrics.json``) and a plan's holes as checked (``<out>/plan.json``). A run's record is append-only: an
+``--out`` that holds one (:data:`RECORD_FILES`, :data:`RECORD_FOLDERS`) is refused before anything is read or
+moved, as ``bench`` and ``train`` refuse theirs, and there is no ``--overwrite``.
+
+What it prints at the end of every hole: the metrics a real cell can measure (forces, drilling time, tracker
+deviation; the true tip deviation and the entry-hole offset need the specimen measured), and how the servo loop kept
+time against the machine's load, naming the load as the likely cause of a stale-stream or watchdog stop that followed
+missed cycles (:mod:`drillgym.eval.real.load_report`). A dry run also prints how far the commanded targets went from
+the entry point, the plan's reach and its worst case under the correction limit, and writes them to
+``<out>/dry_run.json`` (``<out>/dry_run/<hole>.json`` for a plan; :mod:`drillgym.eval.real.dry_run`).
+Exit codes: 0 done, 1 could not connect or start (after a plan's first hole), 2 bad arguments, not confirmed, or the
+cell could not be opened for the first hole, 3 an episode ended on a fault.
 """
 
 from __future__ import annotations
@@ -17,19 +30,25 @@ import json
 import math
 import shutil
 import sys
-from collections.abc import Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
-
-from drillgym.controllers.rollout import run_episode
+from drillgym.envs.cell_params import CellParams
 from drillgym.envs.json_safe import json_safe
 from drillgym.envs.real.config import SafetyLimits
 from drillgym.envs.real.emulator.cli import parse_scenario
-from drillgym.envs.real.metrics import OBSERVABLE_METRICS
 from drillgym.envs.real.netft import NetFTCalibration
-from drillgym.eval.real.preflight import ENV_ID, ft_calibration, seed_emulated_specimen
+from drillgym.eval.cli.bench import previous_run
+from drillgym.eval.real.hole import CellOptions, drill_hole, open_cell, summarise_dry_run, write_metrics
+from drillgym.eval.real.plan_file import DrillingPlan, PlannedHole, far_transits, load_plan
+from drillgym.eval.real.preflight import ft_calibration
+
+RECORD_FILES = ("metrics.json", "commands.jsonl", "dry_run.json", "plan.json")
+"""What a run writes at the top of its ``--out``: any of them there means a previous run's record."""
+RECORD_FOLDERS = (("logs", "*"), ("commands", "*"), ("dry_run", "*"), ("rtde", "*"))
+"""A run's sub-folders, anything in them a previous run's record: episode logs (whole or in parts, as a crash
+leaves them), a plan's command logs and dry-run reaches, ``--record-rtde`` sessions."""
 
 
 def _limits(max_gap_ms: float) -> SafetyLimits:
@@ -47,8 +66,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tracker", default="none", help="'none' or 'udp:HOST[:PORT]' (the emulator's marker stream)")
     parser.add_argument("--controller", default="li2023", help="controller spec: li2023[:k=v,...], residual:PATH, ...")
     parser.add_argument("--scenario", default=None, help="the plan: env arguments as JSON or key=value,...")
-    parser.add_argument("--episodes", type=int, default=1, help="holes to drill, one after the other")
-    parser.add_argument("--seed", type=int, default=0, help="reset seed of the first episode (logged)")
+    parser.add_argument(
+        "--plan",
+        type=Path,
+        default=None,
+        help="a plan file (YAML, or JSON): one entry point per hole (mm, UR base frame), drilled in order, each with "
+        "its own log; asks before each hole. Holds the scenario: not with --scenario, --episodes or --yes "
+        "(docs/deployment.md, 'Several holes')",
+    )
+    parser.add_argument(
+        "--episodes",
+        type=int,
+        default=1,
+        help="holes to drill one after the other at the same entry point (the emulator puts a fresh specimen in "
+        "after each; on a real cell drill several holes with --plan)",
+    )
+    parser.add_argument(
+        "--seed", type=int, default=0, help="reset seed of the first episode (logged); a plan's holes count on from it"
+    )
     parser.add_argument(
         "--counts-per-force",
         type=float,
@@ -76,7 +111,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="connect and stream nothing: log what would be sent (commands.jsonl) and say how far the "
         "targets go from the entry point (dry_run.json)",
     )
-    parser.add_argument("--yes", action="store_true", help="do not ask before moving the robot")
+    parser.add_argument("--yes", action="store_true", help="do not ask before moving the robot (single-hole runs)")
+    parser.add_argument(
+        "--yes-all",
+        action="store_true",
+        help="with --plan: drill every hole without asking before each (consecutive entry points must then be "
+        "within the 50 mm a reset moves)",
+    )
     parser.add_argument(
         "--servo-thread",
         action="store_true",
@@ -90,7 +131,51 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "ur_rtde's own file recording of the robot state, on a receive interface of its own, and the F/T, "
         "tracker, commands and header files from the log)",
     )
-    parser.add_argument("--out", type=Path, required=True, help="output folder (logs, metrics.json, commands.jsonl)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        help="output folder (logs, metrics.json, commands); one that holds a previous run's record is refused",
+    )
+
+
+def _check_options(args: argparse.Namespace) -> None:
+    """Refuse options that do not go together (``ValueError``)."""
+    if args.plan is None:
+        if args.yes_all:
+            raise ValueError("--yes-all is for --plan (every hole without asking); a single-hole run takes --yes")
+        return
+    if args.scenario is not None:
+        raise ValueError("--plan FILE holds the scenario (its 'scenario' key, and each hole's); drop --scenario")
+    if args.episodes != 1:
+        raise ValueError("--plan drills each of its holes once; drop --episodes")
+    if args.yes:
+        raise ValueError(
+            "--yes confirms a single-hole run; with --plan the run asks before each hole, or --yes-all drills every "
+            "hole without asking"
+        )
+
+
+def _refuse_previous_record(out: Path) -> None:
+    """A run's record is append-only: refuse an ``--out`` that holds one (``ValueError`` naming what is there)."""
+    found = previous_run(out, RECORD_FILES, RECORD_FOLDERS)
+    if found:
+        raise ValueError(
+            f"{out} holds a previous run's record ({', '.join(found)}): a run's record is never overwritten or "
+            "added to; pass another --out"
+        )
+
+
+def _refuse_far_transits(plan: DrillingPlan, limits: SafetyLimits) -> None:
+    """With ``--yes-all``: every next entry point within the distance a reset moves (else it would stop mid-plan)."""
+    far = far_transits(plan.holes, limits.reset_max_distance_m)
+    if far:
+        a, b, distance_m = far[0]
+        raise ValueError(
+            f"{plan.path}: {b.label} is {distance_m * 1e3:.0f} mm from {a.label}, farther than the "
+            f"{limits.reset_max_distance_m * 1e3:.0f} mm a reset moves the robot: drop --yes-all and jog the robot "
+            "over when the run asks before that hole"
+        )
 
 
 def _confirm(args: argparse.Namespace, scenario_text: str) -> bool:
@@ -104,6 +189,30 @@ def _confirm(args: argparse.Namespace, scenario_text: str) -> bool:
     return input("Type 'yes' to start: ").strip().lower() == "yes"
 
 
+def _confirm_hole(args: argparse.Namespace, hole: PlannedHole, count: int, previous: PlannedHole | None) -> bool:
+    """Ask before one hole of a plan (what moves where, what to check); whether the answer was ``yes``."""
+    limits = _limits(args.max_gap_ms)
+    print(f"About to MOVE the robot at {args.robot}: {hole.label} of {count}, {args.controller}: {hole.describe()}.")
+    where = "3 mm above this entry point, on the drill axis"
+    if previous is None:
+        print(f"It moves in a straight line from where it stands to {where}.")
+    else:
+        distance_m = math.dist(previous.entry_base_m, hole.entry_base_m)
+        print(
+            f"It moves in a straight line from 3 mm above {previous.label}'s entry point to {where}, "
+            f"{distance_m * 1e3:.1f} mm away: check that this line clears the bone, or jog the robot over first."
+        )
+    print(
+        f"A reset moves at most {limits.reset_max_distance_m * 1e3:.0f} mm (else it refuses: jog closer). Check: "
+        "workspace clear, specimen clamped, E-stop at hand, spindle on, F/T and tracker reading."
+    )
+    try:
+        answer = input(f"Type 'yes' to drill {hole.label} (anything else stops the plan here): ")
+    except EOFError:  # stdin closed: no answer is no
+        return False
+    return answer.strip().lower() == "yes"
+
+
 def _given_calibration(args: argparse.Namespace) -> NetFTCalibration | None:
     """The calibration given on the command line (None: read it from the sensor)."""
     if args.counts_per_force is None and args.counts_per_torque is None:
@@ -115,106 +224,116 @@ def _given_calibration(args: argparse.Namespace) -> NetFTCalibration | None:
     )
 
 
-def _print_metrics(metrics: dict[str, float]) -> None:
-    for name in OBSERVABLE_METRICS:
-        value = metrics.get(name, math.nan)
-        print(f"  {name:28s} {value:9.3f}" if math.isfinite(value) else f"  {name:28s}       n/a")
-    print("  deviation_*_mm, hole_offset_mm: measure the hole on the specimen (no true tip on a real cell)")
-
-
 def run(args: argparse.Namespace) -> int:
-    """Connect, confirm, drill ``--episodes`` holes, print and save the metrics."""
+    """Check every argument and the output folder, confirm, drill, print and save the metrics."""
     from drillgym.controllers import make_controller
-    from drillgym.eval.logs import EpisodeLogger, build_header
 
     try:
-        scenario = parse_scenario(args.scenario).to_dict()
+        _check_options(args)
+        limits = _limits(args.max_gap_ms)
+        plan = load_plan(args.plan, args.seed) if args.plan is not None else None
+        scenario = parse_scenario(args.scenario).to_dict() if plan is None else {}
         controller = make_controller(args.controller)
         given = _given_calibration(args)
-        limits = _limits(args.max_gap_ms)
-    except (ValueError, TypeError) as e:
+        _refuse_previous_record(args.out)
+        if plan is not None and args.yes_all and not args.dry_run:
+            _refuse_far_transits(plan, limits)
+    except (ValueError, TypeError, OSError) as e:
         print(f"drillgym run: error: {e}", file=sys.stderr)
         return 2
+    opts = CellOptions(
+        robot=args.robot,
+        ft=args.ft,
+        tracker=args.tracker,
+        controller_spec=args.controller,
+        dry_run=args.dry_run,
+        servo_thread=args.servo_thread,
+        record_rtde=args.record_rtde,
+        limits=limits,
+        out=args.out,
+    )
+    if plan is not None:
+        return _run_plan(args, opts, controller, plan, given)
     if not _confirm(args, args.scenario or "the default plan"):
         print("not confirmed; nothing moved")
         return 2
     scenario.pop("tracker", None)
-    calibration, calibration_source = ft_calibration(args.ft or args.robot, given)
+    return _run_episodes(args, opts, controller, scenario, given)
+
+
+@dataclass
+class _Record:
+    """What a run has written so far: its calibration, whether it made ``--out``, its holes' metrics entries."""
+
+    calibration: NetFTCalibration | None = None
+    calibration_entry: dict[str, Any] = field(default_factory=dict)
+    created: bool = False
+    results: list[dict[str, Any]] = field(default_factory=list)
+
+
+def _open_record(opts: CellOptions, given: NetFTCalibration | None, commands: Path) -> _Record:
+    """Read the F/T calibration and create ``--out`` (``commands``: where the commands go, for the dry-run note)."""
+    calibration, source = ft_calibration(opts.ft or opts.robot, given)
     print(
-        f"F/T calibration ({calibration_source}): {calibration.counts_per_force:g} counts/N, "
+        f"F/T calibration ({source}): {calibration.counts_per_force:g} counts/N, "
         f"{calibration.counts_per_torque:g} counts/N-m"
     )
-    created = not args.out.exists()
-    args.out.mkdir(parents=True, exist_ok=True)
-    if args.dry_run:
+    created = not opts.out.exists()
+    opts.out.mkdir(parents=True, exist_ok=True)
+    if opts.dry_run:
         print(
             "DRY RUN: nothing is sent to the robot. The episode follows the commanded path with the robot at rest; "
-            f"{args.out / 'commands.jsonl'} logs every command that would have been sent. Forces and metrics "
+            f"{commands} logs every command that would have been sent. Forces and metrics "
             "below describe a robot that did not move, and the servo loop's timing (missed_cycles in metrics.json) "
             "times a loop that sends nothing."
         )
+    entry = {
+        "counts_per_force": calibration.counts_per_force,
+        "counts_per_torque": calibration.counts_per_torque,
+        "source": source,
+    }
+    return _Record(calibration, entry, created)
+
+
+def _drop_unopened(out: Path, created: bool, commands: Path) -> None:
+    """The cell could not be opened for the first hole: leave no record behind (nothing was sent).
+
+    The command log is made before the connection; it is this run's (``--out`` held no record) and empty.
+    """
+    if created:  # leave no empty output folder behind
+        shutil.rmtree(out, ignore_errors=True)
+        return
+    commands.unlink(missing_ok=True)
+    if commands.parent != out:
+        with contextlib.suppress(OSError):
+            commands.parent.rmdir()
+
+
+def _run_episodes(
+    args: argparse.Namespace,
+    opts: CellOptions,
+    controller: Any,
+    scenario: dict[str, Any],
+    given: NetFTCalibration | None,
+) -> int:
+    """``--episodes`` holes at the default entry point, with one env; logged to ``<out>``."""
+    commands = opts.out / "commands.jsonl"
+    record = _open_record(opts, given, commands)
+    assert record.calibration is not None
     try:
-        env = gym.make(
-            ENV_ID,
-            robot_host=args.robot,
-            ft_sensor=args.ft,
-            tracker=args.tracker,
-            ft_calibration=calibration,
-            dry_run=args.dry_run,
-            command_log_path=str(args.out / "commands.jsonl"),
-            safety_limits=limits,
-            servo_process=not args.servo_thread,
-            **scenario,
-        )
+        env = open_cell(opts, record.calibration, commands, scenario)
     except (RuntimeError, OSError, ValueError) as e:
-        if created:  # leave no empty output folder behind
-            shutil.rmtree(args.out, ignore_errors=True)
+        _drop_unopened(opts.out, record.created, commands)
         print(f"drillgym run: error: cannot open the cell: {e}", file=sys.stderr)
         return 2
-    results, code = [], 0
+    code = 0
     try:
         for k in range(args.episodes):
-            seed = args.seed + k
-            name = f"real__{args.controller.replace(':', '_').replace('/', '_')}__ep{k}.parquet"
-            extra = {"controller_spec": args.controller, "robot": args.robot, "dry_run": args.dry_run}
-            extra["ft_calibration"] = {
-                "counts_per_force": calibration.counts_per_force,
-                "counts_per_torque": calibration.counts_per_torque,
-                "source": calibration_source,
-            }
-            specimen = seed_emulated_specimen(args.robot, seed)
-            if specimen is not None:
-                extra["emulator_specimen"] = specimen
-            header = build_header(env, controller.describe(), seed, source="real", extra=extra)
-            logger = EpisodeLogger(env, args.out / "logs" / name, header, overwrite=True)
-            try:
-                with _rtde_session(args, env, args.out / "logs" / name, extra):
-                    try:
-                        info = run_episode(logger, controller, seed, keep_trace=False).info
-                    finally:
-                        logger.close_log()
-            except RuntimeError as e:  # refused to start (safety bits, too far from the start pose, ...)
-                print(f"episode {k}: could not start: {e}", file=sys.stderr)
-                code = 1
-                break
-            metrics = dict(info.get("metrics") or {})
-            results.append(
-                {
-                    "episode": k,
-                    "seed": seed,
-                    "log": f"logs/{name}",
-                    "failure": info.get("failure"),
-                    "error": info.get("error"),
-                    "metrics": metrics,
-                    "missed_cycles": info.get("missed_cycles"),
-                }
-            )
-            dry = " DRY RUN, nothing sent;" if args.dry_run else ""
-            print(f"episode {k} ({args.controller},{dry} log {args.out / 'logs' / name}):")
-            if info.get("failure"):
-                print(f"  ENDED ON A FAULT: {info['failure']}: {info['error']}; stop: {info.get('stop_result')}")
-                code = 3
-            _print_metrics(metrics)
+            extra = {"ft_calibration": record.calibration_entry}
+            name = opts.log_name(f"ep{k}")
+            result, code = drill_hole(env, opts, controller, args.seed + k, name, f"episode {k}", extra)
+            if result is not None:
+                record.results.append({"episode": k, **result})
             if code:
                 break
     except KeyboardInterrupt:
@@ -222,57 +341,103 @@ def run(args: argparse.Namespace) -> int:
         code = 3
     finally:
         env.close()
-        (args.out / "metrics.json").write_text(json.dumps(json_safe(results), indent=2))
-    _summarise_dry_run(env, args)
-    print(f"results in {args.out.resolve()}")
+        write_metrics(opts.out, record.results)
+    if opts.dry_run:
+        summarise_dry_run(env, commands, opts.out / "dry_run.json")
+    print(f"results in {opts.out.resolve()}")
     return code
 
 
-@contextlib.contextmanager
-def _rtde_session(args: argparse.Namespace, env: gym.Env[Any, Any], log: Path, run: dict[str, Any]) -> Iterator[None]:
-    """With ``--record-rtde``: record the episode run inside as a session for ``drillgym import-rtde``.
+def _print_plan(args: argparse.Namespace, plan: DrillingPlan) -> None:
+    if args.dry_run:
+        asks = "a dry run: nothing moves"
+    else:
+        asks = "--yes-all: no question before each hole" if args.yes_all else "a question before each hole"
+    print(f"plan {plan.path}: {len(plan.holes)} hole(s) with {args.controller}, in this order; {asks}:")
+    for hole in plan.holes:
+        print(f"  {hole.label}: {hole.describe()}")
 
-    ``ur_rtde``'s file recording of the robot state (a receive interface of its own) goes to
-    ``<out>/rtde/<log name>/rtde.csv``; once the episode's log is closed, the recording is cut to the episode
-    ± 0.5 s (whole lines, as the shipped session's generator does: the robot's approach before t0 is no part of
-    the episode, and a busy start-up there can leave gaps the importer rightly refuses), and the F/T, tracker,
-    commands and header files are written from the log, with the episode's t0 put on the RTDE clock.
-    """
-    if not args.record_rtde:
-        yield
-        return
-    from drillgym.eval.logs import read_episode_log
-    from drillgym.eval.real.record_session import RECORDING_MARGIN_S, RtdeFileRecorder, trim_recording, write_side_files
 
-    session = args.out / "rtde" / log.stem
-    session.mkdir(parents=True, exist_ok=True)
-    recorder = RtdeFileRecorder(args.robot, session / "rtde.csv")
+def _run_plan(
+    args: argparse.Namespace, opts: CellOptions, controller: Any, plan: DrillingPlan, given: NetFTCalibration | None
+) -> int:
+    """The holes of ``plan`` in order, one env each; ``<out>/plan.json`` records the plan as checked."""
+    _print_plan(args, plan)
+    asks = not (args.dry_run or args.yes_all)
+    if asks and not sys.stdin.isatty():
+        print(
+            "stdin is not a terminal: cannot ask before each hole; pass --yes-all to drill every hole without asking",
+            file=sys.stderr,
+        )
+        print("not confirmed; nothing moved")
+        return 2
+    record: _Record | None = None
+    previous: PlannedHole | None = None
+    code = 0
     try:
-        yield
+        for hole in plan.holes:
+            if asks and not _confirm_hole(args, hole, len(plan.holes), previous):
+                moved = "nothing moved" if previous is None else f"{previous.label} was the last one"
+                print(f"{hole.label} not confirmed: it and the holes after it were not drilled; {moved}")
+                code = 2
+                break
+            commands = opts.out / "commands" / f"{hole.name}.jsonl"
+            record = record or _open_record(opts, given, commands)
+            code = _plan_hole(opts, controller, plan, hole, record, commands, first=previous is None)
+            if code == 2:  # the cell could not be opened for the first hole: no record
+                return code
+            previous = hole
+            if code:
+                left = [h.label for h in plan.holes[hole.index :]]
+                print(f"the plan stops at {hole.label}" + (f"; not drilled: {', '.join(left)}" if left else ""))
+                break
+    except KeyboardInterrupt:
+        print("interrupted: stopping the robot; the holes after this one were not drilled", file=sys.stderr)
+        code = 3
     finally:
-        recorder.stop()
-    header, frame = read_episode_log(log, allow_partial=True)
-    t0 = env.unwrapped.streams.t0  # type: ignore[attr-defined]
-    rtde_t0 = recorder.rtde_timestamp_at(t0)
-    end_s = float(frame["t_s"].max()) if len(frame) else 0.0
-    trim_recording(session / "rtde.csv", rtde_t0 - RECORDING_MARGIN_S, rtde_t0 + end_s + RECORDING_MARGIN_S)
-    run = {**run, "rtde_clock_offset_s": round(recorder.offset_s, 6)}
-    write_side_files(session, header, frame, rtde_t0, run)
-    print(f"recording session for drillgym import-rtde: {session}")
+        if record is not None and previous is not None:
+            write_metrics(opts.out, record.results)
+    if previous is not None:
+        print(f"results in {opts.out.resolve()}")
+    return code
 
 
-def _summarise_dry_run(env: gym.Env[Any, Any], args: argparse.Namespace) -> None:
-    """A dry run: print how far the commanded targets went from the entry point, write ``<out>/dry_run.json``."""
-    from drillgym.eval.real.dry_run import describe_reach, target_reach
-
-    if not args.dry_run:
-        return
-    cell, out = env.unwrapped, args.out
-    commands = out / "commands.jsonl"
+def _plan_hole(
+    opts: CellOptions,
+    controller: Any,
+    plan: DrillingPlan,
+    hole: PlannedHole,
+    record: _Record,
+    commands: Path,
+    first: bool,
+) -> int:
+    """One hole of a plan with an env of its own; its exit code (2: the first hole's cell could not be opened)."""
+    assert record.calibration is not None
+    commands.parent.mkdir(exist_ok=True)
+    scenario = {k: v for k, v in hole.scenario.to_dict().items() if k != "tracker"}
     try:
-        reach = target_reach(commands, cell.T_base_task, cell.scenario.depth_m, cell.limits)  # type: ignore[attr-defined]
-    except (OSError, ValueError) as e:
-        print(f"DRY RUN: no reach summary: {e}", file=sys.stderr)
-        return
-    print(describe_reach(reach, commands))
-    (out / "dry_run.json").write_text(json.dumps(reach, indent=2))
+        env = open_cell(opts, record.calibration, commands, scenario, CellParams(entry_point_base_m=hole.entry_base_m))
+    except (RuntimeError, OSError, ValueError) as e:
+        if first:
+            _drop_unopened(opts.out, record.created, commands)
+            print(f"drillgym run: error: cannot open the cell: {e}", file=sys.stderr)
+            return 2
+        print(f"{hole.label}: cannot open the cell: {e}", file=sys.stderr)
+        return 1
+    if first:
+        (opts.out / "plan.json").write_text(json.dumps(json_safe(plan.to_json()), indent=2))
+    where = {"index": hole.index, "of": len(plan.holes), "name": hole.name, "entry_point_base_mm": hole.entry_base_mm}
+    extra = {"ft_calibration": record.calibration_entry, "plan_file": str(plan.path), "hole": where}
+    label = f"{hole.label} of {len(plan.holes)}"
+    try:
+        result, code = drill_hole(env, opts, controller, hole.seed, opts.log_name(hole.name), label, extra)
+    finally:
+        env.close()
+    if result is not None:
+        record.results.append(
+            {"hole": hole.index, "name": hole.name, "entry_point_base_mm": hole.entry_base_mm, **result}
+        )
+        write_metrics(opts.out, record.results)
+    if opts.dry_run:
+        summarise_dry_run(env, commands, opts.out / "dry_run" / f"{hole.name}.json")
+    return code
