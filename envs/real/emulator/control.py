@@ -139,6 +139,8 @@ def status(emulator: EmulatorHost) -> dict[str, Any]:
         "rtde_connections": len(emulator.rtde),
         "rtde_packages_in": emulator.regs.packages,
         "ft_records_sent": emulator.sensors.ft_sent,
+        "ft_records_lost": emulator.sensors.ft_lost,
+        "ft_bad_requests": emulator.sensors.bad_requests,
         "faults": emulator.faults.describe(),
         "orientation_warnings": world.orientation_warnings,
     }

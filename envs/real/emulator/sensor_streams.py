@@ -32,7 +32,6 @@ from collections.abc import Callable
 from drillgym.envs.real import netft, tracker
 from drillgym.envs.real.emulator.config import EmulatorConfig
 from drillgym.envs.real.emulator.faults import FaultState
-from drillgym.envs.real.emulator.nonblocking import LogBudget
 from drillgym.envs.real.emulator.world import EmulatedCell
 
 CMD_START_BUFFERED = 0x0003
@@ -41,6 +40,9 @@ INTERNAL_RATE_HZ = 7000.0
 """The Net F/T's internal sample rate (Hz): what ``ft_sequence`` counts (``runrate`` on its web page)."""
 MAX_LAG_S = 0.01
 """A record not sent within this long of its time is lost (s): at most 10 ms of records leave back to back."""
+NOTES_LOGGED = 20
+"""Lines about requests the Net F/T does not understand written to the log; later ones are only counted (the control
+port's ``status``: ``ft_bad_requests``), so a datagram flood cannot flood the log."""
 
 
 class SensorStreams:
@@ -50,7 +52,7 @@ class SensorStreams:
         world: the emulated cell (F/T readings, marker positions).
         config: rates, ports, the calibration and the RDT buffer size.
         bind_udp: binds a UDP port and registers its reader with the loop.
-        log: the emulator's log; requests it does not understand are logged there (within a budget).
+        log: the emulator's log; the first :data:`NOTES_LOGGED` requests it does not understand are logged there.
     """
 
     def __init__(
@@ -63,7 +65,7 @@ class SensorStreams:
         self.world = world
         self.config = config
         self.bind_udp = bind_udp
-        self.notes = LogBudget(log or (lambda _line: None), "ft rdt")
+        self.log = log or (lambda _line: None)
         self.ft_sock: socket.socket | None = None
         self.trk_sock: socket.socket | None = None
         self.ft_client: tuple[str, int] | None = None
@@ -121,8 +123,7 @@ class SensorStreams:
         try:
             command, count = netft.unpack_request(data)
         except ValueError as e:
-            self.bad_requests += 1
-            self.notes(f"{len(data)}-byte datagram from {addr[0]}:{addr[1]} is not an RDT request ({e}); ignored")
+            self._bad_request(f"{len(data)}-byte datagram from {addr[0]}:{addr[1]} is not an RDT request ({e})")
             return
         if command in (netft.CMD_START_REALTIME, CMD_START_BUFFERED):
             self.ft_client = addr
@@ -139,8 +140,14 @@ class SensorStreams:
         elif command == CMD_RESET_THRESHOLD_LATCH:
             pass  # no thresholds are emulated: the latch is never set
         else:
-            self.bad_requests += 1
-            self.notes(f"RDT command 0x{command:04x} from {addr[0]}:{addr[1]} not emulated; ignored")
+            self._bad_request(f"RDT command 0x{command:04x} from {addr[0]}:{addr[1]} not emulated")
+
+    def _bad_request(self, what: str) -> None:
+        self.bad_requests += 1
+        if self.bad_requests <= NOTES_LOGGED:
+            self.log(f"ft rdt: {what}; ignored")
+        if self.bad_requests == NOTES_LOGGED:
+            self.log(f"ft rdt: {NOTES_LOGGED} requests not understood; further ones are only counted")
 
     def _trk_request(self, sock: socket.socket) -> None:
         try:
