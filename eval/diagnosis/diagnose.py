@@ -5,18 +5,17 @@ episodes into calibration and held-out halves; replay every episode nominally an
 scatter (null model); test whether there is a gap at all; fit every candidate effect on the
 calibration half and score it on the held-out half; fit pairs of the best candidates when one is not
 enough (forward selection, then the best pairs refitted jointly); name what is surely worth naming
-(:mod:`drillgym.eval.diagnosis.rank`).
+(the scores and bars: :mod:`drillgym.eval.diagnosis.rank`; the decision on them: :mod:`drillgym.eval.diagnosis.verdict`).
 """
 
 from __future__ import annotations
 
-import math
 import os
 import sys
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
-from typing import Any, NamedTuple
+from typing import Any
 
 from tqdm import tqdm
 
@@ -35,24 +34,18 @@ from drillgym.eval.diagnosis.rank import (
     gap_significance,
     locate,
     nameable,
-    pair_beats,
     pair_roles,
     pooled,
     possible_second_effects,
     score_models,
     second_effect_evidence,
-    single_contradicted,
     singles_by_name,
 )
+from drillgym.eval.diagnosis.verdict import Decision, decide, gap_location, summary
 from drillgym.eval.progress import bar_size
 
 MIN_EPISODES = 4
 """At least two calibration and two held-out episodes."""
-LEFTOVER_REPORT_RATIO = 3.0
-"""When a named model leaves a held-out gap above this many times the simulator's own level (``leftover_ratio``),
-the summary says how much is left and where. It is a report, not a verdict: on the withheld-effect benchmark the
-right candidate leaves from 1 to over 1000 times that level (the candidates are other forms of the same physics,
-and the simulator's own level in the kinematic channels is tiny), so no ratio tells a missing effect apart."""
 
 
 @dataclass
@@ -172,7 +165,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     result = {
         "verdict": verdict,
         "named": named,
-        "summary": _summary(verdict, chosen, location, alts, seconds, leftover),
+        "summary": summary(verdict, chosen, location, alts, seconds, leftover),
         "leftover": leftover,
         "per_episode": None if chosen is None else chosen.fit.per_episode,
         "single_guard": guard,
@@ -201,17 +194,6 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     return Diagnosis(result, data, scores)
 
 
-class _Decision(NamedTuple):
-    """The verdict and what it rests on."""
-
-    verdict: str
-    chosen: ModelScore | None
-    location: dict[str, Any] | None
-    guard: dict[str, Any] | None
-    off_point: list[str]
-    scores: list[ModelScore]
-
-
 def _name(
     runner: Runner,
     data: DiagnosisData,
@@ -222,7 +204,7 @@ def _name(
     null: list[Any],
     seed: int,
     bar: tqdm,
-) -> _Decision:
+) -> Decision:
     """Decide on ``scores`` (of ``fits``), refine the named model (:func:`_polish`), decide again, and bound its parameters.
 
     The named model's parameters come from the best fit found anywhere in the search; every model gets
@@ -230,7 +212,7 @@ def _name(
     effect whose intervals all contain its off point is not named (``off_point``). A pair refused so for one of
     its effects falls back to its other effect alone, refined and decided on again without the pair.
     """
-    verdict, chosen, location, guard = _decide(significance, scores, before, data, null)
+    verdict, chosen, location, guard = decide(significance, scores, before, data, null)
     if chosen is not None and chosen.fit.per_episode is None:  # a random effect's fit is every episode's own
         bar.total += 1
         bar.set_postfix_str("refining the named model")
@@ -238,7 +220,7 @@ def _name(
         k = next(i for i, f in enumerate(fits) if f is chosen.fit)
         fits[k] = _polish(runner, data, chosen.fit, fits, bar)
         scores = score_models(fits, before, null, seed)
-        verdict, chosen, location, guard = _decide(significance, scores, before, data, null)
+        verdict, chosen, location, guard = decide(significance, scores, before, data, null)
     _bound(scores, seed)
     off_point = [] if chosen is None else off_point_inside(chosen.intervals, chosen.fit.names)
     if chosen is not None and off_point:  # not told apart from its absence: not named as it is
@@ -253,7 +235,7 @@ def _name(
             fits = list(fits)
             fits[single] = _polish(runner, data, fits[single], fits, bar)
             scores = score_models(fits, before, null, seed)
-            verdict, chosen, location, guard = _decide(
+            verdict, chosen, location, guard = decide(
                 significance, [s for s in scores if s.fit is not refused], before, data, null
             )
             _bound(scores, seed)
@@ -262,8 +244,8 @@ def _name(
             ):  # the fallback is the single, nameable on its own, or nothing
                 chosen.named, chosen = False, None
         if chosen is None:
-            verdict, location = "unexplained", _location(data)
-    return _Decision(verdict, chosen, location, guard, off_point, scores)
+            verdict, location = "unexplained", gap_location(data)
+    return Decision(verdict, chosen, location, guard, off_point, scores)
 
 
 def _bound(scores: list[ModelScore], seed: int) -> None:
@@ -271,20 +253,6 @@ def _bound(scores: list[ModelScore], seed: int) -> None:
     for s in scores:
         if not s.intervals:
             s.intervals = s.fit.intervals if s.fit.intervals is not None else parameter_intervals(s.fit.samples, seed)
-
-
-def _decide(
-    significance: dict[str, Any], scores: list[ModelScore], before: list[Any], data: DiagnosisData, null: list[Any]
-) -> tuple[str, ModelScore | None, dict[str, Any] | None, dict[str, Any] | None]:
-    """Verdict, named model, location and the best single's before-contact guard (``single_guard``)."""
-    best_single = next((s for s in scores if len(s.fit.names) == 1), None)
-    guard: dict[str, Any] | None = None
-    contradicted = False
-    if best_single is not None and nameable(best_single, baseline_score(before)):
-        contradicted = single_contradicted(best_single, before, null)
-        guard = {"effect": best_single.name, "contradicted": contradicted}
-    verdict, chosen, location = _verdict(significance, scores, before, data, null, contradicted)
-    return verdict, chosen, location, guard
 
 
 def _polish(runner: Runner, data: DiagnosisData, fit: FitResult, fits: list[FitResult], bar: tqdm) -> FitResult:
@@ -351,12 +319,6 @@ def _merged_samples(a: FitResult, b: FitResult) -> list[Any]:
     return list({spec: (spec, j, n) for spec, j, n in [*a.samples, *b.samples]}.values())
 
 
-def _location(data: DiagnosisData) -> dict[str, Any]:
-    """Where the gap lies when nothing is named: the cell holding the most excess gap."""
-    top = locate(data.baseline_terms, data.null_terms, top=1)[0]
-    return {"channel": top["channel"], "stage": top["stage"], "share": top["share"]}
-
-
 def _refit_jobs(
     scores: list[ModelScore], pairs: list[FitResult], s0: float, top: int
 ) -> list[tuple[tuple[str, ...], list[list[dict[str, float]]], int]]:
@@ -398,74 +360,6 @@ def _collect(results: Iterable[tuple[int, FitResult]], n: int, bar: tqdm) -> lis
         out[k] = r
         bar.update()
     return out
-
-
-def _verdict(
-    significance: dict[str, Any],
-    scores: list[ModelScore],
-    before: list[Any],
-    data: DiagnosisData,
-    null: list[Any],
-    single_contradicted: bool = False,
-) -> tuple[str, ModelScore | None, dict[str, Any] | None]:
-    """Verdict, the named model (marked ``named``) and, when unexplained, where the gap lies.
-
-    ``single_contradicted``: the best single effect fails the before-contact guard
-    (:func:`drillgym.eval.diagnosis.rank.single_contradicted`) and is not named.
-    """
-    if not significance["significant"]:
-        return "no_gap", None, None
-    s0 = baseline_score(before)
-    singles = [s for s in scores if len(s.fit.names) == 1]
-    best_single = singles[0] if singles else None
-    chosen: ModelScore | None = None
-    if best_single is not None and nameable(best_single, s0) and not single_contradicted:
-        chosen = best_single
-    by_name = singles_by_name(singles)
-    g_null = pooled(null)
-    for p in (s for s in scores if len(s.fit.names) == 2):
-        first, second = pair_roles(p, by_name)
-        if best_single is None or first is None:
-            continue
-        if nameable(p, s0) and pair_beats(p, best_single, first, second, g_null, null):
-            if chosen is None or chosen is best_single or p.score < chosen.score:
-                chosen = p
-    if chosen is None:
-        return "unexplained", None, _location(data)
-    chosen.named = True
-    return "explained", chosen, None
-
-
-def _summary(
-    verdict: str,
-    chosen: ModelScore | None,
-    location: dict[str, Any] | None,
-    alts: list[dict[str, Any]],
-    seconds: list[dict[str, Any]],
-    leftover: dict[str, Any] | None = None,
-) -> str:
-    if verdict == "no_gap":
-        return "no significant gap: the simulator explains these episodes within its own noise and specimen scatter"
-    if chosen is None:
-        assert location is not None
-        return f"unexplained — located at {location['channel']}, {location['stage']}"
-    s = chosen
-    pct = lambda v: "nan" if not math.isfinite(v) else (f"{100 * v:.1f} %" if 0.995 <= v < 1.0 else f"{100 * v:.0f} %")  # noqa: E731
-    text = f"explained by {' + '.join(s.fit.names)}: held-out gap shrinks by {pct(s.shrink)} ({pct(s.ci_low)} to {pct(s.ci_high)})"
-    if leftover is not None and leftover["ratio"] > LEFTOVER_REPORT_RATIO and leftover["cells"]:
-        cell = leftover["cells"][0]
-        was = leftover["ratio"] * s.before / s.after if s.after > 0 and math.isfinite(s.before) else math.nan
-        before = f" (it was {was:.3g}x before)" if math.isfinite(was) else ""
-        text += (
-            f"; what is left is still {leftover['ratio']:.3g}x the simulator's own level{before}, most of it at "
-            f"{cell['channel']}, {cell['stage']} ({pct(cell['share'])})"
-        )
-    if alts:
-        text += "; not ruled out: " + ", ".join(f"{a['name']} (better in {pct(a['p_better'])})" for a in alts[:3])
-    if seconds:
-        names = ", ".join(x["second"] for x in seconds[:3])
-        text += f"; a second effect may be present ({names}: better on top, not shown to act alone)"
-    return text
 
 
 __all__ = ["DiagnoseOptions", "Diagnosis", "diagnose", "pooled", "run_diagnosis"]

@@ -16,11 +16,11 @@ import pytest
 from diagnosis_stubs import stub_score
 
 from drillgym.eval.diagnosis.channels import ALL_CHANNELS, STAGES
-from drillgym.eval.diagnosis.diagnose import _verdict
 from drillgym.eval.diagnosis.fit import FitResult
 from drillgym.eval.diagnosis.gap import N_CELLS, Terms
 from drillgym.eval.diagnosis.rank import baseline_score, gap_significance, nameable, score_models
 from drillgym.eval.diagnosis.report import why_not_named
+from drillgym.eval.diagnosis.verdict import verdict as verdict_on
 
 NAME_SHRINK = 0.5
 NAME_CI_LOW = 0.2
@@ -114,7 +114,7 @@ HOT = (STAGES.index("stable"), 3)
 
 
 def _data() -> SimpleNamespace:
-    """What ``_verdict`` reads to locate an unexplained gap: the gap sits in the stable stage, channel 3."""
+    """What ``verdict`` reads to locate an unexplained gap: the gap sits in the stable stage, channel 3."""
     return SimpleNamespace(
         baseline_terms=[_terms(1.0, hot=HOT, extra=9.0) for _ in range(4)], null_terms=[_terms(1.0) for _ in range(4)]
     )
@@ -134,21 +134,21 @@ def test_a_nameable_single_is_named_unless_it_fails_the_before_contact_guard():
     not named, and the gap is located instead."""
     before = [_terms(100.0)]  # s0 = 100 > the single's score 10
     data = _data()
-    verdict, chosen, location = _verdict(SIGNIFICANT, [_single()], before, data, data.null_terms, False)
+    verdict, chosen, location = verdict_on(SIGNIFICANT, [_single()], before, data, data.null_terms, False)
     assert verdict == "explained" and chosen is not None and chosen.name == "ft_drift" and chosen.named
     assert location is None
-    verdict, chosen, location = _verdict(SIGNIFICANT, [_single()], before, data, data.null_terms, True)
+    verdict, chosen, location = verdict_on(SIGNIFICANT, [_single()], before, data, data.null_terms, True)
     assert verdict == "unexplained" and chosen is None
     assert location is not None and (location["stage"], location["channel"]) == ("stable", ALL_CHANNELS[3])
 
 
 def test_no_significant_gap_names_nothing_however_good_the_model():
     data = _data()
-    verdict, chosen, location = _verdict({"significant": False}, [_single()], [_terms(100.0)], data, data.null_terms)
+    verdict, chosen, location = verdict_on({"significant": False}, [_single()], [_terms(100.0)], data, data.null_terms)
     assert (verdict, chosen, location) == ("no_gap", None, None)
 
 
 @pytest.mark.parametrize(("score", "verdict"), [(100.0 - EPS, "explained"), (100.0, "unexplained")])
 def test_the_verdict_names_a_single_only_when_it_beats_no_effect(score, verdict):
     data = _data()
-    assert _verdict(SIGNIFICANT, [_single(score)], [_terms(100.0)], data, data.null_terms)[0] == verdict
+    assert verdict_on(SIGNIFICANT, [_single(score)], [_terms(100.0)], data, data.null_terms)[0] == verdict

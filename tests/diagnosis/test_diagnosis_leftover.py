@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from drillgym.eval.diagnosis.diagnose import LEFTOVER_REPORT_RATIO, _summary
 from drillgym.eval.diagnosis.fit import FitResult
 from drillgym.eval.diagnosis.gap import N_CELLS, Terms
 from drillgym.eval.diagnosis.rank import ALL_CHANNELS, STAGES, locate, score_models
+from drillgym.eval.diagnosis.verdict import LEFTOVER_REPORT_RATIO, summary
 
 
 def _terms(level: float, hot: tuple[int, int] | None = None, extra: float = 0.0) -> Terms:
@@ -30,18 +30,18 @@ def test_the_leftover_ratio_is_the_gap_after_over_the_simulators_own_level():
     assert (cells[0]["stage"], cells[0]["channel"]) == (STAGES[3], ALL_CHANNELS[5]) and cells[0]["share"] == 1.0
 
 
-def test_a_model_leaving_far_more_than_the_sims_level_has_the_rest_and_its_place_in_the_summary():
+def test_a_model_leaving_far_more_than_the_sims_level_has_the_rest_and_its_place_in_thesummary():
     null = [_terms(1.0) for _ in range(4)]
     before = [_terms(10.0) for _ in range(4)]
     fit = FitResult(("b",), [{}], 1, ho_terms=[_terms(1.0, (3, 5), 2000.0) for _ in range(4)])
     s = score_models([fit], before, null)[0]
     assert s.leftover_ratio > LEFTOVER_REPORT_RATIO
     leftover = {"ratio": s.leftover_ratio, "cells": locate(fit.ho_terms, null)}
-    text = _summary("explained", s, None, [], [], leftover)
+    text = summary("explained", s, None, [], [], leftover)
     assert text.startswith("explained by b") and f"what is left is still {s.leftover_ratio:.3g}x" in text
     assert f"{ALL_CHANNELS[5]}, {STAGES[3]}" in text
     small = {**leftover, "ratio": LEFTOVER_REPORT_RATIO / 2}
-    assert "what is left" not in _summary("explained", s, None, [], [], small)
+    assert "what is left" not in summary("explained", s, None, [], [], small)
 
 
 def test_a_near_total_shrink_beside_a_large_rest_says_how_large_the_gap_was_before():
@@ -53,7 +53,7 @@ def test_a_near_total_shrink_beside_a_large_rest_says_how_large_the_gap_was_befo
     s = score_models([fit], before, null)[0]
     assert 0.995 <= s.shrink < 1.0
     leftover = {"ratio": s.leftover_ratio, "cells": locate(fit.ho_terms, null)}
-    text = _summary("explained", s, None, [], [], leftover)
+    text = summary("explained", s, None, [], [], leftover)
     assert f"shrinks by {100 * s.shrink:.1f} %" in text
     was = s.leftover_ratio * s.before / s.after
     assert f"(it was {was:.3g}x before)" in text and was > 100 * s.leftover_ratio

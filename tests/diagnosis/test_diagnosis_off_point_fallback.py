@@ -47,9 +47,9 @@ def _drive(monkeypatch: pytest.MonkeyPatch, single_off: bool) -> tuple[Any, list
 
     monkeypatch.setattr(dg, "_polish", polish)
     monkeypatch.setattr(dg, "score_models", score_models)
-    monkeypatch.setattr(dg, "_decide", decide)
+    monkeypatch.setattr(dg, "decide", decide)
     monkeypatch.setattr(dg, "_bound", lambda scores, seed: None)
-    monkeypatch.setattr(dg, "_location", lambda data: LOCATION)
+    monkeypatch.setattr(dg, "gap_location", lambda data: LOCATION)
     fits = [FitResult(PAIR, [{}, {}], 2), FitResult(SINGLE, [{}], 1)]
     scores = score_models(fits, None, None, 0)
     with tqdm(total=0, disable=True) as bar:
