@@ -5,7 +5,8 @@ episodes into calibration and held-out halves; replay every episode nominally an
 scatter (null model); test whether there is a gap at all; fit every candidate effect on the
 calibration half and score it on the held-out half; fit pairs of the best candidates when one is not
 enough (forward selection, then the best pairs refitted jointly); name what is surely worth naming
-(the scores and bars: :mod:`drillgym.eval.diagnosis.rank`; the decision on them: :mod:`drillgym.eval.diagnosis.verdict`).
+(the scores and bars: :mod:`drillgym.eval.diagnosis.rank`, the pair rule and guards: :mod:`drillgym.eval.diagnosis.pairs`;
+the decision on them: :mod:`drillgym.eval.diagnosis.verdict`).
 """
 
 from __future__ import annotations
@@ -24,9 +25,9 @@ from drillgym.eval.diagnosis.context import DiagnosisData, split_episodes
 from drillgym.eval.diagnosis.episodes import EpisodeData
 from drillgym.eval.diagnosis.fit import FitResult
 from drillgym.eval.diagnosis.intervals import off_point_inside, parameter_intervals
+from drillgym.eval.diagnosis.pairs import PAIR_TRY_RESIDUAL, pair_roles, possible_second_effects, second_effect_evidence
 from drillgym.eval.diagnosis.pool import Runner
 from drillgym.eval.diagnosis.rank import (
-    PAIR_TRY_RESIDUAL,
     ModelScore,
     alternatives,
     baseline_score,
@@ -34,11 +35,8 @@ from drillgym.eval.diagnosis.rank import (
     gap_significance,
     locate,
     nameable,
-    pair_roles,
     pooled,
-    possible_second_effects,
     score_models,
-    second_effect_evidence,
     singles_by_name,
 )
 from drillgym.eval.diagnosis.verdict import Decision, decide, gap_location, summary

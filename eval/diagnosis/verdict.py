@@ -8,10 +8,10 @@ Pure functions of the held-out scores (:mod:`drillgym.eval.diagnosis.rank`); no 
 * else the best-scoring single effect is named when it is
   :func:`~drillgym.eval.diagnosis.rank.nameable` (shrink ≥ 50 %, its 95 % interval's low end ≥ 20 %, a penalised
   score below "no effect") and does not fail the before-contact guard
-  (:func:`~drillgym.eval.diagnosis.rank.single_contradicted`);
+  (:func:`~drillgym.eval.diagnosis.pairs.single_contradicted`);
 * a pair is named instead when it is nameable and
-  :func:`~drillgym.eval.diagnosis.rank.pair_beats` the best single (judged with its effects in
-  :func:`~drillgym.eval.diagnosis.rank.pair_roles`' order); of several such pairs, the best-scoring;
+  :func:`~drillgym.eval.diagnosis.pairs.pair_beats` the best single (judged with its effects in
+  :func:`~drillgym.eval.diagnosis.pairs.pair_roles`' order); of several such pairs, the best-scoring;
 * otherwise ``unexplained``, located at the (channel, stage) cell holding the most excess gap over all episodes.
 """
 
@@ -21,17 +21,8 @@ import math
 from typing import Any, NamedTuple
 
 from drillgym.eval.diagnosis.context import DiagnosisData
-from drillgym.eval.diagnosis.rank import (
-    ModelScore,
-    baseline_score,
-    locate,
-    nameable,
-    pair_beats,
-    pair_roles,
-    pooled,
-    single_contradicted,
-    singles_by_name,
-)
+from drillgym.eval.diagnosis.pairs import pair_beats, pair_roles, single_contradicted
+from drillgym.eval.diagnosis.rank import ModelScore, baseline_score, locate, nameable, pooled, singles_by_name
 
 LEFTOVER_REPORT_RATIO = 3.0
 """When a named model leaves a held-out gap above this many times the simulator's own level (``leftover_ratio``),
@@ -81,7 +72,7 @@ def verdict(
 
     ``scores`` best first (as :func:`~drillgym.eval.diagnosis.rank.score_models` sorts them); ``before`` and
     ``null``: the held-out episodes' terms without a model and the simulator's own. ``single_contradicted``: the
-    best single effect fails the before-contact guard (:func:`drillgym.eval.diagnosis.rank.single_contradicted`)
+    best single effect fails the before-contact guard (:func:`drillgym.eval.diagnosis.pairs.single_contradicted`)
     and is not named. The rules are the module docstring's.
     """
     if not significance["significant"]:

@@ -61,7 +61,7 @@ def test_a_near_total_shrink_beside_a_large_rest_says_how_large_the_gap_was_befo
 
 def test_a_single_effect_that_predicts_a_force_before_contact_the_data_lack_is_contradicted():
     from drillgym.eval.diagnosis.channels import GROUP_OF
-    from drillgym.eval.diagnosis.rank import before_contact_cells, single_contradicted
+    from drillgym.eval.diagnosis.pairs import before_contact_cells, single_contradicted
 
     mask = before_contact_cells("ft_drift")
     approach = STAGES.index("approach")

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 from diagnosis_stubs import stub_score
 
-from drillgym.eval.diagnosis.rank import ModelScore, pair_beats
+from drillgym.eval.diagnosis.pairs import pair_beats
+from drillgym.eval.diagnosis.rank import ModelScore
 
 NULL_GAP = 1.0
 
@@ -47,7 +48,7 @@ def test_a_pair_built_on_the_second_best_single_is_judged_against_the_best():
 
 
 def test_a_second_effect_hidden_behind_the_first_is_reported_as_possible_not_named():
-    from drillgym.eval.diagnosis.rank import possible_second_effects
+    from drillgym.eval.diagnosis.pairs import possible_second_effects
 
     a = _score(("a",), 11.0, 5.0, 500.0)
     hidden = _score(("h",), 11.0, 10.9, 1090.0)  # alone it explains nothing visible
@@ -61,7 +62,8 @@ def test_a_second_effect_hidden_behind_the_first_is_reported_as_possible_not_nam
 
 
 def test_the_effect_a_pair_adds_to_its_stronger_single_must_be_shown_whichever_came_first():
-    from drillgym.eval.diagnosis.rank import pair_roles, singles_by_name
+    from drillgym.eval.diagnosis.pairs import pair_roles
+    from drillgym.eval.diagnosis.rank import singles_by_name
 
     # Forward selection built (weak, strong): a weak first effect with the real one fitted on top, which then
     # "adds" all it explains alone. Judged that way round it passes; what the pair adds to the strong single is
@@ -81,7 +83,7 @@ def test_the_effect_a_pair_adds_to_its_stronger_single_must_be_shown_whichever_c
 
 
 def test_a_possible_second_effect_is_found_whichever_order_its_pair_was_built_in():
-    from drillgym.eval.diagnosis.rank import possible_second_effects
+    from drillgym.eval.diagnosis.pairs import possible_second_effects
 
     a = _score(("a",), 11.0, 5.0, 500.0)
     hidden = _score(("h",), 11.0, 10.9, 1090.0)

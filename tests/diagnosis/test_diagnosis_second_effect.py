@@ -10,14 +10,14 @@ from diagnosis_stubs import stub_score
 from drillgym.eval.diagnosis.channels import ALL_CHANNELS, GROUP_OF, STAGES
 from drillgym.eval.diagnosis.fit import fit_model, refit_jointly
 from drillgym.eval.diagnosis.gap import Terms
-from drillgym.eval.diagnosis.rank import (
-    ModelScore,
+from drillgym.eval.diagnosis.pairs import (
     own_cells,
     pair_beats,
     second_contradicted,
     second_effect_evidence,
     second_on_own_cells,
 )
+from drillgym.eval.diagnosis.rank import ModelScore
 
 EPISODES = 8
 Q = [c for c, ch in enumerate(ALL_CHANNELS) if GROUP_OF[ch] == "q"]
