@@ -6,7 +6,7 @@ candidate — the gain-scheduling table of ``drillgym tune-table`` (``table:ship
 earns the place by the rules a policy must pass:
 
 * every candidate is checked against the default exactly as a policy is
-  (:func:`drillgym.eval.learning.seed_report.run_checks`: paper deviation significantly lower, paper peak
+  (:func:`drillgym.eval.learning.seed_checks.run_checks`: paper deviation significantly lower, paper peak
   force not significantly higher, generalisation deviation significantly lower, heldout pooled lower with no
   heldout scenario significantly worse, paper deviation ≥ 30 % below the reference, drill time ≤ +30 %);
 * among the candidates that pass every check, the one with the lowest mean deviation, averaged over the
@@ -25,15 +25,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from drillgym.eval.learning.seed_report import (
-    DEVIATION,
-    POLICY,
-    RULES,
-    _natural,
-    normalise_episodes,
-    paired_diff,
-    run_checks,
-)
+from drillgym.eval.learning.seed_checks import RULES, run_checks
+from drillgym.eval.learning.seed_stats import DEVIATION, POLICY, _natural, normalise_episodes, paired_diff
 
 RULE = (
     "a classical candidate replaces the default best baseline when it passes every seed-report check against it "
@@ -54,7 +47,7 @@ def choose_best_classical(
 
     Returns:
         ``(best, rows)``: the chosen label and, per candidate, its checks against the default
-        (:data:`drillgym.eval.learning.seed_report.CHECK_COLUMNS`, ``run`` = the candidate) plus
+        (:data:`drillgym.eval.learning.seed_checks.CHECK_COLUMNS`, ``run`` = the candidate) plus
         ``mean_deviation_mm`` (averaged over suites).
     """
     frame = normalise_episodes(episodes)

@@ -10,15 +10,15 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from drillgym.eval.learning.seed_report import (
+from drillgym.eval.learning.seed_checks import seed_checks
+from drillgym.eval.learning.seed_report import write_seed_report
+from drillgym.eval.learning.seed_stats import (
     iqm,
     paired_diff,
     probability_of_improvement,
     probability_of_improvement_ci,
     score_matrix,
-    seed_checks,
     stratified_bootstrap_ci,
-    write_seed_report,
 )
 
 BEST = "li2023_slow_entry"
