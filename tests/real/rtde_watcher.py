@@ -1,22 +1,29 @@
 """A raw RTDE client that records when each 125 Hz data package arrives, to show the emulator's stream never stops.
 
 It speaks the protocol as UR's own Python client does (``rtde/rtde.py``: REQUEST_PROTOCOL_VERSION 2, SETUP_OUTPUTS
-with a frequency, START) and reads in a thread of its own; :meth:`RtdeWatcher.max_gap_s` is the longest time
-without a package over a window, measured on this process's monotonic clock at arrival (the packages' own
-``timestamp`` cannot show a stall: the emulator's loop catches its missed cycles up afterwards, evenly stamped).
+with a frequency, START) and reads in a process of its own (forked), so that the test process's own work (hypothesis
+building examples holds its interpreter for hundreds of ms) never shows as a gap; arrival times go to shared
+memory. :meth:`RtdeWatcher.max_gap_s` is the longest time without a package over a window, on the system's monotonic
+clock at arrival (the packages' own ``timestamp`` cannot show a stall: the emulator's loop catches its missed cycles
+up afterwards, evenly stamped).
 """
 
 from __future__ import annotations
 
 import bisect
 import itertools
+import multiprocessing as mp
 import socket
 import struct
-import threading
 import time
+from typing import Any
 
 from drillgym.envs.real.emulator import rtde_protocol as rp
 from drillgym.envs.real.emulator.config import RTDE_PORT
+
+CAPACITY = 125 * 900
+"""Arrival times kept (15 minutes at 125 Hz); the watcher stops recording when they are full."""
+ERRORS = {1: "the emulator closed the watcher's connection", 2: "the watcher's connection failed", 3: "buffer full"}
 
 
 def rtde_request(sock: socket.socket, reader: rp.PackageReader, kind: int, payload: bytes = b"") -> bytes:
@@ -31,8 +38,44 @@ def rtde_request(sock: socket.socket, reader: rp.PackageReader, kind: int, paylo
                 return p
 
 
+def _watch(host: str, port: int, arrivals: Any, count: Any, status: Any, stop: Any) -> None:
+    """The watcher process: set up, START, then write each data package's arrival time (s, monotonic)."""
+    try:
+        sock = socket.create_connection((host, port), timeout=2.0)
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        reader = rp.PackageReader()
+        assert rtde_request(sock, reader, rp.REQUEST_PROTOCOL_VERSION, struct.pack(">H", 2)) == b"\x01"
+        assert rtde_request(sock, reader, rp.SETUP_OUTPUTS, struct.pack(">d", 125.0) + b"timestamp") == b"\x01DOUBLE"
+        assert rtde_request(sock, reader, rp.START) == b"\x01"
+        sock.settimeout(0.2)
+    except (OSError, AssertionError):
+        status.value = 2
+        return
+    with sock:
+        while not stop.is_set():
+            try:
+                data = sock.recv(65536)
+            except TimeoutError:
+                continue
+            except OSError:
+                status.value = 2
+                return
+            if not data:
+                status.value = 1
+                return
+            t = time.monotonic()
+            for kind, _ in reader.feed(data):
+                if kind != rp.DATA_PACKAGE:
+                    continue
+                if count.value >= CAPACITY:
+                    status.value = 3
+                    return
+                arrivals[count.value] = t
+                count.value += 1
+
+
 class RtdeWatcher:
-    """Receives ``timestamp`` at 125 Hz from an emulator and keeps every package's arrival time (s, monotonic).
+    """Receives ``timestamp`` at 125 Hz from an emulator, in a child process, and keeps every package's arrival time.
 
     Args:
         host: the emulator's address.
@@ -42,59 +85,46 @@ class RtdeWatcher:
     def __init__(self, host: str, port: int = RTDE_PORT) -> None:
         self.host = host
         self.port = port
-        self.arrivals: list[float] = []
-        self.error: str | None = None
-        self._sock: socket.socket | None = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
+        ctx = mp.get_context("fork")
+        self._arrivals = ctx.Array("d", CAPACITY, lock=False)
+        self._count = ctx.Value("l", 0, lock=False)
+        self._status = ctx.Value("i", 0, lock=False)
+        self._stop = ctx.Event()
+        self._proc = ctx.Process(
+            target=_watch, args=(host, port, self._arrivals, self._count, self._status, self._stop), daemon=True
+        )
 
-    def start(self, timeout_s: float = 2.0) -> RtdeWatcher:
-        """Connect, set the recipe up, START, and wait for the first package."""
-        sock = socket.create_connection((self.host, self.port), timeout=timeout_s)
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        reader = rp.PackageReader()
-        assert rtde_request(sock, reader, rp.REQUEST_PROTOCOL_VERSION, struct.pack(">H", 2)) == b"\x01"
-        answer = rtde_request(sock, reader, rp.SETUP_OUTPUTS, struct.pack(">d", 125.0) + b"timestamp")
-        assert answer == b"\x01DOUBLE", answer
-        assert rtde_request(sock, reader, rp.START) == b"\x01"
-        sock.settimeout(0.2)
-        self._sock = sock
-        self._thread = threading.Thread(target=self._run, args=(sock, reader), daemon=True)
-        self._thread.start()
+    def start(self, timeout_s: float = 5.0) -> RtdeWatcher:
+        """Start the watcher process and wait for its first package."""
+        self._proc.start()
         deadline = time.monotonic() + timeout_s
-        while not self.arrivals and time.monotonic() < deadline:
+        while not self._count.value and not self._status.value and time.monotonic() < deadline:
             time.sleep(0.005)
-        assert self.arrivals, f"no RTDE data package within {timeout_s} s"
+        assert self._count.value, f"no RTDE data package within {timeout_s} s ({self.error})"
         return self
 
-    def _run(self, sock: socket.socket, reader: rp.PackageReader) -> None:
-        while not self._stop.is_set():
-            try:
-                data = sock.recv(65536)
-            except TimeoutError:
-                continue
-            except OSError as e:
-                self.error = f"watcher connection failed: {e}"
-                return
-            if not data:
-                self.error = "the emulator closed the watcher's connection"
-                return
-            t = time.monotonic()
-            n = sum(1 for kind, _ in reader.feed(data) if kind == rp.DATA_PACKAGE)
-            self.arrivals.extend([t] * n)
+    @property
+    def error(self) -> str | None:
+        """Why the watcher stopped receiving, or None while it receives."""
+        return ERRORS.get(self._status.value)
+
+    @property
+    def arrivals(self) -> list[float]:
+        """Every package's arrival time so far (s, monotonic), in order."""
+        return list(self._arrivals[: self._count.value])
 
     def max_gap_s(self, t_from: float, t_to: float) -> float:
         """Longest time without a package between ``t_from`` and ``t_to`` (s, monotonic), both ends counted."""
-        arrivals = list(self.arrivals)
+        arrivals = self.arrivals
         i = bisect.bisect_right(arrivals, t_from)
         j = bisect.bisect_right(arrivals, t_to)
         points = [arrivals[i - 1] if i > 0 else t_from, *arrivals[i:j], t_to]
         return max(b - a for a, b in itertools.pairwise(points))
 
     def stop(self) -> None:
-        """End the thread and close the connection."""
+        """End the watcher process (it closes its connection)."""
         self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-        if self._sock is not None:
-            self._sock.close()
+        self._proc.join(timeout=2.0)
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(timeout=2.0)

@@ -4,13 +4,14 @@ The emulator serves every port from one thread that also runs the 125 Hz control
 stream, so a socket call that waits for a client stops all of them. Here every send is non-blocking into a
 bounded :class:`Outbox` (a client that lets :attr:`Outbox.limit_bytes` pile up is dropped by its owner, and
 logged), every read takes at most one chunk per loop turn (:data:`READ_CHUNK_BYTES`), a line client's commands
-at most :data:`LINE_TURN_BUDGET_S` of each turn, and a client's complaints
-and notes reach the log at most :data:`LINES_LOGGED` times (:class:`LogBudget`).
+at most :data:`LINE_TURN_BUDGET_S` of each turn, and the lines about one port's clients reach the log at most in
+bursts of :data:`LOG_BURST_LINES` and :data:`LOG_LINES_PER_S` lines a second after (:class:`LogBudget`).
 """
 
 from __future__ import annotations
 
 import socket
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -28,8 +29,10 @@ MAX_LINE_BYTES = 4096
 """Longest dashboard or control line accepted without a newline (bytes); a longer one drops the client."""
 MAX_SCRIPT_BYTES = 1 << 20
 """Longest incomplete program a script port buffers (bytes); more drops the client."""
-LINES_LOGGED = 20
-"""Lines about one client (protocol complaints, notes) written to the log; later ones are counted, not written."""
+LOG_BURST_LINES = 20
+"""Lines about one port's clients (protocol complaints, notes) the log takes at once (:class:`LogBudget`)."""
+LOG_LINES_PER_S = 1.0
+"""The rate (lines/s) at which that allowance comes back: a client that reconnects in a loop cannot flood the log."""
 
 
 class Outbox:
@@ -63,27 +66,48 @@ class Outbox:
 
 
 class LogBudget:
-    """Writes lines about one client to the log until its budget is spent, then says once that it stops.
+    """A token bucket for the lines about one port's clients: a burst, then a steady rate.
+
+    What it holds back is counted, and said with the next line it lets through.
 
     Args:
         log: the emulator's log (one line per call).
-        prefix: names the client in each line (e.g. ``rtde#3``).
-        limit: lines written before the rest are only counted.
+        prefix: put before each line with ``": "`` (e.g. ``ft rdt``); none if empty.
+        burst: lines let through at once.
+        per_s: lines per second the allowance comes back at.
+        clock: seconds, monotonic.
     """
 
-    def __init__(self, log: Callable[[str], None], prefix: str, limit: int = LINES_LOGGED) -> None:
+    def __init__(
+        self,
+        log: Callable[[str], None],
+        prefix: str = "",
+        burst: int = LOG_BURST_LINES,
+        per_s: float = LOG_LINES_PER_S,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.log = log
-        self.prefix = prefix
-        self.limit = limit
-        self.count = 0
+        self.prefix = f"{prefix}: " if prefix else ""
+        self.burst = burst
+        self.per_s = per_s
+        self.clock = clock
+        self.tokens = float(burst)
+        self.last_s = clock()
+        self.held_back = 0
 
     def __call__(self, line: str) -> None:
-        """Log one line about the client (counted always, written while the budget lasts)."""
-        self.count += 1
-        if self.count <= self.limit:
-            self.log(f"{self.prefix}: {line}")
-        if self.count == self.limit:
-            self.log(f"{self.prefix}: {self.limit} lines logged about this client; further ones are not")
+        """Log one line if the allowance has room, else count it."""
+        now = self.clock()
+        self.tokens = min(float(self.burst), self.tokens + (now - self.last_s) * self.per_s)
+        self.last_s = now
+        if self.tokens < 1.0:
+            self.held_back += 1
+            return
+        self.tokens -= 1.0
+        if self.held_back:
+            line += f" ({self.held_back} earlier line(s) about this port's clients not logged)"
+            self.held_back = 0
+        self.log(self.prefix + line)
 
 
 @dataclass
@@ -94,12 +118,12 @@ class StreamClient:
         kind: the port's name (``dashboard``, ``control``, ``script``, ``primary``, ``secondary``, ``ft_cal``).
         inbox: received bytes not yet handled.
         outbox: replies not yet sent.
-        log: lines about the client, within its budget.
+        log: lines about the client (with its port's :class:`LogBudget`).
         closing: close once the outbox is empty (a ``quit``, a ``shutdown``, a one-shot reply).
     """
 
     kind: str
     inbox: bytearray
     outbox: Outbox
-    log: LogBudget
+    log: Callable[[str], None]
     closing: bool = False

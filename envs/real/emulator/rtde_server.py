@@ -10,7 +10,7 @@ names only, its answer and data packages carry no recipe id, and it is served at
 protocol never ends the emulator: a malformed package is answered with an error ``TEXT_MESSAGE`` (and, for a
 request that expects an answer, with that answer's refusal: protocol version not accepted, recipe id 0), a
 package stream whose framing is lost (size field below 3) gets the message and is closed, and each connection's
-complaints reach the log at most :data:`~drillgym.envs.real.emulator.nonblocking.LINES_LOGGED` times.
+complaints go through the RTDE port's log budget (:class:`~drillgym.envs.real.emulator.nonblocking.LogBudget`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from collections import deque
 from collections.abc import Callable
 
 from drillgym.envs.real.emulator import rtde_protocol as rp
-from drillgym.envs.real.emulator.nonblocking import LogBudget, Outbox
+from drillgym.envs.real.emulator.nonblocking import Outbox
 from drillgym.envs.real.emulator.registers import Registers
 
 CONTROLLER_VERSION = (3, 15, 7, 106331)
@@ -58,6 +58,8 @@ class RtdeConnection:
         conn_id: this connection's id.
         log: called with one line per notable event.
         on_input: called after every input data package (with the emulator time).
+        complaints: where the lines about protocol errors go (default ``log``; the server passes the RTDE port's
+            log budget, shared by every RTDE client).
     """
 
     def __init__(
@@ -68,13 +70,14 @@ class RtdeConnection:
         conn_id: int,
         log: Callable[[str], None],
         on_input: Callable[[float], None] = lambda t_s: None,
+        complaints: Callable[[str], None] | None = None,
     ) -> None:
         self.sock = sock
         self.regs = registers
         self.owners = owners
         self.conn_id = conn_id
         self.log = log
-        self.complain = LogBudget(log, f"rtde#{conn_id}")
+        self._complaints = complaints or log
         self.on_input = on_input
         self.reader = rp.PackageReader()
         self.protocol_version = 1
@@ -102,6 +105,10 @@ class RtdeConnection:
             raise
         for kind, payload in packages:
             self._handle(kind, payload, t_s)
+
+    def complain(self, line: str) -> None:
+        """One line about this client's protocol errors, to the complaints log."""
+        self._complaints(f"rtde#{self.conn_id}: {line}")
 
     def refuse(self, reason: str) -> None:
         """Log ``reason`` (within the budget) and send it to the client as an error ``TEXT_MESSAGE``."""

@@ -92,6 +92,8 @@ class Emulator:
         self.streams: dict[socket.socket, StreamClient] = {}
         self.backlogged: set[socket.socket] = set()
         """Line clients whose received lines are not all answered yet (see :meth:`_read_lines`)."""
+        self.log_budgets: dict[str, LogBudget] = {}
+        """Each port's :class:`LogBudget`, shared by its clients."""
         self.owners: dict[str, int] = {}
         self.output_recipes: list[list[str]] = []
         self.input_recipes: list[list[list[str]]] = []
@@ -173,6 +175,12 @@ class Emulator:
         self.world.halted = False
         return True
 
+    def _log_budget(self, port: str) -> LogBudget:
+        """The log budget shared by every client of ``port`` (created on first use)."""
+        if port not in self.log_budgets:
+            self.log_budgets[port] = LogBudget(self.log)
+        return self.log_budgets[port]
+
     # ------------------------------------------------------------------ sockets
     def _accept(self, name: str, listener: socket.socket) -> None:
         try:
@@ -182,13 +190,18 @@ class Emulator:
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         if name == "rtde":
-            conn = RtdeConnection(sock, self.regs, self.owners, self.next_conn_id, self.log, self.program.on_input)
+            conn = RtdeConnection(
+                sock, self.regs, self.owners, self.next_conn_id, self.log, self.program.on_input, self._log_budget(name)
+            )
             self.next_conn_id += 1
             self.rtde.append(conn)
             self.input_recipes.append(conn.input_recipe_log)
             self.sel.register(sock, selectors.EVENT_READ, lambda s, c=conn: self._read_rtde(c))
             return
-        client = StreamClient(name, bytearray(), Outbox(sock, STREAM_OUTBOX_BYTES), LogBudget(self.log, name))
+        budget = self._log_budget(name)
+        client = StreamClient(
+            name, bytearray(), Outbox(sock, STREAM_OUTBOX_BYTES), lambda line: budget(f"{name}: {line}")
+        )
         self.streams[sock] = client
         self.sel.register(sock, selectors.EVENT_READ, self._read_stream)
         if name == "dashboard":
