@@ -17,6 +17,7 @@ from drillgym.envs.key_values import convert, split_items
 from drillgym.envs.real.emulator.config import (
     CONTROL_PORT,
     DASHBOARD_PORT,
+    FT_HTTP_PORT,
     PRIMARY_PORT,
     RTDE_PORT,
     SCRIPT_PORT,
@@ -24,7 +25,6 @@ from drillgym.envs.real.emulator.config import (
     EmulatorConfig,
     ScheduledFault,
 )
-from drillgym.envs.real.emulator.netft_http import FT_HTTP_PORT
 from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
 from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT

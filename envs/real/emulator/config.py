@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from drillgym.envs.real.emulator.netft_http import FT_HTTP_PORT
 from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
 from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT
@@ -17,6 +16,8 @@ SCRIPT_PORT = 30003
 PRIMARY_PORT = 30001
 SECONDARY_PORT = 30002
 """The primary and secondary client interfaces: they take URScript too (their state stream is not emulated)."""
+FT_HTTP_PORT = 8080
+"""The emulated Net F/T's web page (``/netftapi2.xml``); a real sensor serves it on 80, which only root may bind."""
 CONTROL_PORT = 30100
 """The emulator's own JSON control port (fault injection, status, truth); not a UR port."""
 FAULT_KINDS = ("protective_stop", "drop_link", "delay", "freeze_rtde", "stale_ft", "stale_tracker")

@@ -27,8 +27,6 @@ if TYPE_CHECKING:
     from drillgym.envs.real.emulator.config import EmulatorConfig
     from drillgym.envs.real.emulator.nonblocking import StreamClient
 
-FT_HTTP_PORT = 8080
-"""The emulator's default port for the web page (a real sensor: 80, which only root may bind)."""
 MAX_REQUEST_BYTES = 8192
 """Longest request head read (bytes); a longer one is answered 431 and the connection closed."""
 CONFIGURATIONS = 16

@@ -21,12 +21,12 @@ from typing import Any
 from drillgym.envs.real.emulator.config import (
     CONTROL_PORT,
     DASHBOARD_PORT,
+    FT_HTTP_PORT,
     PRIMARY_PORT,
     RTDE_PORT,
     SCRIPT_PORT,
     SECONDARY_PORT,
 )
-from drillgym.envs.real.emulator.netft_http import FT_HTTP_PORT
 from drillgym.envs.real.netft import RDT_PORT
 from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT
