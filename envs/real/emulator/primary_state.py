@@ -98,12 +98,13 @@ REALTIME_PACKET_BYTES = _REALTIME.size
 """1108: the CB3 real-time packet from software 3.5 on."""
 
 
-def _v(state: Mapping[str, object], name: str) -> tuple[float, ...]:
-    return tuple(float(x) for x in state[name])  # type: ignore[attr-defined]
+def _v(state: Mapping[str, object], name: str) -> Sequence[float]:
+    """A vector of the state as it is (``struct`` packs ints and floats as doubles alike)."""
+    return state[name]  # type: ignore[return-value]
 
 
 def _f(state: Mapping[str, object], name: str) -> float:
-    return float(state[name])  # type: ignore[arg-type]
+    return state[name]  # type: ignore[return-value]
 
 
 def _i(state: Mapping[str, object], name: str) -> int:
