@@ -208,7 +208,7 @@ def normalise_episodes(episodes: pd.DataFrame) -> pd.DataFrame:
     if missing:
         raise ValueError(f"episodes lack the columns {sorted(missing)}")
     frame = episodes.copy()
-    frame["run"] = frame["run"].fillna("").astype(str)
+    frame["run"] = frame["run"].astype(object).fillna("").astype(str)  # a float column of NaN (baselines only)
     for c in ("controller", "suite", "scenario"):
         frame[c] = frame[c].astype(str)
     frame["seed"] = frame["seed"].astype(int)
