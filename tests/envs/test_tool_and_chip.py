@@ -56,3 +56,24 @@ def test_full_engagement_depth_is_radius_times_cot_kappa_plus_tan_beta():
     g = DrillGeometry()
     beta = math.radians(30)
     assert g.full_engagement_depth_m(beta) == pytest.approx(0.75e-3 * (1 / math.tan(math.radians(59)) + math.tan(beta)))
+
+
+def test_drill_compliance_is_diagonal_with_the_lateral_and_axial_stiffnesses():
+    """Tool frame (z along the drill): a tip force along x or y bends the drill, along z compresses it.
+
+    Hand values for the default drill (D 1.5 mm, d_eff 0.85 D, l 36 mm, E 210 GPa): k_lat = 3EI/l³ and
+    k_ax = EA/l; relative 1e-9 is float slack only.
+    """
+    d_eff, length, e = 0.85 * 1.5e-3, 0.036, 210e9
+    k_lat = 3 * e * (math.pi * d_eff**4 / 64) / length**3
+    k_ax = e * (math.pi * d_eff**2 / 4) / length
+    c = CantileverTool().compliance_tool_m_n()
+    np.testing.assert_allclose(c, np.diag([1 / k_lat, 1 / k_lat, 1 / k_ax]), rtol=1e-9, atol=0.0)
+    deflection = CantileverTool().tip_deflection_m([1.0, -2.0, 3.0])  # a list is accepted as a vector
+    np.testing.assert_allclose(deflection, [1.0 / k_lat, -2.0 / k_lat, 3.0 / k_ax], rtol=1e-9, atol=0.0)
+
+
+def test_drill_shear_modulus_is_e_over_two_times_one_plus_nu():
+    """G = E / (2 (1 + ν)): 210 GPa and ν 0.3 give 80.77 GPa (a handbook steel value); float slack only."""
+    assert CantileverTool().shear_modulus_pa == pytest.approx(210e9 / 2.6, rel=1e-12)
+    assert CantileverTool(poisson_ratio=0.5).shear_modulus_pa == pytest.approx(70e9, rel=1e-12)

@@ -62,6 +62,7 @@ OUTPUT_TYPES: dict[str, str] = {
     "robot_mode": "INT32",
     "joint_mode": "VECTOR6INT32",
     "safety_mode": "INT32",
+    "safety_status": "INT32",
     "actual_tool_accelerometer": "VECTOR3D",
     "speed_scaling": "DOUBLE",
     "target_speed_fraction": "DOUBLE",
@@ -71,6 +72,7 @@ OUTPUT_TYPES: dict[str, str] = {
     "actual_robot_current": "DOUBLE",
     "actual_digital_output_bits": "UINT64",
     "runtime_state": "UINT32",
+    "joint_position_deviation_ratio": "DOUBLE",
     "elbow_position": "VECTOR3D",
     "elbow_velocity": "VECTOR3D",
     "robot_status_bits": "UINT32",
@@ -99,7 +101,9 @@ OUTPUT_TYPES: dict[str, str] = {
     **{f"input_int_register_{i}": "INT32" for i in range(48)},
     **{f"input_double_register_{i}": "DOUBLE" for i in range(48)},
 }
-"""Outputs a CB3 (PolyScope 3.15) serves. Names only e-Series serve (``ft_raw_wrench``, ...) are NOT_FOUND."""
+"""Outputs a CB3 (PolyScope 3.15) serves. Names only e-Series serve (``ft_raw_wrench``, ...) are NOT_FOUND.
+``safety_status`` and ``joint_position_deviation_ratio`` are served because UR's RTDE client asks for them in its
+default recipe (``examples/record_configuration.xml``); whether a CB3 3.15 serves them is not checked."""
 
 NOT_EMULATED = (
     "target_qdd",
@@ -127,6 +131,7 @@ NOT_EMULATED = (
     "tool_output_current",
     "tool_temperature",
     "actual_digital_input_bits",
+    "joint_position_deviation_ratio",
 )
 """Outputs served with constant values: an RTDE setup that asks for them is logged as such."""
 

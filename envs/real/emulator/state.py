@@ -2,7 +2,9 @@
 
 Registers are read live by the connection; everything else is here. Modes and bits follow UR's RTDE guide:
 ``robot_mode`` 3 POWER_OFF, 5 IDLE, 7 RUNNING; ``safety_mode`` 1 NORMAL, 3 PROTECTIVE_STOP; ``robot_status_bits``
-bit 0 power on, bit 1 program running; ``safety_status_bits`` bit 0 normal mode, bit 2 protective stopped.
+bit 0 power on, bit 1 program running; ``safety_status_bits`` bit 0 normal mode, bit 2 protective stopped;
+``safety_status`` the safety status type of UR's Client Interface (1 NORMAL, 3 PROTECTIVE_STOP), equal to
+``safety_mode`` here (the emulator has no reduced mode, safeguard or emergency stop).
 
 Targets: ``target_q`` is the joint position of the servo target (:meth:`EmulatedCell.target_q_rad`: it leads
 ``actual_q`` while the arm moves and equals it at rest); ``target_TCP_pose`` the newest ``servoL`` pose while a servo
@@ -71,6 +73,7 @@ _STATIC: dict[str, object] = {
     "payload": 1.2,
     "payload_cog": (0.0, 0.0, 0.06),
     "payload_inertia": _ZERO6,
+    "joint_position_deviation_ratio": 0.0,
 }
 
 
@@ -95,6 +98,7 @@ def controller_state(emulator: EmulatorHost, t_s: float) -> dict[str, object]:
         actual_TCP_force=tuple(world.tcp_force_base().tolist()),
         safety_mode=SAFETY_MODE_PROTECTIVE_STOP if halted else SAFETY_MODE_NORMAL,
         safety_status_bits=SAFETY_BIT_PROTECTIVE_STOP if halted else SAFETY_BIT_NORMAL,
+        safety_status=SAFETY_MODE_PROTECTIVE_STOP if halted else SAFETY_MODE_NORMAL,
         runtime_state=int(program.runtime_state),
         robot_mode=mode,
         robot_status_bits=(STATUS_BIT_POWER_ON if mode != ROBOT_MODES["POWER_OFF"] else 0)
