@@ -739,6 +739,20 @@ def test_a_size_below_the_header_loses_the_framing_the_client_is_told_and_receiv
     assert c.complaints == [f"rtde#7: {reason}"]
 
 
+def test_packages_before_a_lost_framing_in_the_same_chunk_are_still_handled():
+    """The stream is read package by package: what came complete before the broken header is answered or applied
+    (an input package included), then the client is told and ``receive`` raises."""
+    c = Client()
+    c.send("I", b"input_int_register_0")
+    chunk = package("V", b"\x00\x02") + package("U", b"\x01" + struct.pack(">i", 77)) + b"\x00\x02U" + b"junk"
+    with pytest.raises(ValueError, match=r"^RTDE package with impossible size 2$"):
+        c.conn.receive(chunk, 1.0)
+    [(k1, answer), (k2, text)] = c.replies()
+    assert (k1, answer) == ("V", b"\x01") and k2 == "M"
+    assert v2_text(text) == ("RTDE package with impossible size 2; closing", "RTDE", 1)
+    assert c.regs.input_int[0] == 77 and c.input_times == [1.0]
+
+
 def test_a_lost_framing_after_a_version_2_negotiation_is_told_in_version_2():
     c = Client()
     c.negotiate(2)

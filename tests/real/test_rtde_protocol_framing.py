@@ -166,3 +166,12 @@ def test_the_reader_refuses_a_size_below_the_header(size):
     reader = rp.PackageReader()
     with pytest.raises(ValueError, match=rf"^RTDE package with impossible size {size}$"):
         reader.feed(struct.pack(">HB", size, ord("U")) + b"rest")
+
+
+def test_a_lost_framing_carries_the_packages_complete_before_it():
+    """The reader that finds a broken header still hands over what came whole before it, in order."""
+    reader = rp.PackageReader()
+    with pytest.raises(rp.FramingError, match=r"^RTDE package with impossible size 1$") as lost:
+        reader.feed(_package("V", b"\x00\x02") + _package("S") + b"\x00\x01S" + _package("P"))
+    assert lost.value.packages == [(ord("V"), b"\x00\x02"), (ord("S"), b"")]
+    assert isinstance(lost.value, ValueError)

@@ -204,6 +204,18 @@ def unflatten(flat: tuple, types: list[str]) -> list:
     return out
 
 
+class FramingError(ValueError):
+    """A size field below the header's 3 bytes: the stream's framing is lost.
+
+    Attributes:
+        packages: the complete packages ``(type, payload)`` that came before the broken header in the same feed.
+    """
+
+    def __init__(self, message: str, packages: list[tuple[int, bytes]]) -> None:
+        super().__init__(message)
+        self.packages = packages
+
+
 class PackageReader:
     """Reassembles RTDE packages from a TCP byte stream."""
 
@@ -211,13 +223,16 @@ class PackageReader:
         self.buffer = bytearray()
 
     def feed(self, data: bytes) -> list[tuple[int, bytes]]:
-        """Append received bytes; return the complete packages ``(type, payload)``."""
+        """Append received bytes; return the complete packages ``(type, payload)``.
+
+        :class:`FramingError` (a ``ValueError``) at a size field below 3, carrying the packages before it.
+        """
         self.buffer.extend(data)
-        out = []
+        out: list[tuple[int, bytes]] = []
         while len(self.buffer) >= HEADER.size:
             size, kind = HEADER.unpack_from(self.buffer)
             if size < HEADER.size:
-                raise ValueError(f"RTDE package with impossible size {size}")
+                raise FramingError(f"RTDE package with impossible size {size}", out)
             if len(self.buffer) < size:
                 break
             out.append((kind, bytes(self.buffer[HEADER.size : size])))

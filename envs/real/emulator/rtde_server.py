@@ -97,14 +97,21 @@ class RtdeConnection:
 
     # ------------------------------------------------------------------ inbound
     def receive(self, data: bytes, t_s: float) -> None:
-        """Handle received bytes (any number of packages); ``ValueError`` once the framing is lost."""
+        """Handle received bytes (any number of packages); ``ValueError`` once the framing is lost.
+
+        The packages complete before a broken header are handled first, in order, as a controller reading the
+        stream package by package would.
+        """
+        lost: rp.FramingError | None = None
         try:
             packages = self.reader.feed(data)
-        except ValueError as e:
-            self.refuse(f"{e}; closing")
-            raise
+        except rp.FramingError as e:
+            packages, lost = e.packages, e
         for kind, payload in packages:
             self._handle(kind, payload, t_s)
+        if lost is not None:
+            self.refuse(f"{lost}; closing")
+            raise lost
 
     def complain(self, line: str) -> None:
         """One line about this client's protocol errors, to the complaints log."""
