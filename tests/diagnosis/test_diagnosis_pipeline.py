@@ -162,12 +162,39 @@ def test_benchmark_scores_a_named_effects_parameters_against_the_realitys_own_wh
 
 
 @pytest.mark.expensive
-def test_bench_diagnosis_quick_runs_end_to_end(tmp_path):
+def test_bench_diagnosis_quick_names_the_drift_stays_quiet_on_clean_data_and_locates_the_void(tmp_path):
+    """Each row of --quick as docs/diagnosis.md states it: the strong F/T warm-up named as ft_drift (its own candidate)
+    with the true effect's held-out shrink ≥ 95 % (measured 99.4 %; the docs' median is 99 %: 95 % still fails a
+    candidate that stopped explaining the drift), clean data ``no_gap`` with nothing named, and the void outside the
+    library ``unexplained``, located at fz_n in the stable stage with most (> 50 %) of the excess (measured 84 %)."""
     from drillgym.eval.cli import main
 
     assert main(["bench-diagnosis", "--quick", "--out", str(tmp_path), "--workers", "2", "--no-progress"]) == 0
     bench = json.loads((tmp_path / "bench.json").read_text())
-    assert bench["summary"]["cases"] == 3 and (tmp_path / "bench.md").is_file()
+    rows = {r["case"]: r for r in bench["rows"]}
+    assert bench["summary"]["cases"] == 3 and set(rows) == {"ft_warmup-strong", "clean-0", "outside-0"}
+    drift, clean, void = rows["ft_warmup-strong"], rows["clean-0"], rows["outside-0"]
+    assert (drift["kind"], drift["truth"], drift["verdict"], drift["named"]) == (
+        "single",
+        ["ft_drift"],
+        "explained",
+        ["ft_drift"],
+    )
+    assert drift["correct"] and drift["top1_ranked"] and drift["top_single"] == "ft_drift"
+    assert drift["true_effect_shrink"] >= 0.95 and drift["location"] is None
+    assert (clean["kind"], clean["verdict"], clean["named"], clean["location"]) == ("clean", "no_gap", [], None)
+    assert clean["correct"]
+    assert (void["kind"], void["truth"], void["verdict"], void["named"]) == ("outside", [], "unexplained", [])
+    assert (void["location"]["channel"], void["location"]["stage"]) == ("fz_n", "stable")
+    assert void["location"]["share"] > 0.5 and void["located"] and void["correct"]
+    assert not any(r.get("error") for r in rows.values())
+    figures = bench["summary"]["figures"]
+    assert figures["top1_accuracy_single"] == 1.0 and figures["clean_no_effect_named"] == 1.0
+    assert figures["outside_unexplained_and_located"] == 1.0 and figures["wrong_effect_named_rate"] == 0.0
+    for case, row in rows.items():  # each case's diagnosis.json says the same as its row
+        diagnosis = json.loads((tmp_path / "cases" / case / "diagnosis.json").read_text())
+        assert (diagnosis["verdict"], diagnosis["named"]) == (row["verdict"], row["named"])
+    assert (tmp_path / "bench.md").is_file()
 
 
 @pytest.mark.parametrize("command", ["diagnose", "make-reality", "bench-diagnosis", "import-rtde"])
