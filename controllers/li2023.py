@@ -81,7 +81,8 @@ class Li2023Config:
                 "(F/T samples per agent step)"
             )
         steps = self.point_period_s / CONTROL_DT_S
-        if not (math.isfinite(self.point_period_s) and self.point_period_s > 0) or abs(steps - round(steps)) > 1e-9:
+        whole = math.isfinite(steps) and round(steps) >= 1 and abs(steps - round(steps)) <= 1e-9
+        if not whole:  # at least one agent step per point: a picosecond period would give 0 steps per point
             raise ValueError(f"point_period_s={self.point_period_s} must be a positive multiple of {CONTROL_DT_S} s")
         if self.prediction_points < 1:
             raise ValueError(f"prediction_points={self.prediction_points} must be >= 1")
