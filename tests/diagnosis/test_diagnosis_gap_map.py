@@ -146,3 +146,9 @@ def test_a_json_entry_is_a_new_list_of_effects_and_reports_a_failed_fit(score):
     entry = score.to_json()
     assert entry["effects"] is not score.fit.names and entry["fit"]["error"] == "replay failed"
     assert entry["name"] == "latency+ft_drift"
+
+
+def test_a_fit_whose_parameters_do_not_match_its_effects_has_no_json_entry(score):
+    score.fit.params = score.fit.params[:1]
+    with pytest.raises(ValueError, match="zip"):
+        score.to_json()

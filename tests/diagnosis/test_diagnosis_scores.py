@@ -137,6 +137,12 @@ def test_without_an_excess_gap_the_shrink_and_its_interval_are_nan_without_a_war
         assert math.isnan(s.shrink) and math.isnan(s.ci_low) and math.isnan(s.ci_high)
 
 
+def test_the_leftover_ratio_is_the_gap_after_over_the_simulators_own_level():
+    """After 2.5 per term against a null level of 2 (20 over 10 terms): 1.25."""
+    (s,) = score_models([_fit("a", (40.0, 10.0))], BEFORE, [_terms(20.0, 10.0)] * 2)
+    assert s.leftover_ratio == 1.25
+
+
 def test_without_a_null_level_there_is_no_leftover_ratio():
     zero = [_terms(0.0, 10.0), _terms(0.0, 10.0)]
     with warnings.catch_warnings():

@@ -164,10 +164,13 @@ def test_of_two_pairs_that_pass_the_lower_score_is_named_whichever_comes_first(m
 
 
 def test_a_pair_without_its_singles_or_without_any_single_is_not_judged(monkeypatch):
-    a = _model(("a",), 10.0)
-    orphan = _model(("x", "y"), 5.0)  # neither of its effects was fitted alone
+    a, b = _model(("a",), 10.0), _model(("b",), 20.0)
+    orphan = _model(("x", "y"), 4.0)  # neither of its effects was fitted alone
     (verdict, chosen, _), rule = _verdict(monkeypatch, [orphan, a], orphan)
     assert (verdict, chosen) == ("explained", a) and rule.calls == []
+    judged = _model(("a", "b"), 5.0)  # a pair after the orphan is still judged
+    (verdict, chosen, _), rule = _verdict(monkeypatch, [orphan, judged, a, b], orphan, judged)
+    assert (verdict, chosen) == ("explained", judged) and [c[0] for c in rule.calls] == [judged]
     pair = _model(("a", "b"), 5.0)
     (verdict, chosen, location), rule = _verdict(monkeypatch, [pair], pair)  # no single at all
     assert (verdict, chosen, location) == ("unexplained", None, LOCATION) and rule.calls == []
