@@ -245,3 +245,83 @@ def test_fits_arriving_in_any_order_are_collected_in_index_order_one_tick_each()
     bar = _Bar()
     assert dg._collect(iter([(2, z), (0, x), (1, y)]), 3, bar) == [x, y, z]  # type: ignore[arg-type]
     assert bar.n == 3
+
+
+def test_a_single_looks_past_failed_unrelated_and_worse_pairs_for_a_better_one():
+    single = _fit(["latency"], [{"extra_latency_s": 0.01}], 5.0)
+    failed = _fit(["latency", "ft_drift"], [{"extra_latency_s": 0.05}, DRIFT_OFF], 0.5, error="boom")
+    unrelated = _fit(["tool_runout", "ft_drift"], [{"runout_m": 1e-5}, DRIFT_OFF], 0.1)
+    worse = _fit(["latency", "ft_drift"], [{"extra_latency_s": 0.04}, DRIFT_OFF], 6.0)
+    better = _fit(["latency", "ft_drift"], [{"extra_latency_s": 0.02}, DRIFT_OFF], 1.0)
+    got = dg._best_anywhere(single, [failed, unrelated, worse, better])
+    assert got.params == [{"extra_latency_s": 0.02}] and got.cal_objective == 1.0
+
+
+def test_of_three_nameable_singles_the_two_best_make_the_extra_refit():
+    pairs = _pairs()
+    _, _, ac, _, _ = pairs
+    scores = [_score(ac, 5.0), _score(A, 20.0), _score(B, 30.0), _score(C, 40.0)]
+    assert [j[0] for j in dg._refit_jobs(scores, pairs, S0, 1)] == [("a", "c"), ("a", "b")]
+
+
+class _Runner:
+    """Answers one refit with ``result``; records what it was asked."""
+
+    def __init__(self, result: FitResult) -> None:
+        self.result, self.asked = result, []
+
+    def refits(self, data, models):
+        self.asked.append((data, models))
+        return iter([(0, self.result)])
+
+
+DATA = object()
+"""Stands for the diagnosis's shared data: passed through untouched."""
+
+
+def test_a_polish_starts_from_the_models_values_in_every_working_fit_holding_its_effects_in_either_order():
+    """The pair is refitted from its own values and the other order's (reordered); not from a failed fit holding
+    it, nor from a fit missing one of its effects."""
+    fit = _fit(["ft_drift", "latency"], [{"fx_rate_n_s": 0.01}, {"extra_latency_s": 0.05}], 2.0)
+    other_order = _fit(["latency", "ft_drift"], [{"extra_latency_s": 0.04}, {"fx_rate_n_s": 0.02}], 2.5)
+    failed = _fit(["ft_drift", "latency"], [{"fx_rate_n_s": 0.09}, {"extra_latency_s": 0.09}], 0.1, error="boom")
+    single = _fit(["latency"], [{"extra_latency_s": 0.07}], 3.0)
+    refit = _fit(["ft_drift", "latency"], [{"fx_rate_n_s": 0.015}, {"extra_latency_s": 0.045}], 1.0)
+    runner = _Runner(refit)
+    got = dg._polish(runner, DATA, fit, [single, fit, failed, other_order], _Bar())
+    assert runner.asked == [
+        (
+            DATA,
+            [
+                (
+                    ("ft_drift", "latency"),
+                    [
+                        [{"fx_rate_n_s": 0.01}, {"extra_latency_s": 0.05}],
+                        [{"fx_rate_n_s": 0.02}, {"extra_latency_s": 0.04}],
+                    ],
+                )
+            ],
+        )
+    ]
+    assert got is refit
+
+
+def test_a_refit_as_good_as_the_fit_replaces_it():
+    fit = _fit(["latency"], [{"extra_latency_s": 0.05}], 2.0)
+    tie = _fit(["latency"], [{"extra_latency_s": 0.051}], 2.0)
+    assert dg._polish(_Runner(tie), DATA, fit, [fit], _Bar()) is tie
+    worse = _fit(["latency"], [{"extra_latency_s": 0.06}], 2.0 + 1e-12)
+    assert dg._polish(_Runner(worse), DATA, fit, [fit], _Bar()) is fit
+
+
+def test_fits_are_run_on_the_diagnosis_data_and_collected_in_job_order():
+    x, y = _fit(["x"]), _fit(["y"])
+    jobs = [(("x",), None), (("y",), None)]
+
+    class Runner:
+        def fits(self, data, asked):
+            assert data is DATA and asked is jobs
+            return iter([(1, y), (0, x)])
+
+    bar = _Bar()
+    assert dg._run_fits(Runner(), DATA, jobs, bar) == [x, y] and bar.n == 2  # type: ignore[arg-type]
