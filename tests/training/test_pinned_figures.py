@@ -69,8 +69,8 @@ def _published(value: float, figure: float, digits: int) -> bool:
 def test_li2023_tuned_gives_its_published_paper_figures(paper_episodes):
     """docs/training.md: 0.0372 mm, 15.0 s; docs/controllers.md: 0.942 N; README: 0.037 mm, CI high 0.043 mm.
 
-    The README's and docs/controllers.md's CI low bound, 0.032 mm, is 0.0315 mm today (it prints as 0.031): the
-    only published figure this replay does not reproduce; pinned here at its measured value to the same rounding.
+    The CI's low bound is 0.0315 mm (bench prints it as 0.031; the README and docs/controllers.md said 0.032 until
+    this replay showed it): pinned to four decimals, since three would put it on the rounding edge.
     """
     tuned = paper_episodes["li2023_tuned"]
     mean, low, high = _ci(tuned["deviation_mean_mm"])
