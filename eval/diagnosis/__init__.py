@@ -12,7 +12,9 @@ the method. The modules, in pipeline order:
    simulator's own scatter), :mod:`.spectrum` (the gap over frequency), :mod:`.context` (what every
    process shares, and the misfit of a set of effects).
 5. **Explain**: :mod:`.fit` (each candidate's parameters on calibration episodes, scored on held-out
-   ones), :mod:`.rank` (intervals, the parameter penalty, the guards and the verdict).
+   ones), :mod:`.rank` (scores, the parameter penalty, the naming bar, where the gap lies), :mod:`.pairs` (the
+   pair rule and the guards on what an effect predicts where it alone acts), :mod:`.intervals` (parameter
+   intervals), :mod:`.verdict` (the verdict and its summary line).
 6. **Report**: :mod:`.report`, :mod:`.figures`; :mod:`.diagnose` runs 1–6.
 
 The candidate effects are :mod:`drillgym.envs.effects`; the reality generator (effects the diagnosing
