@@ -1,14 +1,7 @@
-"""Across-seed judgement of a trained residual policy against deterministic baselines, in the style of rliable.
+"""The seed report: a trained residual policy's seeds judged against deterministic baselines, written down.
 
-Agarwal et al. 2021, "Deep RL at the edge of the statistical precipice": a policy trained on several seeds is
-summarised by the interquartile mean (IQM) of its per-run, per-task scores with a stratified-bootstrap confidence
-interval, and by the probability of improvement over each baseline. Here a *run* is one training seed of the
-policy (``"seed0"`` ...) and a *task* is one scenario of a suite; a run's score on a task is the mean of the metric
-over the episode seeds. The baselines (``li2023``, ``li2023_tuned``, ...) are deterministic, not trained:
-they have one run, labelled ``""``.
-
-Lower is better for every metric used here (``deviation_mean_mm`` in mm, ``lateral_force_max_n`` in N,
-``drill_time_s`` in s), so "improvement" means a *lower* value.
+The figures (in the style of rliable: IQM of per-run, per-task scores with stratified-bootstrap intervals, the
+probability of improvement, paired differences; lower is better) are :mod:`drillgym.eval.learning.seed_stats`'s.
 
 Next to the aggregate figures, every training seed is checked alone
 (:func:`drillgym.eval.learning.seed_checks.seed_checks`) on paired episodes. The statistics are in
