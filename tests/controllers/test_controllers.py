@@ -2,32 +2,15 @@
 
 import numpy as np
 import pytest
+from cell_plan import TCP_OFFSET_M
+from cell_plan import plan_at_entry as _plan
+from cell_plan import q_at_entry as _q_at_entry
 
 from drillgym.controllers import Li2023Config, Li2023Controller, Zhang2005Controller, make_controller, parse_spec
 from drillgym.controllers.models import RobotComplianceModel, tool_compliance_m_n
-from drillgym.envs.cell_params import R_BASE_TASK, CellParams
+from drillgym.envs.cell_params import R_BASE_TASK
 from drillgym.envs.constants import CONTROL_DT_S, MAX_CORRECTION_M, scale_action
 from drillgym.envs.observation import OBS_BOUNDS
-from drillgym.envs.plan import DrillPlan
-from drillgym.envs.robot.ur5 import Q_HOME_RAD, TCP_FRAME
-from drillgym.envs.scenario import Scenario
-
-TCP_OFFSET_M = 0.11 + 0.036
-
-
-def _plan(**scenario) -> DrillPlan:
-    t = np.eye(4)
-    t[:3, :3] = R_BASE_TASK
-    t[:3, 3] = CellParams().entry_point
-    return DrillPlan.from_scenario(Scenario(**scenario), t, TCP_OFFSET_M)
-
-
-def _q_at_entry() -> np.ndarray:
-    kin = RobotComplianceModel(TCP_OFFSET_M).kin
-    t = np.eye(4)
-    t[:3, :3] = R_BASE_TASK
-    t[:3, 3] = CellParams().entry_point
-    return kin.ik(t, Q_HOME_RAD, TCP_FRAME)
 
 
 def _obs(force_sensor_n=(0.0, 0.0, 0.0), depth_m=2e-3, phase=1, tcp_error_base_m=(0.0, 0.0, 0.0), q=None):

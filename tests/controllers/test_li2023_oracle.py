@@ -17,36 +17,19 @@ import math
 
 import numpy as np
 import pytest
+from cell_plan import plan_at_entry as _plan
+from cell_plan import q_at_entry as _q_at_entry
 
 from drillgym.controllers import Li2023Config, Li2023Controller
 from drillgym.controllers.models import OfflineForceModel, RobotComplianceModel
-from drillgym.envs.cell_params import R_BASE_TASK, CellParams
+from drillgym.envs.cell_params import R_BASE_TASK
 from drillgym.envs.constants import CONTROL_DT_S, SUBSTEPS_PER_STEP, scale_action
 from drillgym.envs.observation import OBS_BOUNDS
-from drillgym.envs.plan import DrillPlan
-from drillgym.envs.robot.ur5 import Q_HOME_RAD, TCP_FRAME
-from drillgym.envs.scenario import Scenario
 
-TCP_OFFSET_M = 0.11 + 0.036
 STEPS_PER_POINT = 12  # 0.6 s / 0.05 s
 ATOL_M = 1e-9
 X_TASK, Y_TASK, Z_TASK = R_BASE_TASK[:, 0], R_BASE_TASK[:, 1], R_BASE_TASK[:, 2]
 LATERAL = np.outer(X_TASK, X_TASK) + np.outer(Y_TASK, Y_TASK)  # projector across the drill (base frame)
-
-
-def _plan(**scenario) -> DrillPlan:
-    t = np.eye(4)
-    t[:3, :3] = R_BASE_TASK
-    t[:3, 3] = CellParams().entry_point
-    return DrillPlan.from_scenario(Scenario(**scenario), t, TCP_OFFSET_M)
-
-
-def _q_at_entry() -> np.ndarray:
-    kin = RobotComplianceModel(TCP_OFFSET_M).kin
-    t = np.eye(4)
-    t[:3, :3] = R_BASE_TASK
-    t[:3, 3] = CellParams().entry_point
-    return kin.ik(t, Q_HOME_RAD, TCP_FRAME)
 
 
 Q_ENTRY = _q_at_entry()

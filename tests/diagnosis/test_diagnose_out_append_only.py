@@ -9,19 +9,11 @@ from __future__ import annotations
 import hashlib
 
 import pytest
+from file_hashes import hashes
 
 from drillgym.eval.cli import main
 from drillgym.eval.cli.diagnose import RECORD_FILES
 from drillgym.eval.diagnosis.reality.generate import make_reality
-
-
-def hashes(folder):
-    """SHA-256 of every file under ``folder``, by relative path."""
-    return {
-        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(folder.rglob("*"))
-        if p.is_file()
-    }
 
 
 def refused(argv, capsys):

@@ -8,10 +8,10 @@ empty ``--out``, or one holding something else, is not a record.
 
 from __future__ import annotations
 
-import hashlib
 import json
 
 import pytest
+from file_hashes import hashes
 
 from drillgym.envs.real.emulator.process import free_loopback_host
 from drillgym.eval.cli import main
@@ -20,15 +20,6 @@ SHORT_PLAN = "feed_mm_s=3,depth_mm=3"
 """A 3 s hole (approach 1.4 s, feed 1.1 s, retract 0.6 s)."""
 NO_ROBOT = free_loopback_host()
 """A loopback address nothing listens on: a run that got past the check would fail to connect, not be refused."""
-
-
-def hashes(folder):
-    """SHA-256 of every file under ``folder``, by relative path."""
-    return {
-        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(folder.rglob("*"))
-        if p.is_file()
-    }
 
 
 def refused(argv, capsys):
