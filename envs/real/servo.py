@@ -167,8 +167,6 @@ class ServoLoop(HeldCommand):
                 t_cycle = self.link.init_period()
                 now = time.monotonic()
                 t = now - self.t0
-                if last_send is not None:
-                    self._count_gap(now - last_send)
                 dt = min(now - last_now, 3.0 * self.servo.period_s)
                 last_now = now
                 state = self.link.state()
@@ -181,16 +179,23 @@ class ServoLoop(HeldCommand):
                     self._fail(fault)
                     streaming = False
                     return
-                t_call = time.perf_counter()
                 ok = self.link.servo_l(np.concatenate([target, self.geo.tool_rotvec]))
-                self.stats.servo_call_max_s = max(self.stats.servo_call_max_s, time.perf_counter() - t_call)
+                sent = time.monotonic()
+                self.stats.servo_call_max_s = max(self.stats.servo_call_max_s, sent - now)
                 if not ok:
                     self._fail(self._refusal_cause(t))
                     streaming = False
                     return
                 streaming = True
                 self.target_base_m = target
-                last_send = now
+                if last_send is not None:
+                    self._count_gap(sent - last_send)
+                    if sent - last_send > self.limits.max_cycle_gap_s:
+                        gap_ms = (sent - last_send) * 1e3
+                        self._fail(safety.Fault("watchdog_cycle", f"{gap_ms:.0f} ms between two servo commands", t))
+                        streaming = False
+                        return
+                last_send = sent
                 self.stats.cycles += 1
                 self.history_t.append(t)
                 self.history_s.append(self.path.s_m)

@@ -49,6 +49,9 @@ class ServoTiming:
     realtime: bool
     load_1min: float
     cores: int
+    servo_call_max_s: float = math.nan
+    """The longest ``servoL`` call (s): ``ur_rtde`` waits in it for the control program's "ready"; the first
+    call of a hole waits for the program to take the watchdog set at reset."""
 
     @property
     def busy(self) -> bool:
@@ -120,6 +123,7 @@ def servo_timing(env: Any) -> ServoTiming | None:
         realtime=realtime,
         load_1min=load,
         cores=cores,
+        servo_call_max_s=float(servo.stats.servo_call_max_s),
     )
 
 
@@ -128,10 +132,11 @@ def _ms(value_s: float) -> str:
 
 
 def describe_timing(timing: ServoTiming) -> str:
-    """One console line: cycles, missed cycles, period median / p99 / max, scheduling, load average."""
+    """One console line: cycles, missed cycles, period median / p99 / max, longest servoL call, scheduling, load."""
     return (
         f"servo loop: {timing.cycles} cycles, {timing.missed_cycles} missed; period median "
         f"{_ms(timing.period_median_s)}, p99 {_ms(timing.period_p99_s)}, max {_ms(timing.period_max_s)}; "
+        f"longest servoL call {_ms(timing.servo_call_max_s)}; "
         f"{timing.scheduling}; load average {timing.load_1min:.1f} on {timing.cores} cores"
     )
 

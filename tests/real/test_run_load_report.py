@@ -26,9 +26,10 @@ from drillgym.eval.real.load_report import (
 
 
 def timing(missed: int = 14, load: float = 7.3, cores: int = 2, realtime: bool = True) -> ServoTiming:
-    """Stub timing of one hole: 8 ms periods, one 120 ms gap, the servo process at SCHED_FIFO by default."""
+    """Stub timing of one hole: 8 ms periods, one 120 ms gap, a 35 ms longest servoL call, the servo process at
+    SCHED_FIFO by default."""
     scheduling = "SCHED_FIFO priority 20 (servo process)" if realtime else "SCHED_OTHER nice -10 (servo process)"
-    return ServoTiming(1200, missed, 0.008, 0.0091, 0.120, scheduling, realtime, load, cores)
+    return ServoTiming(1200, missed, 0.008, 0.0091, 0.120, scheduling, realtime, load, cores, 0.035)
 
 
 def test_the_period_statistics_are_taken_over_the_gaps_between_consecutive_commands():
@@ -45,17 +46,17 @@ def test_fewer_than_two_commands_have_no_period(sends):
     assert all(math.isnan(v) for v in period_stats_s(sends))
 
 
-def test_the_timing_line_gives_cycles_missed_periods_scheduling_and_load():
+def test_the_timing_line_gives_cycles_missed_periods_longest_call_scheduling_and_load():
     line = describe_timing(timing())
     assert line == (
         "servo loop: 1200 cycles, 14 missed; period median 8.0 ms, p99 9.1 ms, max 120.0 ms; "
-        "SCHED_FIFO priority 20 (servo process); load average 7.3 on 2 cores"
+        "longest servoL call 35.0 ms; SCHED_FIFO priority 20 (servo process); load average 7.3 on 2 cores"
     )
 
 
 def test_the_timing_line_says_n_a_for_a_loop_that_never_ran_two_cycles():
     stub = ServoTiming(1, 0, math.nan, math.nan, math.nan, "SCHED_FIFO priority 20 (servo process)", True, 0.2, 2)
-    assert "period median n/a, p99 n/a, max n/a" in describe_timing(stub)
+    assert "period median n/a, p99 n/a, max n/a; longest servoL call n/a;" in describe_timing(stub)
 
 
 @pytest.mark.parametrize("failure", LOAD_FAULTS)
@@ -99,19 +100,21 @@ def test_a_loop_without_real_time_priority_is_told_how_to_get_it():
 
 def test_the_timing_is_read_from_the_env_s_servo_loop_and_its_process():
     """A stub of the real env after a hole: the servo's send times and counts, the servo process's scheduling."""
-    stats = SimpleNamespace(cycles=4, missed_cycles=6)
+    stats = SimpleNamespace(cycles=4, missed_cycles=6, servo_call_max_s=0.031)
     servo = SimpleNamespace(history_t=[0.0, 0.008, 0.016, 0.072], stats=stats)
     process = SimpleNamespace(scheduling="SCHED_FIFO priority 20", realtime=True)
     env = SimpleNamespace(unwrapped=SimpleNamespace(servo=servo, devices=SimpleNamespace(process=process)))
     got = servo_timing(env)
-    assert got is not None and (got.cycles, got.missed_cycles) == (4, 6)
+    assert got is not None and (got.cycles, got.missed_cycles, got.servo_call_max_s) == (4, 6, 0.031)
     assert got.period_max_s == pytest.approx(0.056, abs=1e-12)  # float rounding only
     assert got.scheduling == "SCHED_FIFO priority 20 (servo process)" and got.realtime
     assert got.cores >= 1 and got.load_1min >= 0.0
 
 
 def test_a_servo_thread_reports_this_process_s_scheduling_and_no_servo_no_timing():
-    servo = SimpleNamespace(history_t=[0.0, 0.008], stats=SimpleNamespace(cycles=2, missed_cycles=0))
+    servo = SimpleNamespace(
+        history_t=[0.0, 0.008], stats=SimpleNamespace(cycles=2, missed_cycles=0, servo_call_max_s=0.002)
+    )
     env = SimpleNamespace(unwrapped=SimpleNamespace(servo=servo, devices=SimpleNamespace(process=None)))
     got = servo_timing(env)
     assert got is not None and got.scheduling.endswith("(thread of this process, --servo-thread)")
