@@ -243,19 +243,26 @@ class RobotLink:
             return False
         return False
 
-    def close(self) -> None:
+    def close(self, exiting: bool = False) -> None:
         """Disconnect both interfaces.
 
         On a healthy link ``ur_rtde``'s destructors disconnect (0.5 s each); releasing the objects is enough. On
         an unhealthy one ``ur_rtde`` may be stuck reconnecting and its destructor would wait for it forever:
         ``disconnect()`` runs on a helper thread with a deadline, and interfaces that do not finish are kept
         alive (never destroyed) instead.
+
+        ``exiting``: the process ends right after without running destructors (``os._exit``, the servo
+        process): a healthy link's interfaces disconnect at once, each on a helper thread (``ur_rtde`` releases
+        the GIL in ``disconnect``), and are kept; 0.5 s in all instead of 0.5 s each.
         """
         interfaces = [i for i in (self.control, self.receive) if i is not None]
         healthy = not self.wedged and self.healthy()
         self.control = self.receive = None
         self.log.close()
         if healthy or not interfaces:
+            if exiting and interfaces:
+                _ABANDONED.extend(interfaces)
+                _disconnect_each(interfaces, DISCONNECT_TIMEOUT_S)
             return
         if not self.wedged:
             worker = threading.Thread(
@@ -274,3 +281,16 @@ def _disconnect_all(interfaces: list[Any]) -> None:
             iface.disconnect()
         except RuntimeError:
             pass
+
+
+def _disconnect_each(interfaces: list[Any], timeout_s: float) -> None:
+    """``disconnect()`` every interface on a thread of its own, all within ``timeout_s`` (s)."""
+    workers = [
+        threading.Thread(target=_disconnect_all, args=([iface],), name="ur_rtde-disconnect", daemon=True)
+        for iface in interfaces
+    ]
+    for worker in workers:
+        worker.start()
+    deadline = time.monotonic() + timeout_s
+    for worker in workers:
+        worker.join(max(0.0, deadline - time.monotonic()))
