@@ -7,7 +7,8 @@ import json
 from pathlib import Path
 
 from drillgym.eval.explain.candidates import CANDIDATES, QUICK, candidate
-from drillgym.eval.explain.pipeline import FULL, QUICK_SETTINGS, explain
+from drillgym.eval.explain.observations import FOLDS, RUNS
+from drillgym.eval.explain.pipeline import FULL, QUICK_SETTINGS, explain_folds
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -23,7 +24,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="comma-separated candidate names (default: all, or the quick set with --quick)",
     )
+    parser.add_argument(
+        "--folds",
+        default="all",
+        help="held-out runs, comma-separated, from none,kp1,kp4; each fold fits on the other two runs "
+        "(default all: kp4 first, the primary fold, then none and kp1)",
+    )
     parser.add_argument("--workers", type=int, default=2, help="parallel processes (default 2)")
+
+
+def parse_folds(text: str) -> tuple[str, ...]:
+    """``--folds``: ``all`` or held-out runs from :data:`RUNS`, comma-separated (``ValueError`` otherwise)."""
+    if text.strip() == "all":
+        return FOLDS
+    folds = tuple(f.strip() for f in text.split(",") if f.strip())
+    if not folds:
+        raise ValueError("--folds is empty")
+    bad = [f for f in folds if f not in RUNS]
+    if bad:
+        raise ValueError(f"--folds: unknown run(s) {bad}; choose from {list(RUNS)} or 'all'")
+    if len(set(folds)) != len(folds):
+        raise ValueError(f"--folds lists a run twice: {list(folds)}")
+    return folds
 
 
 def run(args: argparse.Namespace) -> int:
@@ -42,10 +64,11 @@ def run(args: argparse.Namespace) -> int:
         candidate(n)
     if len(set(names)) != len(names):
         raise ValueError(f"--candidates lists a name twice: {names}")
+    folds = parse_folds(args.folds)
     if args.out.exists() and not args.out.is_dir():
         raise ValueError(f"--out {args.out} exists and is not a folder")
     settings = QUICK_SETTINGS if args.quick else FULL
-    result = explain(names, settings, args.workers)
+    result = explain_folds(names, settings, args.workers, folds)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "explanation.json").write_text(json.dumps(result, indent=2) + "\n")
     md = markdown(result)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.eval.explain.candidates import Candidate
-from drillgym.eval.explain.observations import check_calibration_only, sigma
+from drillgym.eval.explain.observations import HELD_OUT_RUN, check_calibration_only, sigma
 
 Evaluate = Callable[[float], dict[str, dict[str, float]]]
 """Parameter value -> ``{run: {metric: mean}}`` of the calibration runs."""
@@ -55,9 +55,10 @@ def chi2_terms(
     sim: Mapping[str, Mapping[str, float]],
     targets: Mapping[tuple[str, str], float],
     seed_sd: Mapping[tuple[str, str], float],
+    held_out: str = HELD_OUT_RUN,
 ) -> dict[str, dict[str, float]]:
-    """Per calibration number: ``{sim, li, sigma, z}`` (z = (sim − li) / σ)."""
-    check_calibration_only(targets)
+    """Per calibration number: ``{sim, li, sigma, z}`` (z = (sim − li) / σ); ``held_out``: the fold's held-out run."""
+    check_calibration_only(targets, held_out)
     out = {}
     for (run, metric), li in targets.items():
         s = sigma(metric, li, seed_sd.get((run, metric), 0.0))
@@ -95,11 +96,15 @@ def fit_candidate(
     evaluate: Evaluate,
     grid_points: int = 9,
     refine_evals: int = 6,
+    held_out: str = HELD_OUT_RUN,
 ) -> FitOutcome:
-    """Fit ``cand``'s parameter to ``targets`` (calibration runs only; anything else raises ``ValueError``)."""
+    """Fit ``cand``'s parameter to ``targets``: the calibration runs of the fold holding out ``held_out`` only.
+
+    Targets of any other run raise ``ValueError``.
+    """
     from scipy.optimize import minimize_scalar
 
-    check_calibration_only(targets)
+    check_calibration_only(targets, held_out)
     if grid_points < 3:
         raise ValueError(f"grid_points={grid_points} must be >= 3")
     seen: dict[float, tuple[float, dict[str, dict[str, float]]]] = {}
@@ -107,7 +112,7 @@ def fit_candidate(
     def misfit(x: float) -> float:
         x = float(x)
         if x not in seen:
-            terms = chi2_terms(evaluate(x), targets, seed_sd)
+            terms = chi2_terms(evaluate(x), targets, seed_sd, held_out)
             c = _chi2(terms)
             seen[x] = (c if math.isfinite(c) else math.inf, terms)  # a metric the run cannot give: no fit there
         return seen[x][0]
@@ -156,8 +161,11 @@ def judge_plausibility(cand: Candidate, outcome: FitOutcome) -> None:
 
 
 def nominal_outcome(
-    targets: Mapping[tuple[str, str], float], seed_sd: Mapping[tuple[str, str], float], sim: dict[str, Any]
+    targets: Mapping[tuple[str, str], float],
+    seed_sd: Mapping[tuple[str, str], float],
+    sim: dict[str, Any],
+    held_out: str = HELD_OUT_RUN,
 ) -> FitOutcome:
     """The shipped cell (no candidate, no parameter) scored on the same numbers."""
-    terms = chi2_terms(sim, targets, seed_sd)
+    terms = chi2_terms(sim, targets, seed_sd, held_out)
     return FitOutcome(0.0, (0.0, 0.0), _chi2(terms), 0, len(targets), sorted(terms), terms)

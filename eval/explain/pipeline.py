@@ -1,4 +1,4 @@
-"""Which candidate explains Li's compensated runs; fit on none + KP 1, predict KP 4.
+"""Which candidate explains Li's compensated runs; fit on none + KP 1, predict KP 4 (and the other folds).
 
 The command is :mod:`drillgym.eval.cli.explain_paper`.
 
@@ -13,9 +13,10 @@ from typing import Any
 import numpy as np
 
 from drillgym.eval.explain.observations import (
-    CALIBRATION_RUNS,
+    FOLDS,
     HELD_OUT_RUN,
     RUNS,
+    calibration_runs,
     calibration_targets,
     held_out_targets,
 )
@@ -40,8 +41,18 @@ def seed_scatter(nominal: dict[str, Any]) -> dict[tuple[str, str], float]:
     return out
 
 
-def explain(names: list[str], settings: dict[str, int], workers: int) -> dict[str, Any]:
-    """Fit every named candidate on the calibration subset, predict the held-out run, rank and choose."""
+def explain(
+    names: list[str],
+    settings: dict[str, int],
+    workers: int,
+    held_out: str = HELD_OUT_RUN,
+    nominal_pred: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Fit every named candidate on the fold's calibration runs, predict its held-out run, rank and choose.
+
+    ``held_out``: the run the fold holds out (:data:`~drillgym.eval.explain.observations.FOLDS`); ``nominal_pred``:
+    the nominal cell's runs over the prediction seeds when already simulated (every fold shares them).
+    """
     from drillgym.eval.explain.fit import nominal_outcome
     from drillgym.eval.explain.report import build_explanation
     from drillgym.eval.explain.simulate import close, means, simulate
@@ -50,21 +61,45 @@ def explain(names: list[str], settings: dict[str, int], workers: int) -> dict[st
     predict_seeds = list(range(settings["predict_seeds"]))
     if len(fit_seeds) > len(predict_seeds):
         raise ValueError("the fit cannot use more seeds than the prediction")
-    targets = calibration_targets()
-    nominal_pred = simulate(None, 0.0, RUNS, predict_seeds)
+    targets = calibration_targets(held_out)
+    if nominal_pred is None:
+        nominal_pred = simulate(None, 0.0, RUNS, predict_seeds)
     seed_sd = seed_scatter(nominal_pred)
     # the fit's seeds are the first of the prediction's, so the nominal cell's calibration runs are already done
-    fitted = {run: {k: v[: len(fit_seeds)] for k, v in nominal_pred[run].items()} for run in CALIBRATION_RUNS}
-    nominal_fit = nominal_outcome(targets, seed_sd, means(fitted))
+    fitted = {run: {k: v[: len(fit_seeds)] for k, v in nominal_pred[run].items()} for run in calibration_runs(held_out)}
+    nominal_fit = nominal_outcome(targets, seed_sd, means(fitted), held_out)
     close()
     jobs = [
-        (n, targets, seed_sd, fit_seeds, predict_seeds, settings["grid_points"], settings["refine_evals"])
+        (n, targets, seed_sd, fit_seeds, predict_seeds, settings["grid_points"], settings["refine_evals"], held_out)
         for n in names
     ]
     results = run_ordered(_job, jobs, workers)
     close()  # the env of an in-process run
     nominal = {
         "fit": nominal_fit,
-        "prediction": {k: {"sim": float(np.mean(v)), "per_seed": v} for k, v in nominal_pred[HELD_OUT_RUN].items()},
+        "prediction": {k: {"sim": float(np.mean(v)), "per_seed": v} for k, v in nominal_pred[held_out].items()},
     }
-    return build_explanation(results, nominal, held_out_targets(), seed_sd, settings)
+    return build_explanation(results, nominal, held_out_targets(held_out), seed_sd, settings, held_out)
+
+
+def explain_folds(
+    names: list[str], settings: dict[str, int], workers: int, folds: tuple[str, ...] = FOLDS
+) -> dict[str, Any]:
+    """Every fold of ``folds`` (held-out runs; the first is the document's own, the others go under ``"folds"``).
+
+    The nominal cell's runs are simulated once for all folds. Each fold's fits see only its calibration runs.
+    """
+    from drillgym.eval.explain.simulate import close, simulate
+
+    if not folds:
+        raise ValueError("at least one fold is needed")
+    if len(set(folds)) != len(folds):
+        raise ValueError(f"a fold is listed twice: {list(folds)}")
+    for held_out in folds:
+        calibration_runs(held_out)
+    nominal_pred = simulate(None, 0.0, RUNS, list(range(settings["predict_seeds"])))
+    close()
+    docs = [explain(names, settings, workers, held_out, nominal_pred) for held_out in folds]
+    primary = docs[0]
+    primary["folds"] = {doc["held_out_run"]: doc for doc in docs[1:]}
+    return primary

@@ -11,7 +11,7 @@ from drillgym.eval.cli import main
 from drillgym.eval.explain import pipeline as explain_pipeline
 from drillgym.eval.explain.candidates import CANDIDATES, candidate
 from drillgym.eval.explain.fit import fit_candidate, profile_interval
-from drillgym.eval.explain.observations import METRICS, calibration_targets, held_out_targets, sigma
+from drillgym.eval.explain.observations import FOLDS, METRICS, RUNS, calibration_targets, held_out_targets, sigma
 from drillgym.eval.reproduce import paper
 
 
@@ -121,6 +121,82 @@ def test_a_fit_pinned_at_its_bound_is_reported_implausible():
     assert not fit.plausible and "pinned" in fit.note
 
 
+@pytest.mark.parametrize("held_out", FOLDS)
+def test_each_fold_calibrates_on_the_other_two_runs_and_holds_out_its_own(held_out):
+    keys = set(calibration_targets(held_out))
+    assert {run for run, _ in keys} == set(RUNS) - {held_out}
+    assert len(keys) == {"kp4": 5, "none": 5, "kp1": 8}[held_out]  # Li reports 4 numbers of none and KP 4, 1 of KP 1
+    assert set(held_out_targets(held_out)) == ({"deviation_mean_mm"} if held_out == "kp1" else set(METRICS))
+    leaking = {**calibration_targets(held_out), (held_out, "deviation_mean_mm"): 0.3}
+    with pytest.raises(ValueError, match="calibration runs"):
+        fit_candidate(CANDIDATES[0], leaking, {}, lambda x: {}, 3, 0, held_out)
+
+
+def test_an_unknown_held_out_run_is_refused():
+    with pytest.raises(ValueError, match="unknown held-out run 'kp2'"):
+        calibration_targets("kp2")
+
+
+@pytest.mark.parametrize(
+    ("held_out", "poison"),
+    [
+        ("none", {"LI2023_UNCOMPENSATED": METRICS}),
+        ("kp1", {"LI2023_COMPENSATED": ("deviation_mean_mm_kp1",)}),
+    ],
+)
+def test_a_folds_poisoned_held_out_numbers_change_none_of_its_fits(fake_sim, monkeypatch, held_out, poison):
+    """The cross-validation folds keep the primary fold's rule: what a fold holds out reaches its scoring only."""
+    clean = explain_pipeline.explain(NAMES, SETTINGS, workers=1, held_out=held_out)
+    for table, keys in poison.items():
+        for key in keys:
+            monkeypatch.setitem(getattr(paper, table), key, 1e3)
+    poisoned = explain_pipeline.explain(NAMES, SETTINGS, workers=1, held_out=held_out)
+    assert _fits(poisoned) == _fits(clean) and poisoned["chosen"] == clean["chosen"]
+    assert all(not name.startswith(f"{held_out}.") for c in clean["candidates"] for name in c["fitted_on"])
+    rel = [c["prediction"]["deviation_mean_mm"]["rel_err"] for c in poisoned["candidates"]]
+    assert all(r < -0.99 for r in rel)  # the poison did reach the predictions' scoring
+
+
+def test_explain_folds_reports_every_fold_with_the_primary_one_first(fake_sim):
+    from drillgym.eval.explain.report import markdown
+
+    doc = json.loads(json.dumps(explain_pipeline.explain_folds(NAMES, SETTINGS, workers=1)))
+    assert doc["held_out_run"] == "kp4" and set(doc["folds"]) == {"none", "kp1"}
+    for held_out, fold in [("kp4", doc), *doc["folds"].items()]:
+        assert fold["li"][held_out]["role"] == "held_out"
+        assert {run for run, v in fold["li"].items() if v["role"] == "calibration"} == set(RUNS) - {held_out}
+        for c in fold["candidates"]:
+            assert set(c["prediction"]) == set(held_out_targets(held_out))  # only what Li reports is scored
+    # the primary fold is the same document explain() gives alone
+    alone = json.loads(json.dumps(explain_pipeline.explain(NAMES, SETTINGS, workers=1)))
+    assert _fits(alone) == _fits(doc) and alone["chosen"] == doc["chosen"]
+    text = markdown(doc)
+    assert "## Cross-validation: every run of Li's held out in turn" in text
+    for title in (
+        "(fit on none + KP 1, predict KP 4)",
+        "(fit on KP 1 + KP 4, predict none)",
+        "(fit on none + KP 4, predict KP 1)",
+    ):
+        assert title in text
+    assert "KP 1 dev (mm)" in text  # the primary fold's table keeps its KP 1 column
+    from drillgym.eval.explain.report import reproduction_section
+
+    section = "\n".join(reproduction_section(doc))
+    assert "### Cross-validation: every run of Li's held out in turn" in section and "| KP 1 |" in section
+    kp1_first = doc["folds"]["kp1"]  # a document whose primary fold is not KP 4 (explain-paper --folds kp1)
+    assert "--folds kp4" in "\n".join(reproduction_section(kp1_first))
+
+
+@pytest.mark.parametrize(
+    ("folds", "message"),
+    [("kp2", "unknown run"), ("kp4,kp4", "twice"), (",", "empty")],
+)
+def test_bad_folds_are_refused_before_anything_runs(tmp_path, capsys, folds, message):
+    out = tmp_path / "ex"
+    assert main(["explain-paper", "--quick", "--folds", folds, "--out", str(out)]) == 2
+    assert message in capsys.readouterr().err and not out.exists()
+
+
 def test_explain_paper_quick_on_the_simulator_writes_its_json(tmp_path):
     out = tmp_path / "ex"
     code = main(
@@ -128,6 +204,12 @@ def test_explain_paper_quick_on_the_simulator_writes_its_json(tmp_path):
     )
     assert code == 0
     doc = json.loads((out / "explanation.json").read_text())
+    assert set(doc["folds"]) == {"none", "kp1"}  # every fold by default
+    for held_out, fold in doc["folds"].items():
+        (c,) = fold["candidates"]
+        assert c["fitted_on"] == sorted(f"{run}.{k}" for run, k in calibration_targets(held_out))
+        assert set(c["prediction"]) == set(held_out_targets(held_out))
+        assert all(np.isfinite(p["rel_err"]) for p in c["prediction"].values())
     (c,) = doc["candidates"]
     assert c["fitted_on"] == sorted(f"{run}.{k}" for run, k in calibration_targets())
     v = c["params"]["coulomb_rad"]
