@@ -38,7 +38,7 @@ type: $(STAMP)
 
 pytest: $(STAMP)
 	$(PY) -m pytest -n 2 --dist loadfile -m "not realtime"
-	$(PY) -m pytest -m realtime
+	$(PY) -m pytest -n 2 --dist loadgroup -m realtime
 
 test: lint type pytest
 
