@@ -34,6 +34,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "drillgym.eval.cli.explain_paper",
         "Which unmodelled effect explains Li's compensated runs: fit on the uncompensated and KP 1 runs, predict KP 4.",
     ),
+    "validate-forces": (
+        "drillgym.eval.cli.validate_forces",
+        "The force model against published bone-drilling thrust and torque: one calibration per series, the rest predicted.",
+    ),
     "tune-entry": (
         "drillgym.eval.cli.tune_entry",
         "Tune a slow entry (feed schedule) on top of a controller on the paper and sweep suites; pick the best.",

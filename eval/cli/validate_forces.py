@@ -1,0 +1,33 @@
+"""``drillgym validate-forces``: the force model against published bone-drilling measurements (:mod:`drillgym.eval.external`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """CLI arguments."""
+    parser.add_argument(
+        "--out", type=Path, required=True, help="output folder (validation.json, validation.md, figures)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Entry point: writes the validation into a new folder (an existing, non-empty one is refused)."""
+    from drillgym.eval.external.report import markdown, plot_study
+    from drillgym.eval.external.validate import validate
+
+    out: Path = args.out
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"--out {out} exists and is not an empty folder: a validation's record is never overwritten")
+    result = validate()
+    out.mkdir(parents=True, exist_ok=True)
+    figures = {s: plot_study(result, s, out / f"{s}.png") for s in dict.fromkeys(x["study"] for x in result["series"])}
+    (out / "validation.json").write_text(json.dumps(result, indent=2) + "\n")
+    md = markdown(result, figures)
+    (out / "validation.md").write_text(md)
+    print(md)
+    print(f"Results: {out / 'validation.json'} and {out / 'validation.md'}")
+    return 0
