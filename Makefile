@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= results/demo
 
-.PHONY: demo test lint format type pytest install clean mutation
+.PHONY: demo test lint format type pytest realtime install clean mutation
 
 # torch is installed first, as its CPU build: an unpinned torch would pull a multi-GB CUDA build. Where pip
 # finds no CPU wheel of its own (an ordinary machine), take it from PyTorch's CPU index:
@@ -38,7 +38,16 @@ type: $(STAMP)
 
 pytest: $(STAMP)
 	$(PY) -m pytest -n 2 --dist loadfile -m "not realtime"
-	$(PY) -m pytest -n 2 --dist loadgroup -m realtime
+	@$(MAKE) --no-print-directory realtime
+
+realtime: $(STAMP)
+	@# The realtime tests after the rest, in two processes: the whole cells one at a time (their output follows),
+	@# beside them the emulator's protocol tests, which mostly wait on sockets (tests/real/real_cell.py).
+	@cells_log=$$(mktemp); \
+	$(PY) -m pytest -m "realtime and cell" > $$cells_log 2>&1 & cells=$$!; \
+	$(PY) -m pytest -m "realtime and not cell"; protocol=$$?; \
+	wait $$cells; cells_rc=$$?; cat $$cells_log; rm -f $$cells_log; \
+	test $$protocol -eq 0 && test $$cells_rc -eq 0
 
 test: lint type pytest
 

@@ -9,12 +9,21 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 from drillgym import envs  # noqa: F401
 from drillgym.envs.real.config import SafetyLimits
 from drillgym.envs.real.emulator.process import EmulatorProcess
 
 REAL_ENV_ID = "drillgym/UR5BoneDrillReal-v1"
+ONE_CELL_AT_A_TIME = pytest.mark.cell
+"""The mark (``pytestmark``) of every module whose realtime tests drive a whole cell (the env or ``drillgym run``:
+agent, servo process and emulator, about one core together) or time its faults. ``make test`` runs the realtime
+tests in two processes: ``-m "realtime and cell"`` one test at a time, and beside it ``-m "realtime and not cell"``,
+the emulator's protocol tests, which mostly wait on sockets. Two cells at once on two cores stopped holes
+(``program_stopped``, a refused ``moveL``) in 1 of 6 suite runs; the suite passes beside two spinning processes,
+more load than a protocol test brings. (Not an xdist group: pytest-xdist 3.8's ``--dist loadgroup`` renames a
+test's node id, which pytest 9 no longer reads, so the groups were silently lost.)"""
 CI_LIMITS = SafetyLimits(max_cycle_gap_s=0.5, rtde_stale_s=0.5, ft_stale_s=0.5, tracker_stale_s=0.5)
 """Timing limits for long episodes on a shared CI machine (the defaults are exercised by the fault tests): beside
 two busy processes the emulator's streams, at ordinary priority, can pause for more than the defaults' 0.1 s

@@ -5,10 +5,13 @@ import math
 
 import numpy as np
 import pytest
+from real_cell import ONE_CELL_AT_A_TIME
 
 from drillgym.envs.cell_params import R_BASE_TASK
 from drillgym.envs.real.config import SafetyLimits
 from drillgym.eval.real.dry_run import correction_reach_m, describe_reach, target_reach
+
+pytestmark = ONE_CELL_AT_A_TIME  # whole cells: one at a time (real_cell.py)
 
 ENTRY_BASE_M = np.array([-0.45, -0.11, 0.10])
 ROTVEC = [math.pi, 0.0, 0.0]  # any orientation: the summary reads positions only

@@ -5,10 +5,13 @@ import subprocess
 import sys
 
 import pytest
+from real_cell import ONE_CELL_AT_A_TIME
 
 from drillgym.envs.real.emulator.process import free_loopback_host, ports_free
 from drillgym.eval.cli import main
 from drillgym.eval.logs import read_episode_log
+
+pytestmark = ONE_CELL_AT_A_TIME  # whole cells: one at a time (real_cell.py)
 
 SHORT_PLAN = "feed_mm_s=3,depth_mm=3"
 """A 3 s hole (approach 1.4 s, feed 1.1 s, retract 0.6 s)."""

@@ -27,7 +27,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from real_cell import CI_LIMITS, make_real_env, run_steps
+from real_cell import CI_LIMITS, ONE_CELL_AT_A_TIME, make_real_env, run_steps
 from scipy import stats
 
 from drillgym import envs  # noqa: F401
@@ -38,7 +38,7 @@ from drillgym.envs.real.robot_link import LinkError
 from drillgym.eval.logs import EpisodeLogger, build_header, read_episode_log
 from drillgym.eval.logs.writer import schema_for
 
-pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefile)
+pytestmark = [pytest.mark.realtime, ONE_CELL_AT_A_TIME]  # timing-sensitive; whole cells one at a time (real_cell.py)
 
 ROOT = Path(__file__).resolve().parents[2]
 LI2023_TOL = {  # metric: (relative, absolute) timing allowance around the sims' mean; the wider one counts

@@ -10,13 +10,13 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from real_cell import CI_LIMITS, make_real_env, run_steps
+from real_cell import CI_LIMITS, ONE_CELL_AT_A_TIME, make_real_env, run_steps
 
 from drillgym.controllers import make_controller
 from drillgym.envs.real.config import SafetyLimits
 from drillgym.eval.logs import EpisodeLogger, build_header, read_episode_log
 
-pytestmark = pytest.mark.realtime  # timing-sensitive: run alone (see the Makefile)
+pytestmark = [pytest.mark.realtime, ONE_CELL_AT_A_TIME]  # timing-sensitive; whole cells one at a time (real_cell.py)
 
 DRILLING_STEP = 45
 """The fault comes at this agent step (2.25 s: the drill is in the bone since about 1.8 s)."""

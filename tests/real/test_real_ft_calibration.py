@@ -3,6 +3,7 @@
 import json
 
 import pytest
+from real_cell import ONE_CELL_AT_A_TIME
 
 from drillgym.envs.real.netft import NetFTCalibration
 from drillgym.envs.real.netft_calibration import (
@@ -15,6 +16,8 @@ from drillgym.envs.real.netft_calibration import (
 )
 from drillgym.eval.cli import main
 from drillgym.eval.logs import read_episode_log
+
+pytestmark = ONE_CELL_AT_A_TIME  # whole cells: one at a time (real_cell.py)
 
 
 def test_the_wire_format_is_atis():

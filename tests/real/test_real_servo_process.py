@@ -5,13 +5,15 @@ import time
 
 import numpy as np
 import pytest
-from real_cell import CI_LIMITS, make_real_env, run_steps
+from real_cell import CI_LIMITS, ONE_CELL_AT_A_TIME, make_real_env, run_steps
 
 from drillgym.controllers import make_controller
 from drillgym.envs.real.netft import FTRecord
 from drillgym.envs.real.servo_bench import missed_periods, sleep_floor
 from drillgym.envs.real.servo_shared import SharedCommandSlot, SharedFTRing
 from drillgym.eval.perf.rtde import echo_latencies_s
+
+pytestmark = ONE_CELL_AT_A_TIME  # whole cells: one at a time (real_cell.py)
 
 
 def _record(t):

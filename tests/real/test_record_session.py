@@ -15,10 +15,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from real_cell import ONE_CELL_AT_A_TIME
 
 from drillgym.eval.diagnosis.rtde_import import import_session
 from drillgym.eval.diagnosis.validate import LogCheckError
 from drillgym.eval.real.record_session import record_emulator_session
+
+pytestmark = ONE_CELL_AT_A_TIME  # whole cells: one at a time (real_cell.py)
 
 SESSION_FILES = ("rtde.csv", "ft.csv", "tracker.csv", "commands.csv", "header.json")
 

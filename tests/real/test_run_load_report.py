@@ -13,6 +13,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from real_cell import ONE_CELL_AT_A_TIME
 
 from drillgym.eval.real.load_report import (
     LOAD_FAULTS,
@@ -23,6 +24,8 @@ from drillgym.eval.real.load_report import (
     servo_timing,
     this_process_scheduling,
 )
+
+pytestmark = ONE_CELL_AT_A_TIME  # whole cells: one at a time (real_cell.py)
 
 
 def timing(missed: int = 14, load: float = 7.3, cores: int = 2, realtime: bool = True) -> ServoTiming:

@@ -13,10 +13,13 @@ import math
 import sys
 
 import pytest
+from real_cell import ONE_CELL_AT_A_TIME
 
 from drillgym.envs.real.emulator.process import free_loopback_host
 from drillgym.eval.cli import main
 from drillgym.eval.real.plan_file import axis_distance_m, far_transits, load_plan
+
+pytestmark = ONE_CELL_AT_A_TIME  # whole cells: one at a time (real_cell.py)
 
 ENTRY = (-450.0, -110.0, 100.0)
 """The cell's default entry point (mm, UR base frame): ``CellParams.entry_point_base_m``."""
