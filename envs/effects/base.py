@@ -128,6 +128,10 @@ class Effect:
     variant_of: ClassVar[str | None] = None
     """The effect whose physics this one models in another way (a per-episode form of a shared one): naming
     either is naming the same physics."""
+    in_series: ClassVar[bool] = False
+    """True for a form whose parameters drift over a series of holes (:mod:`drillgym.envs.effects.trends`): its
+    :attr:`series_position` is set before each episode by whoever replays the series (the diagnosis, in the order
+    of the logs)."""
     compiled: ClassVar[bool] = False
     """True if the compiled step (:mod:`drillgym.envs.step_kernel`) runs this effect: it changes only what the
     kernel reads at ``reset`` (the tool's compliance and sensor arm, the geometry and marker offsets, the
@@ -135,6 +139,8 @@ class Effect:
     (:data:`drillgym.envs.kernel_state.STEP_EFFECTS`). An env with only such effects steps compiled. Declared
     by the class itself: a subclass that does not declare it again is stepped in Python."""
     servo_offset_task_m: np.ndarray | None = None
+    series_position: float = 0.0
+    """This episode's place in its series of holes, 0 (first) to 1 (last); read by :attr:`in_series` forms."""
 
     def __init__(self, **values: float) -> None:
         """Set parameters by name (unset ones keep their default, i.e. off); out-of-range values raise."""

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -126,7 +126,7 @@ class KinematicOffset(Effect):
 
     name = "kinematic_offset"
     summary = "kinematic calibration error: tool and marker shifted by a fixed vector, encoders unaware"
-    params = (
+    params: ClassVar[tuple[Param, ...]] = (
         Param("dx_base_m", -2e-3, 2e-3, 0.0, "tool offset along base x (m)"),
         Param("dy_base_m", -2e-3, 2e-3, 0.0, "tool offset along base y (m)"),
         Param("dz_base_m", -2e-3, 2e-3, 0.0, "tool offset along base z (m)"),

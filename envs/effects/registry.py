@@ -14,6 +14,7 @@ from drillgym.envs.effects.spindle import SpindleSag
 from drillgym.envs.effects.timing import Latency
 from drillgym.envs.effects.tool import ToolLength
 from drillgym.envs.effects.tracker import TrackerLatency
+from drillgym.envs.effects.trends import KinematicOffsetTrend
 from drillgym.envs.key_values import convert, split_items, split_named
 
 EFFECTS: dict[str, type[Effect]] = {
@@ -37,6 +38,7 @@ EFFECTS: dict[str, type[Effect]] = {
         TrackerLatency,
         FTResonance,
         JointBacklash,
+        KinematicOffsetTrend,
     )
 }
 """The unmodelled effects of the library, by name (``build_effects``, ``make-reality``, cells)."""

@@ -16,7 +16,7 @@ import numpy as np
 from drillgym.envs.effects.base import Effect
 from drillgym.envs.effects.registry import EFFECTS
 from drillgym.eval.diagnosis.channels import FORCE
-from drillgym.eval.diagnosis.episodes import EpisodeData
+from drillgym.eval.diagnosis.episodes import EpisodeData, set_series_positions
 from drillgym.eval.diagnosis.evidence import evidence as read_evidence
 from drillgym.eval.diagnosis.features import Blocks, Features, features, make_blocks, smooth_blocks
 from drillgym.eval.diagnosis.gap import HARDNESS_LEVELS, EpisodeNull, Terms, episode_null, gap_terms, noise_variance
@@ -59,12 +59,17 @@ class DiagnosisData:
     over all force axes (``all``), the lateral ones and the axial one (:func:`~drillgym.eval.diagnosis.spectrum.excess_peaks_hz`)."""
     null_terms: list[Terms] = field(default_factory=list)
     baseline_terms: list[Terms] = field(default_factory=list)
+    null_raw_terms: list[Terms] = field(default_factory=list)
+    """The null replays' terms without the per-specimen hardness fit (``gap_terms(..., profile=False)``)."""
+    raw_terms: list[Terms] = field(default_factory=list)
+    """The real episodes' terms without the per-specimen hardness fit: the gap as the data show it."""
     evidence: dict[str, Any] | None = None
     """What the data say directly of the effects, the fits' starting points (:func:`~drillgym.eval.diagnosis.evidence.evidence`)."""
 
     @classmethod
     def from_episodes(cls, episodes: list[EpisodeData], cal: list[int], ho: list[int]) -> DiagnosisData:
-        """Blocks and real features of every episode (no replays yet)."""
+        """Blocks and real features of every episode (no replays yet); each episode's place in the series."""
+        set_series_positions(episodes)
         data = cls(episodes=episodes, cal=cal, ho=ho)
         data.blocks = [make_blocks(ep.stage) for ep in episodes]
         data.real = [features(ep.lf, b) for ep, b in zip(episodes, data.blocks, strict=True)]
@@ -96,6 +101,13 @@ class DiagnosisData:
         self.excess_peaks_hz = excess_peaks_hz([real_res[i] for i in self.cal], [null_res[i] for i in self.cal])
         self.baseline_terms = [
             gap_terms(self.real[i], self.nominal_features[i], self.blocks[i], self.nulls[i]) for i in range(n)
+        ]
+        self.null_raw_terms = [
+            gap_terms(test[i], self.nominal_features[i], self.blocks[i], self.nulls[i], profile=False) for i in range(n)
+        ]
+        self.raw_terms = [
+            gap_terms(self.real[i], self.nominal_features[i], self.blocks[i], self.nulls[i], profile=False)
+            for i in range(n)
         ]
         self.evidence = read_evidence(self)
 

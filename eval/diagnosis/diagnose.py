@@ -25,6 +25,8 @@ from drillgym.eval.diagnosis.context import DiagnosisData, split_episodes
 from drillgym.eval.diagnosis.episodes import EpisodeData
 from drillgym.eval.diagnosis.fit import FitResult
 from drillgym.eval.diagnosis.intervals import off_point_inside, parameter_intervals
+from drillgym.eval.diagnosis.leftover import leftover_search
+from drillgym.eval.diagnosis.location import location_check
 from drillgym.eval.diagnosis.pairs import PAIR_TRY_RESIDUAL, pair_roles, possible_second_effects, second_effect_evidence
 from drillgym.eval.diagnosis.pool import Runner
 from drillgym.eval.diagnosis.rank import (
@@ -159,12 +161,15 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
             first, second = pair_roles(chosen, singles_by_name(scores))
             if first is not None:
                 evidence = second_effect_evidence(chosen, first, second, null)
+    searched = None if chosen is None else leftover_search(chosen, scores, null)
+    located = location_check(data)
     timings["total_s"] = time.perf_counter() - t0
     result = {
         "verdict": verdict,
         "named": named,
-        "summary": summary(verdict, chosen, location, alts, seconds, leftover),
+        "summary": summary(verdict, chosen, location, alts, seconds, leftover, located["raw"][0]),
         "leftover": leftover,
+        "leftover_search": searched,
         "per_episode": None if chosen is None else chosen.fit.per_episode,
         "single_guard": guard,
         "off_point_guard": off_point or None,
@@ -179,6 +184,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
             "frequency": data.spectrum,
         },
         "location": location,
+        "location_check": located,
         "significance": significance,
         "episodes": {
             "n": len(episodes),

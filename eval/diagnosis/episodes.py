@@ -57,6 +57,10 @@ class EpisodeData:
     lf: np.ndarray
     repairs: list[str] = field(default_factory=list)
     r_base_task: np.ndarray = field(default_factory=lambda: np.eye(3))
+    created_utc: str | None = None
+    """When the log was started (ISO 8601, from its header; None if it does not say): the series' order."""
+    series_position: float = 0.0
+    """This episode's place in the series of holes, 0 (first) to 1 (last) (:func:`set_series_positions`)."""
 
     @property
     def n(self) -> int:
@@ -110,7 +114,23 @@ def episode_from_log(name: str, header: dict[str, Any], frame: pd.DataFrame) -> 
         lf=lf,
         repairs=repairs,
         r_base_task=t_base_task[:3, :3].copy(),
+        created_utc=header.get("created_utc"),
     )
+
+
+def set_series_positions(episodes: list[EpisodeData]) -> list[int]:
+    """Order ``episodes`` as drilled and set each one's ``series_position``; returns the indices in that order.
+
+    The order is by the time each log was started, then by name; positions run from 0 (first) to 1 (last), 0 for a
+    single episode.
+    Logs started within the same second (the header's resolution) keep their names' order: the loggers name holes
+    in the order they drill them (``episode_000``, ``hole_01``, ...).
+    """
+    order = sorted(range(len(episodes)), key=lambda i: (episodes[i].created_utc or "", episodes[i].name))
+    last = max(len(episodes) - 1, 1)
+    for rank, i in enumerate(order):
+        episodes[i].series_position = rank / last
+    return order
 
 
 def _default_t_base_task(scenario: Scenario) -> np.ndarray:

@@ -185,13 +185,43 @@ def pooled(terms: list[Terms]) -> float:
     return j / n if n > 0 else float("nan")
 
 
-def gap_terms(real: Features, sim: Features, blocks: Blocks, null: EpisodeNull) -> Terms:
-    """Terms of one episode: ``real`` against the replay ``sim`` (hardness profiled out)."""
+def gap_terms(real: Features, sim: Features, blocks: Blocks, null: EpisodeNull, profile: bool = True) -> Terms:
+    """Terms of one episode: ``real`` against the replay ``sim``.
+
+    ``profile``: the specimen's hardness is profiled out (the default, see the module docstring); without it the
+    terms are the raw gap, the specimen taken as preset (``a = 0``, no prior term), as the data show it before
+    any nuisance parameter is fitted.
+    """
     out = Terms.zeros()
     r = real.lf - sim.lf
     ok = np.isfinite(r)
     r = np.where(ok, r, 0.0)
     w = np.where(ok, 1.0 / null.var, 0.0)
+    if profile:
+        a, resp = _profile_hardness(r, w, null)
+        out.prior_sum, out.prior_n = a * a, 1.0
+    else:
+        a, resp = 0.0, np.zeros_like(r)
+    resid = r - resp
+    z = w * resid**2
+    np.add.at(out.cell_sum[:, :N_LF], blocks.stage, z)
+    np.add.at(out.cell_n[:, :N_LF], blocks.stage, ok.astype(float))
+    np.add.at(out.rms_sum[:, :N_LF], blocks.stage, np.where(ok, resid**2, 0.0))
+    out.hardness = a
+    expected = sim.hf + null.hf_noise
+    h = np.log((real.hf + HF_POWER_FLOOR_N2) / (expected + HF_POWER_FLOOR_N2)) - a * null.hf_sens
+    zh = h**2 / null.hf_logvar
+    okh = np.isfinite(zh)
+    weight = blocks.blocks_per_stage[:, None] * okh
+    out.cell_sum[:, N_LF:] = np.where(okh, zh, 0.0) * weight
+    out.cell_n[:, N_LF:] = weight
+    rms_diff2 = (np.sqrt(np.abs(real.hf)) - np.sqrt(np.abs(expected))) ** 2
+    out.rms_sum[:, N_LF:] = np.where(okh, rms_diff2, 0.0) * weight
+    return out
+
+
+def _profile_hardness(r: np.ndarray, w: np.ndarray, null: EpisodeNull) -> tuple[float, np.ndarray]:
+    """The specimen offset ``a`` (σ_k) minimising ``Σ w (r − D(a))² + a²`` and its response ``D(a)``, (nb, 15)."""
     cost = (w[None] * (r[None] - null.resp) ** 2).sum(axis=(1, 2)) + PROFILE_GRID**2
     k = int(np.argmin(cost))
     a = float(PROFILE_GRID[k])
@@ -203,24 +233,5 @@ def gap_terms(real: Features, sim: Features, blocks: Blocks, null: EpisodeNull) 
             a += step * float(PROFILE_GRID[1] - PROFILE_GRID[0])
             k0 = k + (1 if step > 0 else -1)
             frac = abs(step)
-            resp = (1 - frac) * null.resp[k] + frac * null.resp[k0]
-        else:
-            resp = null.resp[k]
-    else:
-        resp = null.resp[k]
-    resid = r - resp
-    z = w * resid**2
-    np.add.at(out.cell_sum[:, :N_LF], blocks.stage, z)
-    np.add.at(out.cell_n[:, :N_LF], blocks.stage, ok.astype(float))
-    np.add.at(out.rms_sum[:, :N_LF], blocks.stage, np.where(ok, resid**2, 0.0))
-    out.hardness, out.prior_sum, out.prior_n = a, a * a, 1.0
-    expected = sim.hf + null.hf_noise
-    h = np.log((real.hf + HF_POWER_FLOOR_N2) / (expected + HF_POWER_FLOOR_N2)) - a * null.hf_sens
-    zh = h**2 / null.hf_logvar
-    okh = np.isfinite(zh)
-    weight = blocks.blocks_per_stage[:, None] * okh
-    out.cell_sum[:, N_LF:] = np.where(okh, zh, 0.0) * weight
-    out.cell_n[:, N_LF:] = weight
-    rms_diff2 = (np.sqrt(np.abs(real.hf)) - np.sqrt(np.abs(expected))) ** 2
-    out.rms_sum[:, N_LF:] = np.where(okh, rms_diff2, 0.0) * weight
-    return out
+            return a, (1 - frac) * null.resp[k] + frac * null.resp[k0]
+    return a, null.resp[k]

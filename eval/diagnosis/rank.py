@@ -75,6 +75,8 @@ class ModelScore:
     named: bool = False
     intervals: dict[str, dict[str, dict[str, Any] | None]] = field(default_factory=dict)
     """95 % intervals of the parameters (:func:`drillgym.eval.diagnosis.intervals.parameter_intervals`)."""
+    shape: dict[str, Any] | None = None
+    """The shape test (:func:`drillgym.eval.diagnosis.shape.shape_test`), for a nameable model; else None."""
     shrink_draws: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     score_draws: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
@@ -102,6 +104,7 @@ class ModelScore:
             "score": self.score,
             "p_best": self.p_best,
             "named": self.named,
+            "shape": self.shape,
             "fit": {
                 "calibration_gap": self.fit.cal_objective,
                 "evaluations": self.fit.evaluations,

@@ -103,6 +103,9 @@ class Replayer:
             self.env = UR5BoneDrillEnv(**scenario)
             self._key = key
         env = self.env
+        for e in effects:
+            if e.in_series:  # a trend form takes this episode's place in the series
+                e.series_position = ep.series_position
         env.set_effects(list(effects) or None)
         env.reset(seed=seed, options={"scenario": scenario} if key != self._key else None)
         self._key = key

@@ -15,6 +15,7 @@ from drillgym.eval.diagnosis.diagnose import Diagnosis
 from drillgym.eval.diagnosis.figures import plot_gap_map, plot_overlays, plot_ranking, plot_spectra
 from drillgym.eval.diagnosis.rank import NAME_CI_LOW_MIN, NAME_SHRINK_MIN
 from drillgym.eval.diagnosis.replay import Replayer, seed_for
+from drillgym.eval.diagnosis.shape import SHAPE_REMOVE_MIN, SHAPE_SHARE_MIN
 
 OVERLAY_CHANNELS = ["fz_n", "fx_n", "tracker_x_task_m", "q1_rad"]
 
@@ -157,6 +158,12 @@ def why_not_named(effect: dict[str, Any], res: dict[str, Any]) -> str:
     shrink, low = effect["shrink"], effect["ci_low"]
     if not (math.isfinite(shrink) and math.isfinite(low)) or shrink < NAME_SHRINK_MIN or low < NAME_CI_LOW_MIN:
         return f"no: below the bar (shrink ≥ {NAME_SHRINK_MIN:.0%}, CI low ≥ {NAME_CI_LOW_MIN:.0%})"
+    shape = effect.get("shape")
+    if shape and not shape["passes"]:
+        return f"no: not the gap's shape ({shape['reason']})"
+    guard = res.get("single_guard") or {}
+    if guard.get("contradicted") and guard.get("effect") == effect["name"]:
+        return "no: it predicts a change before contact that the data do not show"
     off = res.get("off_point_guard") or []
     if named is None and set(effect["effects"]) & set(off):
         return "no: its parameters' intervals contain the off point (" + ", ".join(off) + ")"
@@ -208,6 +215,41 @@ def per_episode_lines(res: dict[str, Any]) -> list[str]:
     return lines
 
 
+def shape_lines(res: dict[str, Any]) -> list[str]:
+    """The shape test of every nameable model: the regions it was judged on, passed or refused and why."""
+    tested = [e for e in distinct_models(res["effects"]) if e.get("shape")]
+    if not tested:
+        return []
+    lines = [
+        "",
+        f"Shape test (every nameable model; each region holding ≥ {SHAPE_SHARE_MIN:.0%} of the held-out excess must "
+        f"lose ≥ {SHAPE_REMOVE_MIN:.0%} of it under the model):",
+        "",
+    ]
+    for e in tested:
+        sh = e["shape"]
+        regions = "; ".join(
+            f"{r['region']}: {_pct(r['share'])} of the excess, {_pct(r['removed'])} removed" for r in sh["regions"]
+        )
+        verdict = "passes" if sh["passes"] else f"**refused** — {sh['reason']}"
+        lines.append(f"* `{e['name']}` {verdict} ({regions or 'no region that large'})")
+    return lines
+
+
+def _where_lines(res: dict[str, Any]) -> list[str]:
+    """The cells holding the most excess gap, after the per-specimen fit and before it (and a note if it moved)."""
+    lines = ["", "## Where", ""]
+    for cell in res["where"]["largest_excess"]:
+        lines.append(f"* {cell['channel']} in stage {cell['stage']}: {_pct(cell['share'])} of the excess gap")
+    check = res.get("location_check")
+    if check:
+        raw = ", ".join(f"{c['channel']} in {c['stage']} ({_pct(c['share'])})" for c in check["raw"])
+        lines += ["", f"Before the per-specimen hardness fit (every specimen as preset): {raw or '–'}."]
+        if check["note"]:
+            lines += ["", f"**The location moved**: {check['note']}."]
+    return lines
+
+
 def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
     sig = res["significance"]
     lines = [
@@ -241,6 +283,7 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
             f"{_pct(e['shrink'])} ({_pct(e['ci_low'])} to {_pct(e['ci_high'])}) | {e['p_best']:.2f} | "
             f"{'**yes**' if e['named'] else why_not_named(e, res)} |"
         )
+    lines += shape_lines(res)
     left = res.get("leftover")
     if left:
         cells = ", ".join(f"{c['channel']} in {c['stage']} ({_pct(c['share'])})" for c in left["cells"])
@@ -254,6 +297,9 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
             f"Left after the named model: **{left['ratio']:.3g}× the simulator's own level** on the held-out "
             f"episodes{was}, most of it at {cells or '–'}.",
         ]
+    search = res.get("leftover_search")
+    if search:
+        lines += ["", f"Leftover search: {search['note']}."]
     ev = res.get("second_effect_evidence")
     if ev:
         how = ["it explains alone what it adds"] if ev["alone"] else []
@@ -265,9 +311,7 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
             )
         lines += ["", f"Second effect `{ev['second']}`: " + "; ".join(how or ["–"]) + "."]
     lines += per_episode_lines(res)
-    lines += ["", "## Where", ""]
-    for cell in res["where"]["largest_excess"]:
-        lines.append(f"* {cell['channel']} in stage {cell['stage']}: {_pct(cell['share'])} of the excess gap")
+    lines += _where_lines(res)
     lines += ["", f"Stages (estimated from the commanded depth): {', '.join(STAGES)}.", ""]
     fr = res["where"].get("frequency") or {}
     if fr:

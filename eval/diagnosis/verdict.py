@@ -7,9 +7,10 @@ Pure functions of the held-out scores (:mod:`drillgym.eval.diagnosis.rank`); no 
   the models do;
 * else the best-scoring single effect is named when it is
   :func:`~drillgym.eval.diagnosis.rank.nameable` (shrink ≥ 50 %, its 95 % interval's low end ≥ 20 %, a penalised
-  score below "no effect") and does not fail the before-contact guard
-  (:func:`~drillgym.eval.diagnosis.pairs.single_contradicted`);
-* a pair is named instead when it is nameable and
+  score below "no effect"), does not fail the before-contact guard
+  (:func:`~drillgym.eval.diagnosis.pairs.single_contradicted`) and passes the shape test
+  (:func:`~drillgym.eval.diagnosis.shape.shape_test`, run on every nameable model);
+* a pair is named instead when it is nameable, passes the shape test and
   :func:`~drillgym.eval.diagnosis.pairs.pair_beats` the best single (judged with its effects in
   :func:`~drillgym.eval.diagnosis.pairs.pair_roles`' order); of several such pairs, the best-scoring;
 * otherwise ``unexplained``, located at the (channel, stage) cell holding the most excess gap over all episodes.
@@ -20,9 +21,11 @@ from __future__ import annotations
 import math
 from typing import Any, NamedTuple
 
+from drillgym.eval.diagnosis.channels import GROUP_OF
 from drillgym.eval.diagnosis.context import DiagnosisData
 from drillgym.eval.diagnosis.pairs import pair_beats, pair_roles, single_contradicted
 from drillgym.eval.diagnosis.rank import ModelScore, baseline_score, locate, nameable, pooled, singles_by_name
+from drillgym.eval.diagnosis.shape import shape_test
 
 LEFTOVER_REPORT_RATIO = 3.0
 """When a named model leaves a held-out gap above this many times the simulator's own level (``leftover_ratio``),
@@ -50,10 +53,13 @@ def decide(
     The guard is judged for the best-scoring single only, and only when it is nameable: then ``single_guard`` is
     ``{"effect", "contradicted"}`` and a contradicted single is not named (:func:`verdict`); else it is None.
     """
+    s0 = baseline_score(before)
+    for s in scores:
+        s.shape = shape_test(s, before, null) if nameable(s, s0) else None
     best_single = next((s for s in scores if len(s.fit.names) == 1), None)
     guard: dict[str, Any] | None = None
     contradicted = False
-    if best_single is not None and nameable(best_single, baseline_score(before)):
+    if best_single is not None and nameable(best_single, s0):
         contradicted = single_contradicted(best_single, before, null)
         guard = {"effect": best_single.name, "contradicted": contradicted}
     name, chosen, location = verdict(significance, scores, before, data, null, contradicted)
@@ -81,7 +87,7 @@ def verdict(
     singles = [s for s in scores if len(s.fit.names) == 1]
     best_single = singles[0] if singles else None
     chosen: ModelScore | None = None
-    if best_single is not None and nameable(best_single, s0) and not single_contradicted:
+    if best_single is not None and nameable(best_single, s0) and not single_contradicted and _shaped(best_single):
         chosen = best_single
     by_name = singles_by_name(singles)
     g_null = pooled(null)
@@ -89,13 +95,18 @@ def verdict(
         first, second = pair_roles(p, by_name)
         if best_single is None or first is None:
             continue
-        if nameable(p, s0) and pair_beats(p, best_single, first, second, g_null, null):
+        if nameable(p, s0) and _shaped(p) and pair_beats(p, best_single, first, second, g_null, null):
             if chosen is None or chosen is best_single or p.score < chosen.score:
                 chosen = p
     if chosen is None:
         return "unexplained", None, gap_location(data)
     chosen.named = True
     return "explained", chosen, None
+
+
+def _shaped(s: ModelScore) -> bool:
+    """Does ``s`` pass the shape test? (a model whose test was not run, e.g. a stub, passes)."""
+    return s.shape is None or bool(s.shape["passes"])
 
 
 def gap_location(data: DiagnosisData) -> dict[str, Any]:
@@ -115,10 +126,13 @@ def summary(
     alts: list[dict[str, Any]],
     seconds: list[dict[str, Any]],
     leftover: dict[str, Any] | None = None,
+    raw_location: dict[str, Any] | None = None,
 ) -> str:
     """The one-line ``summary`` of ``diagnosis.json``.
 
-    ``no_gap``: "no significant gap …"; unexplained: "unexplained — located at CHANNEL, STAGE"; explained:
+    ``no_gap``: "no significant gap …"; unexplained: "unexplained — located at CHANNEL, STAGE", followed by
+    "(before the per-specimen hardness fit: CHANNEL, STAGE)" where ``raw_location``, the raw gap's top cell
+    (:mod:`~drillgym.eval.diagnosis.location`), lies in another channel group; explained:
     "explained by A + B: held-out gap shrinks by S (LOW to HIGH)", shares in per cent rounded to whole ones, or to a
     tenth from 99.5 % up to (not including) 100 %, "nan" where not finite; then, where the model leaves more than
     :data:`LEFTOVER_REPORT_RATIO` times the simulator's own level, how much (and what it was before: the ratio times
@@ -129,7 +143,10 @@ def summary(
         return "no significant gap: the simulator explains these episodes within its own noise and specimen scatter"
     if chosen is None:
         assert location is not None
-        return f"unexplained — located at {location['channel']}, {location['stage']}"
+        text = f"unexplained — located at {location['channel']}, {location['stage']}"
+        if raw_location is not None and GROUP_OF[raw_location["channel"]] != GROUP_OF[location["channel"]]:
+            text += f" (before the per-specimen hardness fit: {raw_location['channel']}, {raw_location['stage']})"
+        return text
     s = chosen
     pct = lambda v: "nan" if not math.isfinite(v) else (f"{100 * v:.1f} %" if 0.995 <= v < 1.0 else f"{100 * v:.0f} %")  # noqa: E731
     text = f"explained by {' + '.join(s.fit.names)}: held-out gap shrinks by {pct(s.shrink)} ({pct(s.ci_low)} to {pct(s.ci_high)})"

@@ -65,7 +65,7 @@ def markdown(result: dict[str, Any], figures: dict[str, Path]) -> str:
     for ser in result["series"]:
         parts = [f"{q} {', '.join(f'{x:.2g}×' for x in v)}" for q, v in ser["uncalibrated_over_measured"].items()]
         lines.append(f"* {ser['study']}, {ser['material']}: {'; '.join(parts)}")
-    lines += ["", "## Feed rate", ""]
+    lines += ["", "## Feed rate", ""] if result["feed_ratios"] else []
     for f in result["feed_ratios"]:
         pr = ", ".join(f"{x:.2f}" for x in f["predicted_ratio"])
         pe = ", ".join(f"{x:.2f}" for x in f["predicted_exponent"])

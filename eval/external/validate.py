@@ -152,10 +152,11 @@ def validate_feed_ratio(fr: FeedRatio) -> dict[str, Any]:
     }
 
 
-def validate() -> dict[str, Any]:
-    """Every series and feed ratio, and the acceptance figures."""
-    series = [validate_series(s) for s in SERIES]
-    feeds = [validate_feed_ratio(f) for f in FEED_RATIOS]
+def validate(studies: tuple[str, ...] | None = None) -> dict[str, Any]:
+    """Every series and feed ratio of ``studies`` (default: all of :data:`SOURCES`), and the acceptance figures."""
+    keep = set(SOURCES if studies is None else studies)
+    series = [validate_series(s) for s in SERIES if s.study in keep]
+    feeds = [validate_feed_ratio(f) for f in FEED_RATIOS if f.study in keep]
     held = [
         r[q] for s in series for r in s["conditions"] if not r["calibration"] for q in ("thrust", "torque") if q in r
     ]
@@ -163,7 +164,7 @@ def validate() -> dict[str, Any]:
     directions = [d["right"] for s in series for d in s["directions"].values()]
     share = within / len(held) if held else math.nan
     return {
-        "sources": SOURCES,
+        "sources": {k: v for k, v in SOURCES.items() if k in keep},
         "rules": {
             "magnitude_tol": MAGNITUDE_TOL,
             "magnitude_share_min": MAGNITUDE_SHARE_MIN,

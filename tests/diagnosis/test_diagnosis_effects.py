@@ -42,6 +42,7 @@ SETTINGS = {
     "ft_contact_bias": "ft_contact_bias:bx_n=0.5,bz_n=-0.8",
     "tracker_latency": "tracker_latency:latency_s=0.07",
     "ft_episode_drift": "ft_episode_drift:fy_rate_n_s=0.015,fz_rate_n_s=-0.02",
+    "kinematic_offset_trend": "kinematic_offset_trend:dy_first_m=5e-4,dz_first_m=-2e-4",  # position 0: the first
 }
 
 

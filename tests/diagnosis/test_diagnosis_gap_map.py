@@ -137,6 +137,7 @@ def test_a_models_json_entry_holds_its_effects_fit_and_held_out_numbers(score):
         "score": 42.0,
         "p_best": 0.625,
         "named": True,
+        "shape": None,
         "fit": {"calibration_gap": 1.5, "evaluations": 120, "replays": 80, "wall_s": 3.25, "error": ""},
     }
 

@@ -80,7 +80,7 @@ def test_benchmark_cases_cover_the_acceptance():
     assert {c.truth[0] for c in singles} == {
         "ft_drift", "latency", "joint_friction", "kinematic_offset", "tool_length",
         "density_gradient", "thermal_softening", "skid_friction", "tool_runout", "tracker_latency",
-        "ft_episode_drift", "spindle_sag", "ft_resonance", "joint_backlash",
+        "ft_episode_drift", "spindle_sag", "ft_resonance", "joint_backlash", "kinematic_offset_trend",
     }  # fmt: skip
     from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
 

@@ -35,6 +35,9 @@ SETTINGS = {
     "tracker_smoothing": "tracker_smoothing:tau_s=0.1",
     "episode_warmup": "episode_warmup:fz_n=1,spread_n=3",
     "bone_void": "bone_void:length_m=0.001,depth_m=0.0015",
+    "ft_broadband_noise": "ft_broadband_noise:sigma_n=0.1",
+    "ft_torque_gain": "ft_torque_gain:gain=0.3",
+    "joint_drift": "joint_drift:dq1_first_rad=5e-4,dq0_per_hole_rad=1e-4",  # the first hole: dq1 alone
 }
 TOL = {"force": 1e-3, "torque": 1e-5, "tracker": 1e-6, "q": 1e-6, "tcp": 1e-6}
 UNTOUCHED = {"force": 1e-12, "torque": 1e-12, "tracker": 1e-12, "q": 1e-7, "tcp": 1e-7}
@@ -224,6 +227,7 @@ def test_every_reality_example_is_the_benchmarks_moderate_case():
 
     moderate = {name: specs[0] for name, specs in {**SINGLES, **LATER_SINGLES}.items()}
     moderate["bone_void"] = OUTSIDE[0]
+    moderate["ft_broadband_noise"], moderate["ft_torque_gain"] = OUTSIDE[2], OUTSIDE[4]
     assert EXAMPLES == {name: moderate[name] for name in REALITY_EFFECTS}
 
 

@@ -93,6 +93,7 @@ COMPILED_EFFECTS = {
     "spindle_sag": "spindle_sag:sag_per_nm=300",
     "registration": "registration:surface_dz_m=6e-4,slope_error_rad=-0.1",
     "joint_backlash": "joint_backlash:play_rad=8e-4",
+    "kinematic_offset_trend": "kinematic_offset_trend:dx_first_m=4e-4,dy_first_m=-3e-4,dz_first_m=5e-4,dz_last_m=-5e-4",
     "all": "kinematic_offset:dx_base_m=2e-4+tool_length:dl_m=-3e-3+skid_friction:mu=0.7"
     "+thermal_softening:softening=0.3+joint_friction:coulomb_rad=2e-4,viscous_s=0.005+density_gradient:offset=-0.1"
     "+latency:extra_latency_s=0.3+spindle_sag:sag_per_nm=100"

@@ -29,6 +29,7 @@ BAD_INPUT = {
     "make-reality": ["--effects", "no_such_effect"],
     "bench-diagnosis": ["--only", "no_such_case"],
     "import-rtde": ["no_such_session"],
+    "validate-forces": ["--studies", "no_such_study"],
 }
 """One bad input per command, each caught before any long work starts."""
 

@@ -83,6 +83,10 @@ LATER_SINGLES: dict[str, tuple[str, str]] = {
         "gear_backlash:play0_rad=2e-4,play1_rad=5e-4,play2_rad=3e-4",
     ),
     "ft_lateral_gain": ("ft_lateral_gain:gain=0.15,crosstalk=0.005", "ft_lateral_gain:gain=-0.3,crosstalk=0.01"),
+    "joint_drift": (
+        "joint_drift:dq1_per_hole_rad=1e-4",
+        "joint_drift:dq1_first_rad=-5e-4,dq0_per_hole_rad=1e-4,dq2_per_hole_rad=-1.5e-4",
+    ),
 }
 """The realities of the wider library's candidates, after :data:`SINGLES` (their seeds follow SINGLES' and stay
 the same in every run). One whose candidate is a default one (``mount_resonance``: ``ft_resonance``;
@@ -104,7 +108,17 @@ PAIRS: tuple[str, ...] = (
 )
 """Two effects at once, at sizes whose single-effect gaps (gap over the simulator's own level, measured
 on the single cases) lie within a factor of about 3 of each other, so that neither hides the other."""
-OUTSIDE: tuple[str, ...] = ("bone_void:length_m=0.001", "bone_void:length_m=0.0015,depth_m=0.003,residual=0.2")
+OUTSIDE: tuple[str, ...] = (
+    "bone_void:length_m=0.001",
+    "bone_void:length_m=0.0015,depth_m=0.003,residual=0.2",
+    "ft_broadband_noise:sigma_n=0.06",
+    "ft_broadband_noise:sigma_n=0.15,lateral_share=0.2",
+    "ft_torque_gain:gain=0.2",
+    "ft_torque_gain:gain=-0.3",
+)
+"""Effects outside the candidate library (new ones go last, so the earlier cases keep their seeds): a void in the
+bone, a noisier F/T (broadband, before contact too, strongest on Fz) and a torque-only calibration error, each at
+two magnitudes. The sensor faults have a shape no candidate has (docs/diagnosis.md §3, the shape test)."""
 CLEAN_TRIALS = 6
 
 

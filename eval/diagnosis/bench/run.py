@@ -53,10 +53,13 @@ def error_row(case: Case, error: str) -> dict[str, Any]:
         "named": [],
         "top_single": None,
         "location": None,
+        "shape_refused": {},
+        "location_moved": False,
         "true_effect_shrink": None,
         "correct": False,
         "top1_ranked": False,
         "located": False,
+        "located_raw": False,
         "diagnose_s": 0.0,
         "error": error,
     }
@@ -117,6 +120,10 @@ def score_case(case: Case, res: dict[str, Any], gen_s: float = 0.0, skipped: lis
         "named": named,
         "top_single": top_single,
         "location": res["location"],
+        "shape_refused": {
+            e["name"]: e["shape"]["reason"] for e in res["effects"] if e.get("shape") and not e["shape"]["passes"]
+        },
+        "location_moved": not (res.get("location_check") or {}).get("agree", True),
         "true_effect_shrink": true_shrink if len(truth) == 1 else None,
         "gap": res["significance"]["gap"],
         "null": res["significance"]["null"],
@@ -138,6 +145,8 @@ def score_case(case: Case, res: dict[str, Any], gen_s: float = 0.0, skipped: lis
         where = res["location"]
         located = where is not None and loc is not None and where["channel"] in loc[0] and where["stage"] in loc[1]
         row["located"] = located
+        raw = ((res.get("location_check") or {}).get("raw") or [None])[0]
+        row["located_raw"] = raw is not None and loc is not None and raw["channel"] in loc[0] and raw["stage"] in loc[1]
         row["correct"] = res["verdict"] == "unexplained" and located
     return row
 
@@ -249,6 +258,10 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "pair_both_named": rate("pair"),
         "outside_unexplained_and_located": rate("outside"),
         "outside_unexplained": _outside_unexplained(rows),
+        "outside_located_before_specimen_fit": rate("outside", "located_raw"),
+        **_shape_refusals(rows),
+        **_trend_forms(rows),
+        "location_moved_by_specimen_fit": sum(bool(r.get("location_moved")) for r in rows),
         "interval_coverage": _coverage(rows),
         "parameters_scored": sum(len(r.get("params") or []) for r in rows),
         "interval_coverage_best_equivalent": _coverage(rows, "covered_best_equivalent"),
@@ -258,6 +271,37 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     }
     passed = {k: float(figures[k] or 0.0) >= v for k, v in ACCEPTANCE.items() if figures.get(k) is not None}
     return {"figures": figures, "acceptance": ACCEPTANCE, "passed": passed, "cases": len(rows)}
+
+
+def _shape_refusals(rows: list[dict[str, Any]]) -> dict[str, int]:
+    """Models refused by the shape test: of other physics than the case's truth (right) or of the truth (wrong)."""
+    right = wrong = 0
+    for r in rows:
+        truth = {physics_of(n) for n in r["truth"]}
+        for name in r.get("shape_refused") or {}:
+            if truth and {physics_of(n) for n in name.split("+")} <= truth:
+                wrong += 1
+            else:
+                right += 1
+    return {"shape_refusals_other_physics": right, "shape_refusals_true_physics": wrong}
+
+
+def _trend_forms(rows: list[dict[str, Any]]) -> dict[str, int]:
+    """Where a trend form (:attr:`~drillgym.envs.effects.base.Effect.in_series`) was named.
+
+    On realities that drift over the series (the right form) and on those with the same physics held still (a trend
+    where there is none).
+    """
+    trend = {n for n, c in EFFECTS.items() if c.in_series}
+    physics = {physics_of(n) for n in trend}
+    drifting = [r for r in rows if set(r["truth"]) & trend]
+    still = [r for r in rows if not set(r["truth"]) & trend and {physics_of(n) for n in r["truth"]} & physics]
+    return {
+        "drifting_cases": len(drifting),
+        "drifting_trend_named": sum(bool(set(r["named"]) & trend) for r in drifting),
+        "still_cases": len(still),
+        "still_trend_named": sum(bool(set(r["named"]) & trend) for r in still),
+    }
 
 
 def _coverage(rows: list[dict[str, Any]], key: str = "covered") -> float | None:
@@ -361,6 +405,21 @@ def markdown(result: dict[str, Any]) -> str:
             ]
             for r in result["rows"]
             for p in (r.get("params") or [])
+        ],
+    )
+    lines += _table(
+        "Models refused by the shape test (docs/diagnosis.md §3), and cases whose gap's location the per-specimen "
+        "hardness fit moved:",
+        ["case", "truth", "refused or moved", "reason"],
+        [
+            [r["case"], "+".join(r["truth"]) or "–", m, why]
+            for r in result["rows"]
+            for m, why in (r.get("shape_refused") or {}).items()
+        ]
+        + [
+            [r["case"], "+".join(r["truth"]) or "–", "location", "moved by the specimen fit"]
+            for r in result["rows"]
+            if r.get("location_moved")
         ],
     )
     lines += _table(

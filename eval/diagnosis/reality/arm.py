@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from typing import ClassVar
 
 import numpy as np
 
@@ -111,16 +112,20 @@ class JointZeroOffsets(RealityEffect):
     name = "joint_offsets"
     summary = "joint zero-position errors of the base, shoulder and elbow"
     explains = "kinematic_offset"
-    params = (
+    params: ClassVar[tuple[Param, ...]] = (
         Param("dq0_rad", -5e-3, 5e-3, 0.0, "base joint zero error (rad)"),
         Param("dq1_rad", -5e-3, 5e-3, 0.0, "shoulder joint zero error (rad)"),
         Param("dq2_rad", -5e-3, 5e-3, 0.0, "elbow joint zero error (rad)"),
     )
     channels = frozenset({"force", "torque", "tracker"})
 
+    def _dq(self) -> np.ndarray:
+        """The six joints' zero errors (rad)."""
+        return np.array([self.values["dq0_rad"], self.values["dq1_rad"], self.values["dq2_rad"], 0.0, 0.0, 0.0])
+
     def _offsets(self, env: EffectHost) -> tuple[np.ndarray, np.ndarray]:
         cell = env.cell
-        dq = np.array([self.values["dq0_rad"], self.values["dq1_rad"], self.values["dq2_rad"], 0.0, 0.0, 0.0])
+        dq = self._dq()
         q = cell.q_motor_rad
         tip = cell.kin.fk(q + dq, TCP_FRAME)[:3, 3] - cell.kin.fk(q, TCP_FRAME)[:3, 3]
         marker = cell.kin.fk(q + dq, TRACKER_FRAME)[:3, 3] - cell.kin.fk(q, TRACKER_FRAME)[:3, 3]
@@ -135,6 +140,32 @@ class JointZeroOffsets(RealityEffect):
         """The offsets at the current pose."""
         tip, marker = self._offsets(env)
         shift_tool(env, self, tip, marker, at_attach=False)
+
+
+class JointZeroDrift(JointZeroOffsets):
+    """Joint zero offsets that grow from hole to hole (the arm's gearboxes warming over a session).
+
+    Hole k of a series of n (0-based) has ``δq = δq_first + rate · k`` on the base, shoulder and elbow joints, tip and
+    marker moved by the true forward kinematics: a joint-space random-free drift, where the candidate
+    ``kinematic_offset_trend`` has a base-frame vector moving linearly with the hole's place in the series.
+    """
+
+    name = "joint_drift"
+    summary = "joint zero errors growing by a fixed step from hole to hole"
+    explains = "kinematic_offset_trend"
+    params: ClassVar[tuple[Param, ...]] = (
+        Param("dq1_first_rad", -5e-3, 5e-3, 0.0, "shoulder joint zero error at the first hole (rad)"),
+        Param("dq0_per_hole_rad", -5e-4, 5e-4, 0.0, "base joint zero error added per hole (rad)"),
+        Param("dq1_per_hole_rad", -5e-4, 5e-4, 0.0, "shoulder joint zero error added per hole (rad)"),
+        Param("dq2_per_hole_rad", -5e-4, 5e-4, 0.0, "elbow joint zero error added per hole (rad)"),
+    )
+
+    def _dq(self) -> np.ndarray:
+        """This hole's zero errors (rad)."""
+        v, k = self.values, self.series_index
+        first = np.array([0.0, v["dq1_first_rad"], 0.0])
+        rate = np.array([v["dq0_per_hole_rad"], v["dq1_per_hole_rad"], v["dq2_per_hole_rad"]])
+        return np.concatenate([first + k * rate, np.zeros(3)])
 
 
 class ChuckToolLength(RealityEffect):

@@ -28,6 +28,7 @@ class RealityEffect(Effect):
     def __init__(self, **values: float) -> None:
         super().__init__(**values)
         self.rng = np.random.default_rng(0)
+        self.series_index, self.series_count = 0, 1
         self.tool_share: tuple[np.ndarray, np.ndarray] = (np.zeros(3), np.zeros(3))
         """This effect's share of the tool and marker offsets (:func:`shift_tool`)."""
 
@@ -51,6 +52,13 @@ class RealityEffect(Effect):
     def seed(self, rng: np.random.Generator) -> None:
         """Random stream of this episode (jitter, phases, states): set before the env's reset."""
         self.rng = rng
+
+    def set_series(self, index: int, count: int) -> None:
+        """This episode's place in the series: ``index`` of ``count`` holes, in drilling order.
+
+        Set by the generator before the env's reset; read by effects that change from hole to hole.
+        """
+        self.series_index, self.series_count = index, count
 
 
 def shift_tool(

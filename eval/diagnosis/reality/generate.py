@@ -101,6 +101,7 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
             ep_rng = np.random.default_rng([seed, i, 7])
             for e in effects:
                 e.seed(ep_rng)
+                e.set_series(i, episodes)
             stack = [ForceScaleReset(), *effects] if effects else None
             env.unwrapped.set_effects(stack)  # type: ignore[attr-defined]
             env.reset(seed=plan["seed"], options={"scenario": plan["scenario"]})

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from drillgym.eval.diagnosis.reality.arm import ChuckToolLength, JitteredLatency, JointZeroOffsets, StribeckFriction
+from drillgym.eval.diagnosis.reality.arm import (
+    ChuckToolLength,
+    JitteredLatency,
+    JointZeroDrift,
+    JointZeroOffsets,
+    StribeckFriction,
+)
 from drillgym.eval.diagnosis.reality.backlash import GearBacklash
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 from drillgym.eval.diagnosis.reality.bone import BoneVoid, DensityLayer, EntryFriction, HeatSoftening
@@ -16,6 +22,7 @@ from drillgym.eval.diagnosis.reality.sensor import (
     TrackerSmoothing,
     WobblyRunout,
 )
+from drillgym.eval.diagnosis.reality.sensor_faults import FTBroadbandNoise, FTTorqueGain
 from drillgym.eval.diagnosis.reality.spindle import SpindleMotor
 
 REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
@@ -39,6 +46,9 @@ REALITY_EFFECTS: dict[str, type[RealityEffect]] = {
         TrackerSmoothing,
         BoneRegistration,
         BoneVoid,
+        FTBroadbandNoise,
+        FTTorqueGain,
+        JointZeroDrift,
     )
 }
 """Every effect ``make-reality`` can switch on."""
@@ -62,6 +72,9 @@ EXAMPLES: dict[str, str] = {
     "tracker_smoothing": "tracker_smoothing:tau_s=0.06",
     "bone_registration": "bone_registration:ex_m=1e-3",
     "bone_void": "bone_void:length_m=0.001",
+    "ft_broadband_noise": "ft_broadband_noise:sigma_n=0.06",
+    "ft_torque_gain": "ft_torque_gain:gain=0.2",
+    "joint_drift": "joint_drift:dq1_per_hole_rad=1e-4",
 }
 """A plausible spec of each reality effect: the withheld-effect benchmark's moderate case
 (:mod:`drillgym.eval.diagnosis.bench.cases`; a test keeps them equal)."""
