@@ -43,13 +43,16 @@ EFFECTS: dict[str, type[Effect]] = {
 }
 """The unmodelled effects of the library, by name (``build_effects``, ``make-reality``, cells)."""
 
-OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias", "registration")
+OPT_IN_CANDIDATES = ("servo_deadband", "ft_gain", "ft_contact_bias", "registration", "kinematic_offset_trend")
 """In the library, but tried only when asked for (``diagnose --candidates``); measured on ``bench-diagnosis --opt-in``
 (``docs/diagnosis.md`` §6). ``servo_deadband`` (added for ``drillgym explain-paper``): the withheld-effect benchmark
 has not been run with it. ``ft_gain``, ``ft_contact_bias``: each named its own reality, but also served as a second
 effect patching a bone model's force level (and ``ft_gain``'s cross-talk from the thrust took a thrust-loaded bias).
 ``registration``: named its reality (both forms) and nothing else, but its fits add 4–6 s to a 12-episode diagnosis
-of 19 s (each surface angle rebuilds the episodes' force tables)."""
+of 19 s (each surface angle rebuilds the episodes' force tables). ``kinematic_offset_trend``: named its strong
+drifting reality on three seed offsets, but not the moderate one (and once with a bone effect as a second effect),
+took the static offsets' place in 5 of 12 static cases (right physics, a drift where there is none), and a
+12-episode diagnosis with it took 33–39 s (its pairs carry six parameters), above the 30 s budget."""
 DIAGNOSIS_CANDIDATES: tuple[str, ...] = tuple(name for name in EFFECTS if name not in OPT_IN_CANDIDATES)
 """The candidates ``drillgym diagnose`` and ``bench-diagnosis`` try by default."""
 

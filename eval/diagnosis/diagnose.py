@@ -20,7 +20,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS
+from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS, physics_of
 from drillgym.eval.diagnosis.context import DiagnosisData, split_episodes
 from drillgym.eval.diagnosis.episodes import EpisodeData
 from drillgym.eval.diagnosis.fit import FitResult
@@ -122,7 +122,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
         shared = [n for n in opt.candidates if not EFFECTS[n].per_episode]
         by_score = [s for s in scores if s.fit.names[0] in shared]
         seeds = [s for s in by_score if s.score < s0][: opt.pair_seeds] or by_score[:1]
-        jobs = [((s.fit.names[0], n), [s.fit.params[0], {}]) for s in seeds for n in shared if n != s.fit.names[0]]
+        jobs = pair_jobs(seeds, shared)
         if jobs:
             bar.total += len(jobs)
             bar.set_postfix_str("fitting pairs")
@@ -321,6 +321,21 @@ def _off(effect_spec: tuple[str, tuple[tuple[str, float], ...]]) -> bool:
 def _merged_samples(a: FitResult, b: FitResult) -> list[Any]:
     """The evaluated points of two fits of the same model on the same episodes, each point once."""
     return list({spec: (spec, j, n) for spec, j, n in [*a.samples, *b.samples]}.values())
+
+
+def pair_jobs(seeds: list[ModelScore], shared: list[str]) -> list[tuple[tuple[str, str], list[dict[str, float]]]]:
+    """Forward selection's fits: every candidate of ``shared`` on top of each seed single (held at its fit).
+
+    A candidate of the seed's own physics (:func:`~drillgym.envs.effects.registry.physics_of`: a trend form on its
+    static one) is not paired with it: two forms of one physics are one effect, and the pair would only let one
+    patch the other's form.
+    """
+    return [
+        ((s.fit.names[0], n), [s.fit.params[0], {}])
+        for s in seeds
+        for n in shared
+        if physics_of(n) != physics_of(s.fit.names[0])
+    ]
 
 
 def _refit_jobs(

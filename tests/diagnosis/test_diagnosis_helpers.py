@@ -162,6 +162,7 @@ def test_the_diagnosis_tries_every_library_effect_but_the_opt_in_ones_by_default
         "ft_gain",
         "ft_contact_bias",
         "registration",
+        "kinematic_offset_trend",
     }
     assert DiagnoseOptions().candidates == DIAGNOSIS_CANDIDATES
 

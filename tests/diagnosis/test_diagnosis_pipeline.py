@@ -80,7 +80,7 @@ def test_benchmark_cases_cover_the_acceptance():
     assert {c.truth[0] for c in singles} == {
         "ft_drift", "latency", "joint_friction", "kinematic_offset", "tool_length",
         "density_gradient", "thermal_softening", "skid_friction", "tool_runout", "tracker_latency",
-        "ft_episode_drift", "spindle_sag", "ft_resonance", "joint_backlash", "kinematic_offset_trend",
+        "ft_episode_drift", "spindle_sag", "ft_resonance", "joint_backlash",
     }  # fmt: skip
     from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
 
@@ -228,8 +228,8 @@ def test_opt_in_cases_are_the_later_realities_of_opt_in_candidates_and_every_cas
     from drillgym.eval.diagnosis.bench.cases import LATER_SINGLES, SINGLES, opt_in_candidates
 
     default, with_opt_in = full_cases(), full_cases(opt_in=True)
-    assert set(opt_in_candidates()) == {"ft_contact_bias", "registration", "ft_gain"}
-    assert len(with_opt_in) == len(default) + 2 * 3  # ft_load_bias, bone_registration, ft_lateral_gain
+    assert set(opt_in_candidates()) == {"ft_contact_bias", "registration", "ft_gain", "kinematic_offset_trend"}
+    assert len(with_opt_in) == len(default) + 2 * 4  # ft_load_bias, bone_registration, ft_lateral_gain, joint_drift
     seeds = {c.name: c.seed for c in with_opt_in}
     assert all(seeds[c.name] == c.seed for c in default)
     assert len(set(seeds.values())) == len(seeds)
