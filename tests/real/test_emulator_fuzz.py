@@ -31,6 +31,7 @@ import emulator_fuzz_inputs as fi
 import pytest
 from hypothesis import HealthCheck, Phase, example, given, settings
 from hypothesis import strategies as st
+from real_cell import ONE_CELL_AT_A_TIME
 from rtde_watcher import RtdeWatcher, rtde_request
 
 from drillgym.envs.real.emulator import rtde_protocol as rp
@@ -48,7 +49,7 @@ from drillgym.envs.real.netft import RDT_PORT
 from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT
 
-pytestmark = pytest.mark.realtime  # the watcher's bar is a timing bar: run alone (see the Makefile)
+pytestmark = [pytest.mark.realtime, ONE_CELL_AT_A_TIME]  # a timing bar: never beside a cell (real_cell.py)
 
 STALL_BAR_S = 0.1
 SETTLE_S = 0.02
