@@ -180,7 +180,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
         "where": {
             "all_episodes": gap_map(data.baseline_terms, data.null_terms),
             "heldout_after": None if chosen is None else gap_map(chosen.fit.ho_terms, null),
-            "largest_excess": locate(data.baseline_terms, data.null_terms),
+            "largest_excess": located["after_specimen_fit"],
             "frequency": data.spectrum,
         },
         "location": location,

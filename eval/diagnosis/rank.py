@@ -236,13 +236,18 @@ def gap_map(terms: list[Terms], null: list[Terms]) -> dict[str, Any]:
     }
 
 
-def locate(terms: list[Terms], null: list[Terms], top: int = 3) -> list[dict[str, Any]]:
-    """The cells holding the most excess gap (channel, stage, share of the total excess)."""
+def excess_cells(terms: list[Terms], null: list[Terms]) -> np.ndarray:
+    """Excess gap of ``terms`` over the simulator's own level per (stage, channel) cell, clipped at 0, (6, 18)."""
     tot = sum(terms, Terms.zeros())
     nul = sum(null, Terms.zeros())
     with np.errstate(invalid="ignore", divide="ignore"):
         null_norm = np.where(nul.cell_n > 0, nul.cell_sum / nul.cell_n, 0.0)
-    excess = np.clip(tot.cell_sum - tot.cell_n * null_norm, 0.0, None)
+    return np.clip(tot.cell_sum - tot.cell_n * null_norm, 0.0, None)
+
+
+def locate(terms: list[Terms], null: list[Terms], top: int = 3) -> list[dict[str, Any]]:
+    """The cells holding the most excess gap (channel, stage, share of the total excess)."""
+    excess = excess_cells(terms, null)
     total = float(excess.sum()) or 1.0
     order = np.argsort(excess, axis=None)[::-1][:top]
     out = []

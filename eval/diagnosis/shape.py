@@ -28,7 +28,7 @@ from drillgym.eval.diagnosis.channels import (
     TRACKER_CHANNELS,
 )
 from drillgym.eval.diagnosis.gap import Terms
-from drillgym.eval.diagnosis.rank import ModelScore
+from drillgym.eval.diagnosis.rank import ModelScore, excess_cells
 
 SHAPE_SHARE_MIN = 0.25
 """A region holding at least this share of the held-out excess gap must be explained in part."""
@@ -71,11 +71,7 @@ REGIONS = _region_masks()
 
 def region_excess(terms: list[Terms], null: list[Terms]) -> dict[str, float]:
     """Excess gap of ``terms`` over the simulator's own level (``null``) summed over each region's cells."""
-    tot = sum(terms, Terms.zeros())
-    nul = sum(null, Terms.zeros())
-    with np.errstate(invalid="ignore", divide="ignore"):
-        null_norm = np.where(nul.cell_n > 0, nul.cell_sum / nul.cell_n, 0.0)
-    excess = np.clip(tot.cell_sum - tot.cell_n * null_norm, 0.0, None)
+    excess = excess_cells(terms, null)
     return {name: float(excess[mask].sum()) for name, mask in REGIONS.items()}
 
 
