@@ -7,6 +7,13 @@ override, adds the latest correction the agent commanded (held between agent ste
 target, checks every safety condition (:mod:`drillgym.envs.real.safety`) and streams ``servoL``. On any fault it
 commands ``servoStop`` (and, if the link is lost, tries ``stopScript``) and ends; at the end of the
 path it stops servoing. The agent side reads the fault, the timing statistics and the path history.
+
+The path advances with the episode's clock (``time.monotonic() - t0``, the clock of the agent's 50 ms windows), not
+with the servo cycles that ran, so a stream that starts late or a late cycle does not shift the path against the
+agent's steps (after a late cycle the rate limit lets the target catch up over a few cycles). A controller that acts
+on its step count (li2023 updates its compensation every 12 steps) then meets the bone at the same step as in the
+sim. Counted from the first cycle instead, the path lagged by the servo process's start (up to 124 ms in loaded
+test runs): the contact moved by 2.5 steps and li2023's entry peak lateral force from 1.22 to 1.58 N.
 """
 
 from __future__ import annotations
@@ -159,15 +166,15 @@ class ServoLoop(HeldCommand):
         streaming = False
         try:
             last_send: float | None = None
-            last_now = time.monotonic()
-            last_timestamp, last_rtde_change = self.state.timestamp_s, last_now
+            last_now = self.t0  # the path runs on the episode's clock (module docstring)
+            last_timestamp, last_rtde_change = self.state.timestamp_s, time.monotonic()
             for _ in range(MAX_CYCLES):
                 if self._stop_requested.is_set():
                     break
                 t_cycle = self.link.init_period()
                 now = time.monotonic()
                 t = now - self.t0
-                dt = min(now - last_now, 3.0 * self.servo.period_s)
+                dt = now - last_now
                 last_now = now
                 state = self.link.state()
                 if state.timestamp_s != last_timestamp:
@@ -247,10 +254,16 @@ class ServoLoop(HeldCommand):
             self.stats.gaps_s.append(gap_s)
 
     def _next_target(self, dt_s: float) -> np.ndarray:
+        """Advance the path by ``dt_s`` (s, the episode clock's step) and rate-limit the new target.
+
+        The rate limit counts at most 3 servo periods, so after a late cycle the target catches up with the path
+        at ``max_tcp_speed_m_s`` over the next cycles instead of jumping.
+        """
         corr, scale, _ = self.slot.read()
         s = self.path.advance(dt_s, scale)
         desired = self.geo.to_base(self.geo.R_base_task.T @ corr + np.array([0.0, 0.0, s]))
-        return safety.rate_limit(self.target_base_m, desired, self.limits.max_tcp_speed_m_s * max(dt_s, 1e-4))
+        step_s = min(max(dt_s, 1e-4), 3.0 * self.servo.period_s)
+        return safety.rate_limit(self.target_base_m, desired, self.limits.max_tcp_speed_m_s * step_s)
 
     def _check(
         self, state: RobotState, target: np.ndarray, now: float, rtde_age_s: float, last_send: float | None, t: float

@@ -12,7 +12,10 @@ over SIM_NOISE_DRAWS noise seeds): it must lie in the sims' prediction interval 
 (LI2023_TOL) of their mean, whichever is wider. The allowance: the sim applies each
 action after exactly 14 ms on a fixed grid, the emulator after the real pipeline (servo process 0-8 ms + controller
 cycle 0-8 ms + physics update 0-10 ms) with jitter; constant latencies from 4 to 22 ms move the sim's metrics by
-< 1 % (docs/deployment.md §7).
+< 1 % (docs/deployment.md §7). What once moved them far more was the servo loop's path clock: counted from the
+stream's first cycle, the path lagged the agent's steps by the servo process's start (up to 124 ms under load), and
+li2023's entry peak force, which depends on where its 600 ms grid meets the bone, rose to +30 %; the path now runs
+on the episode's clock (tests/real/test_servo_command_gaps.py).
 A residual policy also sets the feed, and the step-level one's (li2023_sac) bursts of slow feed at the entry amplify the
 pipeline's timing: its entry (true deviation, peak force, drilling time) varies from run to run through the
 emulator far beyond what the sim shows under its own noise draws or any constant latency (see RESIDUAL_TOL). Its

@@ -12,6 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from drillgym.envs.constants import APPROACH_SPEED_M_S
 from drillgym.envs.real import servo as servo_module
 from drillgym.envs.real.config import SafetyLimits, ServoParams
 from drillgym.envs.real.robot_link import RobotState
@@ -86,8 +87,14 @@ class FakeFT:
         return SimpleNamespace(t_recv_s=self.clock.now_s, wrench=np.zeros(6))
 
 
-def run_loop(monkeypatch: pytest.MonkeyPatch, call_s: dict[int, float]) -> ServoLoop:
+def run_loop(
+    monkeypatch: pytest.MonkeyPatch, call_s: dict[int, float], start_late_s: float = 0.0
+) -> tuple[ServoLoop, FakeLink, float]:
+    """Run the loop on the fake clock, its first cycle ``start_late_s`` after the episode's ``t0``; returns the
+    loop, the link and ``t0``."""
     clock = FakeClock()
+    t0 = clock.now_s
+    clock.now_s += start_late_s
     monkeypatch.setattr(servo_module, "time", SimpleNamespace(monotonic=clock.monotonic, perf_counter=clock.monotonic))
     link = FakeLink(clock, call_s)
     geometry = CellGeometry(np.zeros(3), np.eye(3), 0.005)
@@ -100,16 +107,16 @@ def run_loop(monkeypatch: pytest.MonkeyPatch, call_s: dict[int, float]) -> Servo
         SafetyLimits(),
         ServoParams(),
         50.0,
-        clock.now_s,
+        t0,
     )
     link.loop = loop
     loop._run()
-    return loop
+    return loop, link, t0
 
 
 def test_a_long_first_servo_call_is_no_gap_in_the_stream(monkeypatch):
     """The first call waits 300 ms (three times the 100 ms bar): the stream then runs its cycles, none missed."""
-    loop = run_loop(monkeypatch, {0: 0.3})
+    loop, _, _ = run_loop(monkeypatch, {0: 0.3})
     assert loop.fault is None
     assert loop.stats.cycles == CYCLES and loop.stats.missed_cycles == 0
     assert loop.stats.servo_call_max_s == pytest.approx(0.3)
@@ -119,7 +126,7 @@ def test_a_long_first_servo_call_is_no_gap_in_the_stream(monkeypatch):
 def test_a_servo_call_that_blocks_mid_stream_is_a_watchdog_stop(monkeypatch):
     """Call 10 takes 150 ms: its command leaves 158 ms after the one before (over the 100 ms bar), so the loop
     stops on ``watchdog_cycle`` right after it, having counted the 18 periods the gap spans less one."""
-    loop = run_loop(monkeypatch, {10: 0.15})
+    loop, _, _ = run_loop(monkeypatch, {10: 0.15})
     assert loop.fault is not None and loop.fault.reason == "watchdog_cycle"
     assert loop.fault.message == "158 ms between two servo commands"
     assert loop.stats.cycles == 10  # the blocked command was sent, and nothing after it
@@ -129,7 +136,43 @@ def test_a_servo_call_that_blocks_mid_stream_is_a_watchdog_stop(monkeypatch):
 
 def test_a_call_just_under_the_bar_keeps_the_stream_going(monkeypatch):
     """Call 10 takes 90 ms: 98 ms between two commands, under the 100 ms bar; the 11 skipped periods are counted."""
-    loop = run_loop(monkeypatch, {10: 0.09})
+    loop, _, _ = run_loop(monkeypatch, {10: 0.09})
     assert loop.fault is None and loop.stats.cycles == CYCLES
     assert loop.stats.missed_cycles == round(0.098 / PERIOD_S) - 1
     assert loop.stats.max_gap_s == pytest.approx(0.098)
+
+
+def _approach_depth_m(elapsed_s: float) -> float:
+    """The nominal path's depth (m, task frame) ``elapsed_s`` into the approach (docs/physics.md: 2 mm/s)."""
+    return -APPROACH_START_M + APPROACH_SPEED_M_S * elapsed_s
+
+
+@pytest.mark.parametrize("start_late_s", [0.0, 0.124])
+def test_the_path_runs_on_the_episode_clock_when_the_stream_starts_late(monkeypatch, start_late_s):
+    """The stream's first cycle comes 124 ms after the episode's t0 (a loaded servo process's start): the path is
+    where the episode clock says at every cycle, as in the sim, where step k's path is k control periods in. A path
+    counted from the first cycle lagged the agent's steps by that delay and moved li2023's contact by 2.5 steps."""
+    loop, link, t0 = run_loop(monkeypatch, {}, start_late_s)
+    assert loop.fault is None and loop.stats.cycles == CYCLES
+    expected = [_approach_depth_m(t) for t in loop.history_t]
+    np.testing.assert_allclose(loop.history_s, expected, rtol=0, atol=1e-12)
+    assert loop.history_t[0] == pytest.approx(start_late_s)
+    assert link.pose[2] == pytest.approx(_approach_depth_m(link.clock.now_s - t0 - PERIOD_S), abs=1e-12)
+
+
+def test_after_a_late_cycle_the_target_catches_up_with_the_path_at_the_speed_limit(monkeypatch):
+    """Call 10 takes 90 ms: the path moves on with the clock (0.18 mm at 2 mm/s), the target follows it at no more
+    than ``max_tcp_speed_m_s`` over 3 servo periods per cycle, and is back on the path by the next cycle."""
+    poses: list[np.ndarray] = []
+    original = FakeLink.servo_l
+
+    def recording(self: FakeLink, pose: np.ndarray) -> bool:
+        poses.append(np.asarray(pose[:3], dtype=float))
+        return original(self, pose)
+
+    monkeypatch.setattr(FakeLink, "servo_l", recording)
+    loop, _, _ = run_loop(monkeypatch, {10: 0.09})
+    steps = np.linalg.norm(np.diff(np.array(poses), axis=0), axis=1)
+    assert steps.max() <= SafetyLimits().max_tcp_speed_m_s * 3 * PERIOD_S + 1e-12
+    assert steps[10] == pytest.approx(APPROACH_SPEED_M_S * 0.09, rel=1e-9)  # the catch-up, in one cycle
+    np.testing.assert_allclose(loop.history_s, [_approach_depth_m(t) for t in loop.history_t], atol=1e-12)
