@@ -14,6 +14,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from drillgym.envs.constants import ACTION_DIM
+from drillgym.envs.errors import UserError
 from drillgym.envs.plan import DrillPlan
 
 
@@ -52,7 +53,7 @@ class Controller(ABC):
         batched = np.ndim(observation["path_depth_m"]) == 2
         if batched:
             if np.shape(observation["path_depth_m"])[0] != 1:
-                raise ValueError(
+                raise UserError(
                     f"{self.name} is a single-env controller; got a batch of {len(observation['path_depth_m'])}"
                 )
             observation = {k: np.asarray(v)[0] for k, v in observation.items()}

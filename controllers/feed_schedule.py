@@ -21,6 +21,7 @@ import numpy as np
 
 from drillgym.controllers.base import Controller
 from drillgym.envs.constants import FEED_OVERRIDE_LOG2_MAX
+from drillgym.envs.errors import UserError
 from drillgym.envs.plan import DrillPlan
 
 
@@ -36,11 +37,11 @@ class EntryFeedSchedule:
     def __post_init__(self) -> None:
         lo = 2.0**-FEED_OVERRIDE_LOG2_MAX
         if not (math.isfinite(self.entry_feed_scale) and lo <= self.entry_feed_scale <= 1.0):
-            raise ValueError(
+            raise UserError(
                 f"entry_feed_scale={self.entry_feed_scale} must be in [{lo:g}, 1] (a slow entry never speeds up)"
             )
         if not (math.isfinite(self.entry_depth_mm) and 0.0 <= self.entry_depth_mm <= 20.0):
-            raise ValueError(f"entry_depth_mm={self.entry_depth_mm} must be in [0, 20] mm")
+            raise UserError(f"entry_depth_mm={self.entry_depth_mm} must be in [0, 20] mm")
 
     @property
     def active(self) -> bool:

@@ -33,6 +33,7 @@ from drillgym.controllers.models import (
     tool_compliance_m_n,
 )
 from drillgym.envs.constants import CONTROL_DT_S, MAX_CORRECTION_M, SUBSTEPS_PER_STEP, unscale_action
+from drillgym.envs.errors import UserError
 from drillgym.envs.plan import DrillPlan
 
 
@@ -76,20 +77,20 @@ class Li2023Config:
 
     def __post_init__(self) -> None:
         if self.filter_samples < 1 or self.filter_samples % SUBSTEPS_PER_STEP:
-            raise ValueError(
+            raise UserError(
                 f"filter_samples={self.filter_samples} must be a positive multiple of {SUBSTEPS_PER_STEP} "
                 "(F/T samples per agent step)"
             )
         steps = self.point_period_s / CONTROL_DT_S
         whole = math.isfinite(steps) and round(steps) >= 1 and abs(steps - round(steps)) <= 1e-9
         if not whole:  # at least one agent step per point: a picosecond period would give 0 steps per point
-            raise ValueError(f"point_period_s={self.point_period_s} must be a positive multiple of {CONTROL_DT_S} s")
+            raise UserError(f"point_period_s={self.point_period_s} must be a positive multiple of {CONTROL_DT_S} s")
         if self.prediction_points < 1:
-            raise ValueError(f"prediction_points={self.prediction_points} must be >= 1")
+            raise UserError(f"prediction_points={self.prediction_points} must be >= 1")
         if not all(math.isfinite(v) for v in (self.kp, self.ki, self.kd)):
-            raise ValueError("kp, ki and kd must be finite")
+            raise UserError("kp, ki and kd must be finite")
         if not (math.isfinite(self.y_gain) and 0.0 <= self.y_gain <= 3.0):
-            raise ValueError(f"y_gain={self.y_gain} must lie in [0, 3]")
+            raise UserError(f"y_gain={self.y_gain} must lie in [0, 3]")
 
 
 class Li2023Controller(Controller):
@@ -109,7 +110,7 @@ class Li2023Controller(Controller):
         self.offline_model = OfflineForceModel.for_plan(plan, self.config.model_peak_force_n)
         self.R = plan.R_base_task
         if self.config.axes not in ("x", "xy"):
-            raise ValueError(f"axes={self.config.axes!r} must be 'x' or 'xy'")
+            raise UserError(f"axes={self.config.axes!r} must be 'x' or 'xy'")
         cols = [0] if self.config.axes == "x" else [0, 1]
         self.lateral = sum(np.outer(self.R[:, i], self.R[:, i]) for i in cols)  # projector (base frame)
         super().set_plan(plan)

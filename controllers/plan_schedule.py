@@ -30,6 +30,7 @@ from drillgym.controllers.feed_schedule import EntryFeedSchedule
 from drillgym.controllers.registry import CONTROLLERS, PRESETS, make_controller, parse_spec
 from drillgym.controllers.residual import PLAN_HIGH, plan_features
 from drillgym.envs.constants import FEED_OVERRIDE_LOG2_MAX
+from drillgym.envs.errors import UserError
 from drillgym.envs.plan import DrillPlan
 
 SCHEDULE_SPANS: dict[str, float] = {"kp": 0.5, "y_gain": 0.4, "entry_feed_scale": 1.0, "entry_depth_mm": 1.0}
@@ -47,7 +48,7 @@ def base_fields(base: str) -> tuple[str, dict[str, float]]:
         name, preset = parse_spec(PRESETS[name])
         overrides = {**preset, **overrides}
     if name not in CONTROLLERS:
-        raise ValueError(f"a schedule residual needs a classical base controller, got {base!r}")
+        raise UserError(f"a schedule residual needs a classical base controller, got {base!r}")
     cfg = CONTROLLERS[name][1]()
     values: dict[str, float] = {}
     for f in [*dataclasses.fields(cfg), *dataclasses.fields(EntryFeedSchedule)]:
@@ -76,16 +77,16 @@ class ScheduleSpec:
         name, values = self.base_name, self.base_values
         for field, span in self.spans.items():
             if field not in values:
-                raise ValueError(f"{name} has no numeric field {field!r} to schedule; fields: {sorted(values)}")
+                raise UserError(f"{name} has no numeric field {field!r} to schedule; fields: {sorted(values)}")
             if not (math.isfinite(span) and 0.0 < span <= 3.0):
-                raise ValueError(f"span of {field!r} = {span} must be in (0, 3] (log2 of the largest factor)")
+                raise UserError(f"span of {field!r} = {span} must be in (0, 3] (log2 of the largest factor)")
             if values[field] <= 0.0:
-                raise ValueError(
+                raise UserError(
                     f"{self.base}: {field} = {values[field]:g} cannot be scaled by a factor; give the base a positive "
                     f"value first (e.g. {name}:{field}=1)"
                 )
         if not self.spans:
-            raise ValueError("a schedule residual needs at least one field to schedule")
+            raise UserError("a schedule residual needs at least one field to schedule")
 
     @functools.cached_property
     def _base(self) -> tuple[str, dict[str, float]]:
@@ -115,9 +116,9 @@ class ScheduleSpec:
         """The scheduled fields' values for ``action`` (clipped to [-1, 1]); the entry feed and depth kept in their ranges."""
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.shape != (self.dims,):
-            raise ValueError(f"schedule action must have shape ({self.dims},), got {np.shape(action)}")
+            raise UserError(f"schedule action must have shape ({self.dims},), got {np.shape(action)}")
         if not np.all(np.isfinite(a)):
-            raise ValueError(f"schedule action {a.tolist()} contains NaN or inf")
+            raise UserError(f"schedule action {a.tolist()} contains NaN or inf")
         a = np.clip(a, -1.0, 1.0)
         base = self.base_values
         out = {f: base[f] * 2.0 ** (self.spans[f] * float(x)) for f, x in zip(self.fields, a, strict=True)}

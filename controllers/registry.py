@@ -19,6 +19,7 @@ from drillgym.controllers.li2023 import Li2023Config, Li2023Controller
 from drillgym.controllers.li2023_cmrr import Li2023CmrrConfig, Li2023CmrrController
 from drillgym.controllers.none import NoCompensation, NoCompensationConfig
 from drillgym.controllers.zhang2005 import Zhang2005Config, Zhang2005Controller
+from drillgym.envs.errors import UserError
 from drillgym.envs.key_values import convert, split_items, split_named
 
 CONTROLLERS: dict[str, tuple[Callable[[Any], Controller], type]] = {
@@ -78,7 +79,7 @@ def make_controller(spec: str) -> Controller:
         return load(spec.strip().partition(":")[2])
     if name not in CONTROLLERS:
         plugins = " or ".join(f"{n}:..." for n in sorted(loaders()))
-        raise ValueError(
+        raise UserError(
             f"unknown controller {name!r}; choose from {sorted([*CONTROLLERS, *PRESETS])}{' or ' if plugins else ''}{plugins}"
         )
     cls, cfg_cls = CONTROLLERS[name]
@@ -97,12 +98,12 @@ def _build(name: str, cfg_cls: type, overrides: dict[str, str]) -> Any:
     kwargs = {}
     for key, raw in overrides.items():
         if key not in fields:
-            raise ValueError(f"{name} has no parameter {key!r}; parameters: {sorted([*fields, *SCHEDULE_FIELDS])}")
+            raise UserError(f"{name} has no parameter {key!r}; parameters: {sorted([*fields, *SCHEDULE_FIELDS])}")
         try:
             kwargs[key] = convert(key, raw, fields[key].type)
         except ValueError as e:
-            raise ValueError(f"{name}: {e}") from e
+            raise UserError(f"{name}: {e}") from e
     try:
         return cfg_cls(**kwargs)
     except ValueError as e:
-        raise ValueError(f"{name}: {e}") from e
+        raise UserError(f"{name}: {e}") from e

@@ -18,6 +18,7 @@ import numpy as np
 
 from drillgym.controllers.base import Controller
 from drillgym.envs.drilling.bone import nominal_hardness
+from drillgym.envs.errors import UserError
 from drillgym.envs.plan import DrillPlan
 
 BASE_ACTION_KEY = "base_action"
@@ -49,9 +50,9 @@ ResidualPolicy = Callable[[dict[str, np.ndarray]], np.ndarray]
 def check_mode(mode: str, feed_ceiling: str = "base") -> None:
     """Raise ``ValueError`` unless ``mode`` is one of :data:`RESIDUAL_MODES` and ``feed_ceiling`` of :data:`FEED_CEILINGS`."""
     if mode not in RESIDUAL_MODES:
-        raise ValueError(f"residual mode {mode!r}; choose from {RESIDUAL_MODES}")
+        raise UserError(f"residual mode {mode!r}; choose from {RESIDUAL_MODES}")
     if feed_ceiling not in FEED_CEILINGS:
-        raise ValueError(f"residual feed ceiling {feed_ceiling!r}; choose from {FEED_CEILINGS}")
+        raise UserError(f"residual feed ceiling {feed_ceiling!r}; choose from {FEED_CEILINGS}")
 
 
 def plan_features(plan: Any, support: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
@@ -112,7 +113,7 @@ def augment(
 def residual_dims(residual_feed: bool, axes: str = "lateral") -> int:
     """Size of the residual: 2 lateral axes (across the drill) or 3 base axes, plus the feed if enabled."""
     if axes not in RESIDUAL_AXES:
-        raise ValueError(f"residual axes={axes!r}; choose from {RESIDUAL_AXES}")
+        raise UserError(f"residual axes={axes!r}; choose from {RESIDUAL_AXES}")
     return (2 if axes == "lateral" else 3) + (1 if residual_feed else 0)
 
 
@@ -182,7 +183,7 @@ class ResidualSpec:
         check_mode(self.mode, self.feed_ceiling)
         residual_dims(self.residual_feed, self.axes)
         if not 0.0 < self.scale <= 2.0:
-            raise ValueError(f"scale={self.scale} must be in (0, 2]")
+            raise UserError(f"scale={self.scale} must be in (0, 2]")
 
     @property
     def dims(self) -> int:
@@ -250,9 +251,9 @@ class ResidualController(Controller):
         """The action for the last observed step: the base's action with ``residual`` (clipped to [-1, 1])."""
         r = np.asarray(residual, dtype=np.float64).reshape(-1)
         if r.shape != (self.spec.dims,):
-            raise ValueError(f"residual action must have shape ({self.spec.dims},), got {np.shape(residual)}")
+            raise UserError(f"residual action must have shape ({self.spec.dims},), got {np.shape(residual)}")
         if not np.all(np.isfinite(r)):
-            raise ValueError(f"residual action {r.tolist()} contains NaN or inf")
+            raise UserError(f"residual action {r.tolist()} contains NaN or inf")
         s = self.spec
         action = combine(self.base_action, r, s.scale, self._R, s.mode, s.feed_ceiling)
         self._prev_residual = np.clip(r, -1.0, 1.0).astype(np.float32)

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.controllers.plan_schedule import PlanScheduledController, ScheduleSpec
+from drillgym.envs.errors import UserError
 
 TABLE_FORMAT = "drillgym-schedule-table/1"
 """``format`` of a table file."""
@@ -72,18 +73,18 @@ class ScheduleTable:
 
     def __post_init__(self) -> None:
         if not self.anchors:
-            raise ValueError("a schedule table needs at least the nominal anchor")
+            raise UserError("a schedule table needs at least the nominal anchor")
         dims, nf = self.spec.dims, len(self.anchors[0].features)
         for a in self.anchors:
             if len(a.action) != dims or len(a.features) != nf:
-                raise ValueError(
+                raise UserError(
                     f"anchor {a.name!r}: {len(a.action)} actions for {dims} fields, {len(a.features)} features"
                 )
             if not all(math.isfinite(v) and -1.0 <= v <= 1.0 for v in a.action):
-                raise ValueError(f"anchor {a.name!r}: actions {a.action} must be finite and in [-1, 1]")
+                raise UserError(f"anchor {a.name!r}: actions {a.action} must be finite and in [-1, 1]")
             moved = [i for i, (x, x0) in enumerate(zip(a.features, self.anchors[0].features, strict=True)) if x != x0]
             if a is not self.anchors[0] and len(moved) != 1:
-                raise ValueError(
+                raise UserError(
                     f"anchor {a.name!r} must differ from the nominal plan in exactly one feature, not {moved}"
                 )
 
@@ -134,7 +135,7 @@ class ScheduleTable:
 def table_from_dict(data: dict[str, Any], source: str = "table") -> ScheduleTable:
     """A table from its JSON data; a wrong format or field raises ``ValueError`` naming ``source``."""
     if not isinstance(data, dict) or data.get("format") != TABLE_FORMAT:
-        raise ValueError(f"{source}: not a schedule table (format {TABLE_FORMAT!r} expected)")
+        raise UserError(f"{source}: not a schedule table (format {TABLE_FORMAT!r} expected)")
     try:
         support = data.get("plan_support")
         spec = ScheduleSpec(
@@ -154,7 +155,7 @@ def table_from_dict(data: dict[str, Any], source: str = "table") -> ScheduleTabl
             for a in data["anchors"]
         )
     except (KeyError, TypeError, IndexError) as e:
-        raise ValueError(f"{source}: malformed schedule table ({type(e).__name__}: {e})") from e
+        raise UserError(f"{source}: malformed schedule table ({type(e).__name__}: {e})") from e
     return ScheduleTable(spec, anchors, {**dict(data.get("meta") or {}), "path": source})
 
 
@@ -166,14 +167,14 @@ def resolve_table(text: str) -> Path:
 def load_table(text: str) -> ScheduleTable:
     """Read a table file (a path or a name of :data:`NAMED_TABLES`); clear errors for a missing or bad file."""
     if not text:
-        raise ValueError("table controllers need a file: table:PATH/TO/table.json (or table:shipped)")
+        raise UserError("table controllers need a file: table:PATH/TO/table.json (or table:shipped)")
     path = resolve_table(text)
     try:
         data = json.loads(path.read_text())
     except FileNotFoundError:
         raise FileNotFoundError(f"schedule table {path} not found (drillgym tune-table writes one)") from None
     except json.JSONDecodeError as e:
-        raise ValueError(f"{path}: not JSON ({e})") from e
+        raise UserError(f"{path}: not JSON ({e})") from e
     return table_from_dict(data, str(path))
 
 

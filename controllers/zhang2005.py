@@ -29,6 +29,7 @@ from drillgym.envs.constants import (
     SUBSTEPS_PER_STEP,
     unscale_action,
 )
+from drillgym.envs.errors import UserError
 from drillgym.envs.plan import DrillPlan
 from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
 
@@ -67,14 +68,14 @@ class Zhang2005Config:
 
     def __post_init__(self) -> None:
         if self.filter_samples < 1:
-            raise ValueError(f"filter_samples={self.filter_samples} must be >= 1")
+            raise UserError(f"filter_samples={self.filter_samples} must be >= 1")
         if len(self.joint_stiffness_nm_rad) != 6 or min(self.joint_stiffness_nm_rad) <= 0:
-            raise ValueError(f"joint_stiffness_nm_rad={self.joint_stiffness_nm_rad} must be 6 positive values")
+            raise UserError(f"joint_stiffness_nm_rad={self.joint_stiffness_nm_rad} must be 6 positive values")
         if self.thrust_ref_n <= 0 or not math.isfinite(self.thrust_ref_n):
-            raise ValueError(f"thrust_ref_n={self.thrust_ref_n} must be a positive number of newtons")
+            raise UserError(f"thrust_ref_n={self.thrust_ref_n} must be a positive number of newtons")
         top = 2.0**FEED_OVERRIDE_LOG2_MAX
         if not (math.isfinite(self.feed_scale_max) and 2.0**-FEED_OVERRIDE_LOG2_MAX <= self.feed_scale_max <= top):
-            raise ValueError(f"feed_scale_max={self.feed_scale_max} must be in [{1 / top:g}, {top:g}]")
+            raise UserError(f"feed_scale_max={self.feed_scale_max} must be in [{1 / top:g}, {top:g}]")
 
 
 class Zhang2005Controller(Controller):

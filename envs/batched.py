@@ -35,6 +35,7 @@ from drillgym.envs.cell import chains_of
 from drillgym.envs.constants import ACTION_DIM, CONTROL_DT_S, MAX_EPISODE_STEPS, SUBSTEPS_PER_STEP, scale_action
 from drillgym.envs.drill_env import UR5BoneDrillEnv
 from drillgym.envs.drilling.hole import centre_at
+from drillgym.envs.errors import UserError
 from drillgym.envs.kernel_state import NOISE_SIZE, draw_noise, record_channels, tracker_sample_is_new
 from drillgym.envs.metrics import episode_metrics
 from drillgym.envs.observation import observation_of, observation_space
@@ -57,13 +58,13 @@ class BatchedDrillEnv(VectorEnv):
 
     def __init__(self, num_envs: int, max_episode_steps: int | None = None, **env_kwargs: Any) -> None:
         if not isinstance(num_envs, int) or num_envs < 1:
-            raise ValueError(f"num_envs={num_envs!r} must be an integer >= 1")
+            raise UserError(f"num_envs={num_envs!r} must be an integer >= 1")
         limit = MAX_EPISODE_STEPS if max_episode_steps is None else max_episode_steps
         if not isinstance(limit, int) or not 1 <= limit <= MAX_EPISODE_STEPS:
-            raise ValueError(f"max_episode_steps={max_episode_steps!r} must be an integer in [1, {MAX_EPISODE_STEPS}]")
+            raise UserError(f"max_episode_steps={max_episode_steps!r} must be an integer in [1, {MAX_EPISODE_STEPS}]")
         self.max_episode_steps = limit
         if env_kwargs.get("render_mode") is not None:
-            raise ValueError("BatchedDrillEnv does not render; use UR5BoneDrillEnv(render_mode='rgb_array')")
+            raise UserError("BatchedDrillEnv does not render; use UR5BoneDrillEnv(render_mode='rgb_array')")
         self.num_envs = num_envs
         self.envs = [UR5BoneDrillEnv(pybullet_world=False, **env_kwargs) for _ in range(num_envs)]
         first = self.envs[0]
@@ -124,13 +125,13 @@ class BatchedDrillEnv(VectorEnv):
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Reset every episode: ``seed`` (int: episode ``i`` gets ``seed + i``; or one seed per episode)."""
         if options:
-            raise ValueError(f"reset(options={options!r}): BatchedDrillEnv takes no options (one scenario, no effects)")
+            raise UserError(f"reset(options={options!r}): BatchedDrillEnv takes no options (one scenario, no effects)")
         if seed is None or isinstance(seed, int):
             seeds: list[int | None] = [None if seed is None else seed + i for i in range(self.num_envs)]
         else:
             seeds = list(seed)
             if len(seeds) != self.num_envs:
-                raise ValueError(f"{len(seeds)} seeds for {self.num_envs} episodes")
+                raise UserError(f"{len(seeds)} seeds for {self.num_envs} episodes")
         for i, s in enumerate(seeds):
             self._reset_one(i, s)
         self._ready = True

@@ -26,6 +26,7 @@ from drillgym.envs.constants import (
 from drillgym.envs.drilling.bone import BonePreset
 from drillgym.envs.drilling.contact import SampleRow
 from drillgym.envs.effects.base import Effect, EffectStack
+from drillgym.envs.errors import UserError
 from drillgym.envs.kernel_state import KernelState, record_channels
 from drillgym.envs.metrics import EpisodeRecorder, episode_metrics
 from drillgym.envs.observation import observation_of, observation_space
@@ -227,13 +228,13 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         **scenario_kwargs: Any,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode={render_mode!r} is not supported; allowed: {self.metadata['render_modes']}")
+            raise UserError(f"render_mode={render_mode!r} is not supported; allowed: {self.metadata['render_modes']}")
         for name, px in (("render_width_px", render_width_px), ("render_height_px", render_height_px)):
             if not isinstance(px, int) or not 16 <= px <= 4096:
-                raise ValueError(f"{name}={px!r} must be an integer number of pixels in [16, 4096]")
+                raise UserError(f"{name}={px!r} must be an integer number of pixels in [16, 4096]")
         self.render_size_px = (render_width_px, render_height_px)
         if render_mode is not None and not pybullet_world:
-            raise ValueError(f"render_mode={render_mode!r} needs the PyBullet world; pybullet_world=False has none")
+            raise UserError(f"render_mode={render_mode!r} needs the PyBullet world; pybullet_world=False has none")
         _check_arguments(scenario_kwargs)
         self.scenario = Scenario.from_kwargs(**scenario_kwargs)
         self.render_mode = render_mode
@@ -281,7 +282,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         opts = options or {}
         unknown = sorted(set(opts) - RESET_OPTIONS)
         if unknown:
-            raise ValueError(
+            raise UserError(
                 f"reset(options=...): unknown key(s) {unknown}; allowed: {sorted(RESET_OPTIONS)} "
                 '(scenario arguments go inside options={"scenario": {...}})'
             )
@@ -673,5 +674,5 @@ def _checked_specimen_seed(value: Any) -> int | None:
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise ValueError(f"reset(options={{'specimen_seed': {value!r}}}): a non-negative integer seed, or None")
+        raise UserError(f"reset(options={{'specimen_seed': {value!r}}}): a non-negative integer seed, or None")
     return int(value)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from drillgym.envs.errors import UserError
+
 TRUE_WORDS = ("1", "true", "yes", "on")
 FALSE_WORDS = ("0", "false", "no", "off")
 
@@ -25,7 +27,7 @@ def split_items(text: str, what: str) -> dict[str, str]:
     for item in text.split(","):
         key, eq, value = item.partition("=")
         if not eq or not key.strip():
-            raise ValueError(f"{what}: expected key=value, got {item!r}")
+            raise UserError(f"{what}: expected key=value, got {item!r}")
         items[key.strip()] = value.strip()
     return items
 
@@ -50,12 +52,12 @@ def split_spec_list(text: str, what: str, noun: str = "name", example: str = "")
             continue
         if "=" in item and ":" not in item:
             if not specs:
-                raise ValueError(f"{what} {text!r}: {item!r} has no {noun} before it")
+                raise UserError(f"{what} {text!r}: {item!r} has no {noun} before it")
             specs[-1] += "," + item
         else:
             specs.append(item)
     if not specs:
-        raise ValueError(f"{what} is empty" + (f"; e.g. {what} {example}" if example else ""))
+        raise UserError(f"{what} is empty" + (f"; e.g. {what} {example}" if example else ""))
     return specs
 
 
@@ -77,7 +79,7 @@ def convert(name: str, raw: str, kind: Any) -> Any:
             return True
         if raw.lower() in FALSE_WORDS:
             return False
-        raise ValueError(f"{name}={raw!r} is not a boolean")
+        raise UserError(f"{name}={raw!r} is not a boolean")
     try:
         if kind in (int, "int"):
             return int(raw)
@@ -85,5 +87,5 @@ def convert(name: str, raw: str, kind: Any) -> Any:
             return float(raw)
     except ValueError as e:
         noun = "an integer" if kind in (int, "int") else "a number"
-        raise ValueError(f"{name}={raw!r} is not {noun}") from e
+        raise UserError(f"{name}={raw!r} is not {noun}") from e
     return raw

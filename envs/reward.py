@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.envs.constants import ACTION_DIM
+from drillgym.envs.errors import UserError
 
 
 @dataclass(frozen=True)
@@ -40,7 +41,7 @@ class RewardWeights:
         for name in ("deviation", "force", "smooth", "peak_force"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"reward_{name}_weight={value!r} must be a finite number >= 0")
+                raise UserError(f"reward_{name}_weight={value!r} must be a finite number >= 0")
             object.__setattr__(self, name, float(value))
 
     def terms(
@@ -77,8 +78,8 @@ def checked_action(action: np.ndarray, consequence: str, num_envs: int | None = 
     a = np.asarray(action, dtype=float)
     shape = (ACTION_DIM,) if num_envs is None else (num_envs, ACTION_DIM)
     if a.shape != shape:
-        raise ValueError(f"action must have shape {shape}, got {np.shape(action)}")
+        raise UserError(f"action must have shape {shape}, got {np.shape(action)}")
     if not np.isfinite(a).all():
         where = "" if num_envs is None else f" in episodes {np.flatnonzero(~np.isfinite(a).all(axis=1)).tolist()}"
-        raise ValueError(f"action={a.tolist()} contains NaN or inf{where}; rejected ({consequence})")
+        raise UserError(f"action={a.tolist()} contains NaN or inf{where}; rejected ({consequence})")
     return np.minimum(np.maximum(a, -1.0), 1.0)  # np.clip(a, -1, 1), without its Python wrapper

@@ -12,6 +12,7 @@ from typing import Any
 
 from drillgym.envs.drilling.bone import BONE_PRESETS
 from drillgym.envs.drilling.geometry import DrillGeometry
+from drillgym.envs.errors import UserError
 
 # name -> (low, high, inclusive_low); every numeric field is checked against its range.
 RANGES: dict[str, tuple[float, float, bool]] = {
@@ -57,17 +58,17 @@ class Scenario:
         for name, (lo, hi, incl) in RANGES.items():
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ValueError(f"{name}={value!r} must be a number in {_range_text(lo, hi, incl)}")
+                raise UserError(f"{name}={value!r} must be a number in {_range_text(lo, hi, incl)}")
             ok = math.isfinite(value) and (lo <= value if incl else lo < value) and value <= hi
             if not ok:
-                raise ValueError(f"{name}={value!r} is outside the allowed range {_range_text(lo, hi, incl)}")
+                raise UserError(f"{name}={value!r} is outside the allowed range {_range_text(lo, hi, incl)}")
         if self.bone not in BONE_PRESETS:
-            raise ValueError(f"bone={self.bone!r} is not a known preset; allowed: {sorted(BONE_PRESETS)}")
+            raise UserError(f"bone={self.bone!r} is not a known preset; allowed: {sorted(BONE_PRESETS)}")
         if not isinstance(self.tracker, bool):
-            raise ValueError(f"tracker={self.tracker!r} must be True or False")
+            raise UserError(f"tracker={self.tracker!r} must be True or False")
         entry_mm = self.entry_depth_m * 1e3
         if self.depth_mm < entry_mm + 1.0:
-            raise ValueError(
+            raise UserError(
                 f"depth_mm={self.depth_mm!r} is too shallow: the drill needs {entry_mm:.2f} mm to enter fully at "
                 f"beta_deg={self.beta_deg}; allowed: depth_mm >= {entry_mm + 1.0:.2f}"
             )

@@ -21,6 +21,8 @@ from enum import IntEnum
 
 import numpy as np
 
+from drillgym.envs.errors import UserError
+
 INDEX_BITS = 48
 INDEX_LIMIT = 1 << INDEX_BITS
 """An index within a namespace is in [0, 2^48): seeds stay below 2^51, inside int64 for logs and tables."""
@@ -47,9 +49,7 @@ def episode_seed(purpose: Purpose, index: int) -> int:
     """
     index = int(index)
     if not 0 <= index < INDEX_LIMIT:
-        raise ValueError(
-            f"seed index {index} of purpose {Purpose(purpose).name.lower()} must be in [0, 2^{INDEX_BITS})"
-        )
+        raise UserError(f"seed index {index} of purpose {Purpose(purpose).name.lower()} must be in [0, 2^{INDEX_BITS})")
     return (int(purpose) << INDEX_BITS) | index
 
 
@@ -61,7 +61,7 @@ def purpose_of(seed: int) -> Purpose:
     """
     seed = int(seed)
     if seed < 0 or (seed >> INDEX_BITS) >= len(Purpose):
-        raise ValueError(f"seed {seed} lies in no purpose's namespace")
+        raise UserError(f"seed {seed} lies in no purpose's namespace")
     return Purpose(seed >> INDEX_BITS)
 
 
@@ -77,7 +77,7 @@ def stream(purpose: Purpose, *keys: int) -> np.random.Generator:
     ``seed + rank``, where runs ``s`` and ``s + 1`` share every worker but one.
     """
     if any(int(k) < 0 for k in keys):
-        raise ValueError(f"stream keys must be >= 0, got {keys}")
+        raise UserError(f"stream keys must be >= 0, got {keys}")
     return np.random.default_rng(np.random.SeedSequence([int(purpose), *(int(k) for k in keys)]))
 
 

@@ -16,6 +16,8 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from typing import Any, TypeVar
 
+from drillgym.envs.errors import UserError
+
 Job = TypeVar("Job")
 Result = TypeVar("Result")
 
@@ -46,7 +48,7 @@ def run_unordered(
     instead of finishing its job for nobody.
     """
     if workers < 1:
-        raise ValueError(f"workers={workers} must be >= 1")
+        raise UserError(f"workers={workers} must be >= 1")
     if workers == 1 or len(jobs) <= 1:
         if initializer is not None:
             initializer(*initargs)

@@ -9,6 +9,8 @@ from typing import Any
 
 import yaml
 
+from drillgym.envs.errors import UserError
+
 ALGOS = ("sac", "td3", "ppo")
 SCHEDULE_MODE = "schedule"
 """``residual_mode`` of a plan-schedule residual (one tuning of the base per hole, from the plan)."""
@@ -112,21 +114,21 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
-            raise ValueError(f"algo={self.algo!r}; choose from {ALGOS}")
+            raise UserError(f"algo={self.algo!r}; choose from {ALGOS}")
         if self.selection_paper_episodes < 0:
-            raise ValueError(f"selection_paper_episodes={self.selection_paper_episodes} must be >= 0")
+            raise UserError(f"selection_paper_episodes={self.selection_paper_episodes} must be >= 0")
         if self.model_selection not in ("reward", "deviation"):
-            raise ValueError(f"model_selection={self.model_selection!r}; choose reward or deviation")
+            raise UserError(f"model_selection={self.model_selection!r}; choose reward or deviation")
         if self.ship_rule not in ("selection_deviation", "none"):
-            raise ValueError(f"ship_rule={self.ship_rule!r}; choose selection_deviation or none")
+            raise UserError(f"ship_rule={self.ship_rule!r}; choose selection_deviation or none")
         if self.eval_scenarios not in ("paper", "validation"):
-            raise ValueError(f"eval_scenarios={self.eval_scenarios!r}; choose paper or validation")
+            raise UserError(f"eval_scenarios={self.eval_scenarios!r}; choose paper or validation")
         from drillgym.controllers.residual import check_mode
         from drillgym.training.domain_randomization import check_ranges
 
         if self.residual_mode == SCHEDULE_MODE:
             if self.normalize_obs:
-                raise ValueError(
+                raise UserError(
                     "residual_mode: schedule observes the plan already scaled to [-1, 1]: set normalize_obs: false"
                 )
             self.schedule_spec()
@@ -135,9 +137,9 @@ class TrainConfig:
             check_mode(self.residual_mode, self.residual_feed_ceiling)
         check_ranges(self.dr_ranges)
         if not 0.0 <= self.paper_share <= 1.0:
-            raise ValueError(f"paper_share={self.paper_share!r} must be in [0, 1]")
+            raise UserError(f"paper_share={self.paper_share!r} must be in [0, 1]")
         if self.total_timesteps < 1 or self.n_envs < 1:
-            raise ValueError("total_timesteps and n_envs must be >= 1")
+            raise UserError("total_timesteps and n_envs must be >= 1")
 
     @property
     def schedule(self) -> bool:
@@ -162,7 +164,7 @@ class TrainConfig:
         known = {f.name for f in dataclasses.fields(ScheduleReward)}
         unknown = sorted(set(self.schedule_reward) - known)
         if unknown:
-            raise ValueError(f"schedule_reward: unknown weight(s) {unknown}; known: {sorted(known)}")
+            raise UserError(f"schedule_reward: unknown weight(s) {unknown}; known: {sorted(known)}")
         return ScheduleReward(**{k: float(v) for k, v in self.schedule_reward.items()})
 
     def to_dict(self) -> dict[str, Any]:
@@ -174,6 +176,15 @@ CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 """The training configurations shipped with the package (``--config NAME`` finds ``NAME.yaml`` here)."""
 
 
+def read_yaml(path: Path) -> Any:
+    """The YAML value in the file at ``path`` (``{}`` for an empty file); a YAML error raises ``UserError``."""
+    text = path.read_text()
+    try:
+        return yaml.safe_load(text) or {}
+    except yaml.YAMLError as e:
+        raise UserError(f"{path}: not valid YAML ({' '.join(str(e).split())})") from e
+
+
 def resolve_config(path: Path | str) -> Path:
     """A YAML path, or the name of a shipped configuration (``smoke``, ``residual_sac``, ...)."""
     p = Path(path)
@@ -183,7 +194,7 @@ def resolve_config(path: Path | str) -> Path:
     if p.parent == Path(".") and named.exists():
         return named
     names = ", ".join(sorted(q.stem for q in CONFIG_DIR.glob("*.yaml")))
-    raise ValueError(f"training config {str(path)!r} not found (a YAML path, or a shipped config: {names})")
+    raise UserError(f"training config {str(path)!r} not found (a YAML path, or a shipped config: {names})")
 
 
 def load_config(path: Path | None, overrides: dict[str, Any] | None = None) -> TrainConfig:
@@ -194,13 +205,13 @@ def load_config(path: Path | None, overrides: dict[str, Any] | None = None) -> T
     data: dict[str, Any] = {}
     if path is not None:
         path = resolve_config(path)
-        loaded = yaml.safe_load(Path(path).read_text()) or {}
+        loaded = read_yaml(Path(path))
         if not isinstance(loaded, dict):
-            raise ValueError(f"{path}: expected a mapping of TrainConfig fields, got {type(loaded).__name__}")
+            raise UserError(f"{path}: expected a mapping of TrainConfig fields, got {type(loaded).__name__}")
         data.update(loaded)
     data.update(overrides or {})
     known = {f.name for f in dataclasses.fields(TrainConfig)}
     unknown = sorted(set(data) - known)
     if unknown:
-        raise ValueError(f"unknown training option(s) {unknown}; known: {sorted(known)}")
+        raise UserError(f"unknown training option(s) {unknown}; known: {sorted(known)}")
     return TrainConfig(**data)

@@ -12,6 +12,7 @@ import gymnasium as gym
 import numpy as np
 
 from drillgym.controllers.residual import plan_support
+from drillgym.envs.errors import UserError
 from drillgym.envs.seeds import Purpose, draw_seed, in_namespace, training_stream
 
 TRAINING_RANGES: dict[str, tuple[float, float]] = {
@@ -41,13 +42,13 @@ def check_ranges(ranges: dict[str, Any]) -> None:
     for name, bounds in ranges.items():
         default = getattr(defaults, name, None)
         if isinstance(default, bool) or not isinstance(default, int | float):
-            raise ValueError(f"dr_ranges: {name!r} is not a numeric scenario argument")
+            raise UserError(f"dr_ranges: {name!r} is not a numeric scenario argument")
         try:
             lo, hi = (float(v) for v in bounds)
         except (TypeError, ValueError):
-            raise ValueError(f"dr_ranges: {name}={bounds!r} must be [low, high]") from None
+            raise UserError(f"dr_ranges: {name}={bounds!r} must be [low, high]") from None
         if not lo <= hi:
-            raise ValueError(f"dr_ranges: {name}=[{lo}, {hi}] needs low <= high")
+            raise UserError(f"dr_ranges: {name}=[{lo}, {hi}] needs low <= high")
         Scenario.from_kwargs(**{name: lo})  # the scenario's own range check, with its message
         Scenario.from_kwargs(**{name: hi})
 
@@ -103,7 +104,7 @@ class DomainRandomization(gym.Wrapper):
         super().__init__(env)
         self.stream_keys = tuple(int(k) for k in stream_keys)
         if not 0.0 <= paper_share <= 1.0:
-            raise ValueError(f"paper_share={paper_share!r} must be in [0, 1]")
+            raise UserError(f"paper_share={paper_share!r} must be in [0, 1]")
         self.ranges = dict(DR_RANGES if ranges is None else ranges)
         self.paper_share = float(paper_share)
         self._paper = dict(env.unwrapped.scenario.to_dict())  # type: ignore[attr-defined]
@@ -151,9 +152,9 @@ class ScenarioCycle(gym.Wrapper):
     def __init__(self, env: gym.Env, scenarios: list[dict[str, Any]], seeds: list[int] | None = None):
         super().__init__(env)
         if not scenarios:
-            raise ValueError("ScenarioCycle needs at least one scenario")
+            raise UserError("ScenarioCycle needs at least one scenario")
         if seeds is not None and len(seeds) != len(scenarios):
-            raise ValueError(f"{len(seeds)} seeds for {len(scenarios)} scenarios")
+            raise UserError(f"{len(seeds)} seeds for {len(scenarios)} scenarios")
         self.scenarios = [dict(s) for s in scenarios]
         self.seeds = None if seeds is None else [int(x) for x in seeds]
         self.episode = 0

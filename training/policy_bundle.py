@@ -17,6 +17,7 @@ import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.running_mean_std import RunningMeanStd
 
+from drillgym.envs.errors import read_json
 from drillgym.training.config import TrainConfig
 from drillgym.training.model import ALGO_CLASSES
 
@@ -95,7 +96,7 @@ def load_bundle(path: Path | str) -> PolicyBundle:
         raise FileNotFoundError(f"residual policy {zip_path} does not exist (shipped policies by name: {names})")
     if not json_path.exists():
         raise FileNotFoundError(f"residual policy {zip_path} has no {json_path.name} (config and summary) beside it")
-    meta = json.loads(json_path.read_text())
+    meta = read_json(json_path)
     cfg = TrainConfig(**meta["config"])
     model = ALGO_CLASSES[cfg.algo].load(zip_path, device="cpu")
     normalizer = None

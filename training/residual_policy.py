@@ -18,6 +18,7 @@ import numpy as np
 from drillgym.controllers.plan_schedule import PlanScheduledController
 from drillgym.controllers.registry import make_controller
 from drillgym.controllers.residual import PLAN_KEY, PREV_RESIDUAL_KEY, ResidualController, ResidualSpec
+from drillgym.envs.errors import UserError
 from drillgym.training.config import TrainConfig
 from drillgym.training.domain_randomization import training_plan_support
 from drillgym.training.policy_bundle import PolicyBundle, load_bundle, resolve_policy
@@ -70,7 +71,7 @@ def load_residual_controller(path: Path | str) -> ResidualController | PlanSched
     policy tunes the base once per hole from the plan.
     """
     if not str(path):
-        raise ValueError("residual controllers need a path: residual:PATH/TO/policy.zip")
+        raise UserError("residual controllers need a path: residual:PATH/TO/policy.zip")
     _single_thread_inference()
     resolved = resolve_policy(str(path))
     bundle = load_bundle(resolved)

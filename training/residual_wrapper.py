@@ -25,6 +25,7 @@ from drillgym.controllers.residual import (
     ResidualSpec,
 )
 from drillgym.envs.constants import ACTION_DIM
+from drillgym.envs.errors import UserError
 
 
 class ResidualWrapper(gym.Wrapper):
@@ -88,7 +89,7 @@ class ResidualWrapper(gym.Wrapper):
         """Apply the base's action with the residual ``action``; the info records both parts."""
         residual = np.asarray(action, dtype=np.float64)
         if residual.shape != self.action_space.shape:
-            raise ValueError(f"residual action must have shape {self.action_space.shape}, got {residual.shape}")
+            raise UserError(f"residual action must have shape {self.action_space.shape}, got {residual.shape}")
         base_action = self.controller.base_action.copy()
         total = self.controller.compose(residual)
         obs, reward, terminated, truncated, info = self.env.step(total)

@@ -26,6 +26,7 @@ from drillgym.controllers.plan_schedule import PlanScheduledController, Schedule
 from drillgym.controllers.residual import PLAN_HIGH
 from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
+from drillgym.envs.errors import UserError
 from drillgym.envs.seeds import Purpose, draw_seed, training_stream
 from drillgym.training.domain_randomization import DR_RANGES, sample_scenario
 
@@ -50,7 +51,7 @@ class ScheduleReward:
 
     def __post_init__(self) -> None:
         if min(self.force_weight, self.time_weight, self.time_free) < 0.0 or self.deviation_floor_mm <= 0.0:
-            raise ValueError(f"schedule reward weights must be >= 0 and the floor > 0: {self}")
+            raise UserError(f"schedule reward weights must be >= 0 and the floor > 0: {self}")
 
 
 def paired_schedule_reward(agent: dict[str, float], base: dict[str, float], w: ScheduleReward) -> float:
@@ -99,7 +100,7 @@ class ScheduleEnv(gym.Env):
         stream_keys: tuple[int, ...] = (),
     ) -> None:
         if not 0.0 <= paper_share <= 1.0:
-            raise ValueError(f"paper_share={paper_share!r} must be in [0, 1]")
+            raise UserError(f"paper_share={paper_share!r} must be in [0, 1]")
         self.schedule = spec
         self.sim = gym.make(SIM_ENV_ID, **(env_kwargs or {}))
         self.ranges = dict(DR_RANGES if ranges is None else ranges)
@@ -110,7 +111,7 @@ class ScheduleEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (spec.dims,), np.float32)
         self.episodes = None if episodes is None else [(dict(sc), int(seed)) for sc, seed in episodes]
         if self.episodes is not None and not self.episodes:
-            raise ValueError("ScheduleEnv: an empty list of episodes")
+            raise UserError("ScheduleEnv: an empty list of episodes")
         self._visits = 0
         self._rng: np.random.Generator | None = None
         self.stream_keys = tuple(int(k) for k in stream_keys)

@@ -29,9 +29,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from drillgym.training.config import TrainConfig, load_config
+from drillgym.envs.errors import UserError
+from drillgym.training.config import TrainConfig, load_config, read_yaml
 
 SEARCH_KINDS = ("choice", "grid", "uniform", "loguniform", "randint")
 """Distributions a search entry may use."""
@@ -84,31 +83,31 @@ class SweepSpec:
 
 def _check_search(search: Any, base: TrainConfig) -> dict[str, tuple[str, list[Any]]]:
     if not isinstance(search, dict) or not search:
-        raise ValueError("search: expected a non-empty mapping of TrainConfig fields to {kind: arguments}")
+        raise UserError("search: expected a non-empty mapping of TrainConfig fields to {kind: arguments}")
     out: dict[str, tuple[str, list[Any]]] = {}
     known = {f.name for f in dataclasses.fields(TrainConfig)}
     for name, entry in search.items():
         if name not in known:
-            raise ValueError(f"search: unknown training option {name!r}; known: {sorted(known)}")
+            raise UserError(f"search: unknown training option {name!r}; known: {sorted(known)}")
         if name in NOT_SEARCHABLE:
-            raise ValueError(f"search: {name} is fixed for a sweep (put it under 'fixed')")
+            raise UserError(f"search: {name} is fixed for a sweep (put it under 'fixed')")
         if not (isinstance(entry, dict) and len(entry) == 1 and next(iter(entry)) in SEARCH_KINDS):
-            raise ValueError(f"search.{name}: expected one of {{{', '.join(SEARCH_KINDS)}: ...}}, got {entry!r}")
+            raise UserError(f"search.{name}: expected one of {{{', '.join(SEARCH_KINDS)}: ...}}, got {entry!r}")
         kind, args = next(iter(entry.items()))
         if not isinstance(args, list) or not args:
-            raise ValueError(f"search.{name}.{kind}: expected a non-empty list, got {args!r}")
+            raise UserError(f"search.{name}.{kind}: expected a non-empty list, got {args!r}")
         if kind in ("uniform", "loguniform", "randint") and not (
             len(args) == 2 and all(isinstance(a, (int, float)) for a in args) and args[0] < args[1]
         ):
-            raise ValueError(f"search.{name}.{kind}: expected [low, high] with low < high, got {args}")
+            raise UserError(f"search.{name}.{kind}: expected [low, high] with low < high, got {args}")
         if kind == "loguniform" and args[0] <= 0:
-            raise ValueError(f"search.{name}.loguniform: bounds must be > 0, got {args}")
+            raise UserError(f"search.{name}.loguniform: bounds must be > 0, got {args}")
         values = args if kind in ("choice", "grid") else [int(args[0])] if kind == "randint" else args
         for value in values:
             try:
                 TrainConfig(**{**base.to_dict(), name: value})
             except (TypeError, ValueError) as e:
-                raise ValueError(f"search.{name}: value {value!r} is not a valid training option: {e}") from e
+                raise UserError(f"search.{name}: value {value!r} is not a valid training option: {e}") from e
         out[name] = (kind, list(args))
     return out
 
@@ -116,12 +115,12 @@ def _check_search(search: Any, base: TrainConfig) -> dict[str, tuple[str, list[A
 def load_sweep(path: Path, overrides: dict[str, Any] | None = None, base_config: Path | None = None) -> SweepSpec:
     """Read and check a sweep file; ``overrides`` replace fixed fields, ``base_config`` the file's base."""
     path = Path(path)
-    data = yaml.safe_load(path.read_text()) or {}
+    data = read_yaml(path)
     if not isinstance(data, dict):
-        raise ValueError(f"{path}: expected a mapping, got {type(data).__name__}")
+        raise UserError(f"{path}: expected a mapping, got {type(data).__name__}")
     unknown = sorted(set(data) - set(SPEC_KEYS))
     if unknown:
-        raise ValueError(f"{path}: unknown sweep key(s) {unknown}; known: {list(SPEC_KEYS)}")
+        raise UserError(f"{path}: unknown sweep key(s) {unknown}; known: {list(SPEC_KEYS)}")
     if base_config is None and data.get("base_config"):
         base_config = path.parent / str(data["base_config"])
     fixed = dict(data.get("fixed") or {})
@@ -129,7 +128,7 @@ def load_sweep(path: Path, overrides: dict[str, Any] | None = None, base_config:
     scheduler = dict(data.get("scheduler") or {})
     bad = sorted(set(scheduler) - {"grace_period", "reduction_factor"})
     if bad:
-        raise ValueError(f"{path}: unknown scheduler key(s) {bad}; known: grace_period, reduction_factor")
+        raise UserError(f"{path}: unknown scheduler key(s) {bad}; known: grace_period, reduction_factor")
     spec = SweepSpec(
         name=path.stem,
         base=base,
@@ -143,7 +142,7 @@ def load_sweep(path: Path, overrides: dict[str, Any] | None = None, base_config:
         max_failures=int(data.get("max_failures", 1)),
     )
     if spec.samples < 1 or spec.cpus_per_trial < 1 or spec.max_failures < 0 or spec.reduction_factor <= 1:
-        raise ValueError(f"{path}: need samples >= 1, cpus_per_trial >= 1, max_failures >= 0, reduction_factor > 1")
+        raise UserError(f"{path}: need samples >= 1, cpus_per_trial >= 1, max_failures >= 0, reduction_factor > 1")
     if spec.evaluations < 1:
-        raise ValueError(f"{path}: total_timesteps {base.total_timesteps} < eval_freq {base.eval_freq}: no evaluation")
+        raise UserError(f"{path}: total_timesteps {base.total_timesteps} < eval_freq {base.eval_freq}: no evaluation")
     return spec

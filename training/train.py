@@ -17,6 +17,7 @@ from typing import Any
 
 import yaml
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.json_safe import json_safe
 from drillgym.training.config import TrainConfig, load_config
 
@@ -64,12 +65,12 @@ def clear_run(out: Path) -> None:
 def check_run_folder(out: Path, resume: bool, overwrite: bool) -> None:
     """Refuse to resume nothing or to overwrite a run by accident (``ValueError`` saying what to do)."""
     if resume and overwrite:
-        raise ValueError("--resume and --overwrite contradict each other")
+        raise UserError("--resume and --overwrite contradict each other")
     if resume and latest_checkpoint(out / "checkpoints") is None:
-        raise ValueError(f"nothing to resume in {out}: no checkpoints/rl_model_<steps>_steps.zip")
+        raise UserError(f"nothing to resume in {out}: no checkpoints/rl_model_<steps>_steps.zip")
     held = [name for name in RUN_ARTEFACTS if (out / name).exists()]
     if not resume and not overwrite and held:
-        raise ValueError(
+        raise UserError(
             f"{out} already holds a training run ({', '.join(held)}): --resume continues it, --overwrite starts over"
         )
 
@@ -140,7 +141,7 @@ def select_only(out: Path, config: Path | None = None, export: Path | None = Non
     """
     summary_path = out / "summary.json"
     if not summary_path.exists():
-        raise ValueError(f"{out} holds no finished run (no summary.json)")
+        raise UserError(f"{out} holds no finished run (no summary.json)")
     cfg = load_config(config if config is not None else out / "config.yaml")
     (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
     summary = json.loads(summary_path.read_text())

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from drillgym.envs.errors import UserError
+
 
 @dataclass(frozen=True)
 class BoneMaterial:
@@ -118,5 +120,5 @@ def get_bone_preset(name: str, density_scale: float = 1.0) -> BonePreset:
         ValueError: unknown name (the message lists the known ones).
     """
     if name not in BONE_PRESETS:
-        raise ValueError(f"bone={name!r} is not a known preset; allowed: {sorted(BONE_PRESETS)}")
+        raise UserError(f"bone={name!r} is not a known preset; allowed: {sorted(BONE_PRESETS)}")
     return BONE_PRESETS[name].scaled(density_scale)

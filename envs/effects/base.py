@@ -38,6 +38,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
+from drillgym.envs.errors import UserError
+
 if TYPE_CHECKING:
     from drillgym.envs.cell import SimCell
     from drillgym.envs.metrics import EpisodeRecorder
@@ -147,12 +149,12 @@ class Effect:
         known = {p.name: p for p in self.params}
         unknown = sorted(set(values) - set(known))
         if unknown:
-            raise ValueError(f"{self.name}: unknown parameter(s) {unknown}; parameters: {sorted(known)}")
+            raise UserError(f"{self.name}: unknown parameter(s) {unknown}; parameters: {sorted(known)}")
         self.values: dict[str, float] = {}
         for p in self.params:
             v = float(values.get(p.name, p.default))
             if not math.isfinite(v) or not p.low <= v <= p.high:
-                raise ValueError(f"{self.name}: {p.name}={v!r} is outside [{p.low:g}, {p.high:g}]")
+                raise UserError(f"{self.name}: {p.name}={v!r} is outside [{p.low:g}, {p.high:g}]")
             self.values[p.name] = v
         self.servo_offset_task_m = None
 

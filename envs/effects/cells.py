@@ -9,6 +9,8 @@ Use ``drillgym bench --cell li2023-lab`` or ``env.unwrapped.set_effects(build_ef
 
 from __future__ import annotations
 
+from drillgym.envs.errors import UserError
+
 CELLS: dict[str, str] = {
     "ideal": "",
     "li2023-lab": "joint_friction:coulomb_rad=0.000417",
@@ -19,5 +21,5 @@ CELLS: dict[str, str] = {
 def cell_effects_spec(name: str) -> str:
     """The effect spec of cell ``name`` (raises ``ValueError`` listing the cells)."""
     if name not in CELLS:
-        raise ValueError(f"unknown cell {name!r}; choose from {', '.join(CELLS)}")
+        raise UserError(f"unknown cell {name!r}; choose from {', '.join(CELLS)}")
     return CELLS[name]

@@ -15,6 +15,7 @@ from drillgym.envs.effects.timing import Latency
 from drillgym.envs.effects.tool import ToolLength
 from drillgym.envs.effects.tracker import TrackerLatency
 from drillgym.envs.effects.trends import KinematicOffsetTrend
+from drillgym.envs.errors import UserError
 from drillgym.envs.key_values import convert, split_items, split_named
 
 EFFECTS: dict[str, type[Effect]] = {
@@ -68,7 +69,7 @@ def parse_candidates(text: str) -> tuple[str, ...]:
     candidates = tuple(c.strip() for c in text.split(",") if c.strip())
     unknown = sorted(set(candidates) - set(EFFECTS))
     if unknown:
-        raise ValueError(f"unknown candidate effect(s) {unknown}; choose from {sorted(EFFECTS)}")
+        raise UserError(f"unknown candidate effect(s) {unknown}; choose from {sorted(EFFECTS)}")
     return candidates
 
 
@@ -82,14 +83,14 @@ def parse_effect_spec(spec: str) -> list[tuple[str, dict[str, float]]]:
     for part in spec.split("+"):
         name, rest = split_named(part)
         if not name:
-            raise ValueError(f"effect spec {spec!r}: empty effect name")
+            raise UserError(f"effect spec {spec!r}: empty effect name")
         what = f"effect spec {spec!r}"
         values: dict[str, float] = {}
         for key, raw in split_items(rest, what).items():
             try:
                 values[key] = convert(key, raw, float)
             except ValueError as e:
-                raise ValueError(f"{what}: {e}") from e
+                raise UserError(f"{what}: {e}") from e
         out.append((name, values))
     return out
 
@@ -100,6 +101,6 @@ def build_effects(spec: str, library: dict[str, type[Effect]] | None = None) -> 
     effects = []
     for name, values in parse_effect_spec(spec):
         if name not in lib:
-            raise ValueError(f"unknown effect {name!r}; choose from {sorted(lib)}")
+            raise UserError(f"unknown effect {name!r}; choose from {sorted(lib)}")
         effects.append(lib[name](**values))
     return effects

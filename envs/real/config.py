@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, fields
 
 from drillgym.envs.constants import MAX_CORRECTION_M, RTDE_RATE_HZ
+from drillgym.envs.errors import UserError
 
 
 @dataclass(frozen=True)
@@ -52,9 +53,9 @@ class SafetyLimits:
         for f in fields(self):
             value = getattr(self, f.name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ValueError(f"SafetyLimits.{f.name}={value!r} must be a positive finite number")
+                raise UserError(f"SafetyLimits.{f.name}={value!r} must be a positive finite number")
         if self.max_correction_m > MAX_CORRECTION_M:
-            raise ValueError(f"max_correction_m={self.max_correction_m} exceeds the action scale {MAX_CORRECTION_M}")
+            raise UserError(f"max_correction_m={self.max_correction_m} exceeds the action scale {MAX_CORRECTION_M}")
 
     @property
     def robot_watchdog_hz(self) -> float:

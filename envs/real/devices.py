@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.real.command_log import CommandLog
 from drillgym.envs.real.config import SafetyLimits, ServoParams
 from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration, NetFTClient
@@ -28,7 +29,7 @@ def split_host_port(spec: str, default_port: int) -> tuple[str, int]:
     """``"HOST"`` or ``"HOST:PORT"`` -> ``(host, port)``."""
     host, _, port = spec.partition(":")
     if not host:
-        raise ValueError(f"{spec!r} does not name a host")
+        raise UserError(f"{spec!r} does not name a host")
     return host, int(port) if port else default_port
 
 

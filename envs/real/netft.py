@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.real.net_errors import connect_error
 
 RDT_PORT = 49152
@@ -46,7 +47,7 @@ class NetFTCalibration:
 
     def __post_init__(self) -> None:
         if not (self.counts_per_force > 0 and self.counts_per_torque > 0):
-            raise ValueError(f"counts per force/torque must be > 0, got {self}")
+            raise UserError(f"counts per force/torque must be > 0, got {self}")
 
     def to_si(self, counts: np.ndarray) -> np.ndarray:
         """(Fx, Fy, Fz, Tx, Ty, Tz) in N and N·m from counts."""

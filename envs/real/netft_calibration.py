@@ -18,6 +18,7 @@ import socket
 import struct
 from dataclasses import dataclass
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.real.net_errors import connect_error
 from drillgym.envs.real.netft import RDT_HEADER, NetFTCalibration
 
@@ -65,10 +66,10 @@ def pack_calinfo(calibration: NetFTCalibration, force_unit: int = 2, torque_unit
 def unpack_calinfo(data: bytes) -> DeviceCalibration:
     """Parse a ``READCALINFO`` answer; ``ValueError`` if it is not one."""
     if len(data) < CAL_RESPONSE.size:
-        raise ValueError(f"calibration answer too short ({len(data)} bytes)")
+        raise UserError(f"calibration answer too short ({len(data)} bytes)")
     header, fu, tu, cpf, cpt, *_ = CAL_RESPONSE.unpack_from(data)
     if header != RDT_HEADER:
-        raise ValueError(f"not a Net F/T calibration answer (header 0x{header:04x})")
+        raise UserError(f"not a Net F/T calibration answer (header 0x{header:04x})")
     return DeviceCalibration(
         NetFTCalibration(float(cpf), float(cpt)), FORCE_UNITS.get(fu, f"code {fu}"), TORQUE_UNITS.get(tu, f"code {tu}")
     )
@@ -101,7 +102,7 @@ def check_calibration(given: NetFTCalibration | None, device: DeviceCalibration)
     ``given`` by more than one count.
     """
     if not device.si:
-        raise ValueError(
+        raise UserError(
             f"the F/T sensor reports forces in {device.force_units} and torques in {device.torque_units}; "
             "set it to N and N-m (its web page, Settings) before drilling"
         )
@@ -110,7 +111,7 @@ def check_calibration(given: NetFTCalibration | None, device: DeviceCalibration)
         abs(given.counts_per_force - dev.counts_per_force) > 1
         or abs(given.counts_per_torque - dev.counts_per_torque) > 1
     ):
-        raise ValueError(
+        raise UserError(
             f"the F/T sensor's calibration is {dev.counts_per_force:g} counts/N and {dev.counts_per_torque:g} "
             f"counts/N-m, but --counts-per-force {given.counts_per_force:g} and --counts-per-torque "
             f"{given.counts_per_torque:g} were given: every force (the force limit included) would be scaled wrong"

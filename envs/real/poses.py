@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 
+from drillgym.envs.errors import UserError
+
 
 def rotvec_to_matrix(rotvec: np.ndarray) -> np.ndarray:
     """Rotation matrix (3x3) of a rotation vector (rad), Rodrigues' formula."""
@@ -43,7 +45,7 @@ def pose_to_matrix(pose: np.ndarray) -> np.ndarray:
     """4x4 transform of a UR pose ``[x, y, z, rx, ry, rz]`` (m, rad)."""
     p = np.asarray(pose, dtype=float)
     if p.shape != (6,):
-        raise ValueError(f"a UR pose has 6 values [x, y, z, rx, ry, rz], got shape {p.shape}")
+        raise UserError(f"a UR pose has 6 values [x, y, z, rx, ry, rz], got shape {p.shape}")
     t = np.eye(4)
     t[:3, :3] = rotvec_to_matrix(p[3:])
     t[:3, 3] = p[:3]

@@ -12,6 +12,7 @@ from gymnasium import spaces
 
 from drillgym.envs.cell_params import R_BASE_TASK, CellParams
 from drillgym.envs.constants import ACTION_DIM, APPROACH_START_M, CONTROL_DT_S, scale_action
+from drillgym.envs.errors import UserError
 from drillgym.envs.metrics import EpisodeRecorder, episode_metrics
 from drillgym.envs.observation import observation_space
 from drillgym.envs.plan import DrillPlan
@@ -122,7 +123,7 @@ class UR5BoneDrillRealEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     ) -> None:
         if isinstance(tracker, bool):
             if tracker:
-                raise ValueError("tracker=True: name the tracker device, e.g. tracker='udp:HOST'; or 'none'")
+                raise UserError("tracker=True: name the tracker device, e.g. tracker='udp:HOST'; or 'none'")
             tracker = "none"
         tracker_spec = tracker or "none"
         self.scenario = Scenario.from_kwargs(**{**scenario_kwargs, "tracker": tracker_spec != "none"})

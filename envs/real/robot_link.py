@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.real.command_log import CommandLog
 from drillgym.envs.real.config import ServoParams
 
@@ -176,7 +177,7 @@ class RobotLink:
         """One ``servoL`` to ``pose`` (m, rad; base frame); False if the controller refused it."""
         p = np.asarray(pose, dtype=float)
         if p.shape != (6,) or not np.all(np.isfinite(p)):
-            raise ValueError(f"servoL pose must be 6 finite values, got {p.tolist()}; nothing sent")
+            raise UserError(f"servoL pose must be 6 finite values, got {p.tolist()}; nothing sent")
         s = self.servo
         return self._call("servoL", p, s.speed, s.acceleration, s.period_s, s.lookahead_time_s, s.gain)
 
@@ -184,7 +185,7 @@ class RobotLink:
         """Blocking straight move to ``pose`` (m, rad; base frame)."""
         p = np.asarray(pose, dtype=float)
         if p.shape != (6,) or not np.all(np.isfinite(p)):
-            raise ValueError(f"moveL pose must be 6 finite values, got {p.tolist()}; nothing sent")
+            raise UserError(f"moveL pose must be 6 finite values, got {p.tolist()}; nothing sent")
         distance = float(np.linalg.norm(p[:3] - self.state().tcp_pose[:3]))
         expected_s = distance / max(speed_m_s, 1e-6)
         return self._call("moveL", p, speed_m_s, acceleration_m_s2, deadline_s=expected_s + BLOCKING_TIMEOUT_S + 1.0)

@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.real import safety
 from drillgym.envs.real.command_log import CommandLog
 from drillgym.envs.real.config import SafetyLimits, ServoParams
@@ -395,7 +396,7 @@ class RemoteLink:
         """Blocking straight move (see :meth:`RobotLink.move_l`)."""
         p = np.asarray(pose, dtype=float)
         if p.shape != (6,) or not np.all(np.isfinite(p)):
-            raise ValueError(f"moveL pose must be 6 finite values, got {p.tolist()}; nothing sent")
+            raise UserError(f"moveL pose must be 6 finite values, got {p.tolist()}; nothing sent")
         expected_s = float(np.linalg.norm(p[:3] - self.state().tcp_pose[:3])) / max(speed_m_s, 1e-6)
         timeout_s = expected_s + BLOCKING_TIMEOUT_S + 1.0 + CALL_TIMEOUT_S
         return bool(self._call("move_l", p, speed_m_s, acceleration_m_s2, timeout_s=timeout_s))

@@ -22,6 +22,8 @@ from typing import Protocol
 
 import numpy as np
 
+from drillgym.envs.errors import UserError
+
 TRACKER_PORT = 49153
 MAGIC = b"DGTR"
 REQUEST = struct.Struct(">4sB")
@@ -145,4 +147,4 @@ def make_tracker(spec: str | None) -> Tracker:
     if kind == "udp" and rest:
         host, _, port = rest.partition(":")
         return UdpTracker(host, int(port) if port else TRACKER_PORT)
-    raise ValueError(f"tracker={spec!r}: expected 'none' or 'udp:HOST[:PORT]'")
+    raise UserError(f"tracker={spec!r}: expected 'none' or 'udp:HOST[:PORT]'")

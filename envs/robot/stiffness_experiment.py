@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
 from drillgym.envs.robot.load_tests import (
     DEFAULT_TCP_OFFSET_M,
@@ -52,15 +53,15 @@ class LoadTestSettings:
 
     def __post_init__(self) -> None:
         if not 1 <= self.poses <= len(IDENTIFICATION_POSES_Q_RAD):
-            raise ValueError(f"poses={self.poses} must lie in 1..{len(IDENTIFICATION_POSES_Q_RAD)}")
+            raise UserError(f"poses={self.poses} must lie in 1..{len(IDENTIFICATION_POSES_Q_RAD)}")
         if not (math.isfinite(self.noise_mm) and self.noise_mm >= 0.0):
-            raise ValueError(f"noise_mm={self.noise_mm} must be a finite number >= 0")
+            raise UserError(f"noise_mm={self.noise_mm} must be a finite number >= 0")
         if not (math.isfinite(self.load_n) and self.load_n > 0.0):
-            raise ValueError(f"load_n={self.load_n} must be a finite number > 0")
+            raise UserError(f"load_n={self.load_n} must be a finite number > 0")
         if not math.isfinite(self.lever_mm):
-            raise ValueError(f"lever_mm={self.lever_mm} must be finite")
+            raise UserError(f"lever_mm={self.lever_mm} must be finite")
         if self.bootstrap < 1:
-            raise ValueError(f"bootstrap={self.bootstrap} must be >= 1")
+            raise UserError(f"bootstrap={self.bootstrap} must be >= 1")
 
 
 def run_load_tests(settings: LoadTestSettings) -> tuple[np.ndarray, StiffnessIdentification, Table1Comparison]:

@@ -6,6 +6,7 @@ import re
 from collections.abc import Callable
 from typing import Any
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.key_values import split_spec_list
 from drillgym.eval.pool import run_unordered
 
@@ -34,7 +35,7 @@ def reference_spec(specs: list[str], name: str | None) -> str:
         if controller_label(spec) == name:
             return spec
     choices = ", ".join(dict.fromkeys(c for s in specs for c in (s, controller_label(s))))
-    raise ValueError(f"--reference {name!r} is not one of the --controllers; choose from {choices}")
+    raise UserError(f"--reference {name!r} is not one of the --controllers; choose from {choices}")
 
 
 def run_jobs(

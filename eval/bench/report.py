@@ -9,6 +9,7 @@ from typing import Any
 
 import pandas as pd
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.metrics import METRIC_NAMES
 from drillgym.envs.scenario import Scenario
 from drillgym.eval.bench.plots import plot_bars, plot_sweep
@@ -101,7 +102,7 @@ def write_report(
     """
     reference = controllers[0] if reference is None else reference
     if reference not in controllers:
-        raise ValueError(f"reference {reference!r} is not one of the controllers {list(controllers)}")
+        raise UserError(f"reference {reference!r} is not one of the controllers {list(controllers)}")
     episodes = episodes_frame(rows)
     episodes.to_csv(out / "episodes.csv", index=False)
     tracebacks = [

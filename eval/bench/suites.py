@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.seeds import Purpose, stream
 from drillgym.training.domain_randomization import TRAINING_BONES, TRAINING_RANGES
@@ -118,7 +119,7 @@ JUDGE_ONLY_SUITES = ("heldout", "generalisation")
 def suite_scenarios(name: str) -> list[SuiteScenario]:
     """The scenarios of suite ``name``; an unknown name raises ``ValueError`` listing the suites."""
     if name not in SUITES:
-        raise ValueError(f"unknown suite {name!r}; choose from {', '.join(SUITES)}")
+        raise UserError(f"unknown suite {name!r}; choose from {', '.join(SUITES)}")
     return SUITES[name]()
 
 

@@ -37,6 +37,7 @@ from drillgym.controllers.plan_schedule import PlanScheduledController, Schedule
 from drillgym.controllers.rollout import run_episode
 from drillgym.controllers.schedule_table import Anchor, ScheduleTable
 from drillgym.envs import SIM_ENV_ID
+from drillgym.envs.errors import UserError
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.seeds import Purpose, episode_seed
 from drillgym.training.domain_randomization import TRAINING_BONES, TRAINING_RANGES, training_plan_support
@@ -146,7 +147,7 @@ def anchor_jobs(
 ) -> list[AnchorJob]:
     """The tuning jobs, one per anchor, with the schedule residual's fields, spans and plan support."""
     if seeds < 2 or evals < 2 or not 0.0 < step <= 1.0 or seed_offset < 0:
-        raise ValueError(
+        raise UserError(
             f"need seeds >= 2, evals >= 2, 0 < step <= 1, seed offset >= 0; got {seeds}, {evals}, {step}, {seed_offset}"
         )
     spec = ScheduleSpec(base=base, plan_support=training_plan_support())

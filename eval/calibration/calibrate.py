@@ -26,6 +26,7 @@ from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.drilling.bone import BUFFALO_CORTICAL, CANCELLOUS_RATIO, BonePreset
+from drillgym.envs.errors import UserError
 from drillgym.envs.scenario import Scenario
 from drillgym.eval.bench.summary import mean_ci
 from drillgym.eval.reproduce.paper import LI2023_UNCOMPENSATED
@@ -137,7 +138,7 @@ def calibrate_entry(
     from scipy.optimize import least_squares
 
     if max_runs < 3 or not rel_tol > 0.0:
-        raise ValueError(f"max_runs={max_runs} must be >= 3 and rel_tol={rel_tol} > 0")
+        raise UserError(f"max_runs={max_runs} must be >= 3 and rel_tol={rel_tol} > 0")
     targets = np.array([LI2023_UNCOMPENSATED[k] for k in CALIBRATED_METRICS])
     seen: dict[tuple[float, float], dict[str, float]] = {}
 

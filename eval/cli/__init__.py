@@ -15,6 +15,8 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
+from drillgym.envs.errors import UserError
+
 COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("drillgym.eval.cli.demo", "Run the paper scenario end to end and print where the results are."),
     "identify-stiffness": (
@@ -89,12 +91,13 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, OSError, LookupError, ModuleNotFoundError)
-"""What a command raises on bad input: a bad value or spec (``ValueError``, which argparse's type errors and
-YAML's parse errors are too), a missing, existing or unreadable file, a refused or dropped connection, a port
-in use (``OSError``), an unknown name (``LookupError``), an optional package that is not installed, e.g. Ray
-(``ModuleNotFoundError``, :func:`drillgym.eval.scale.cluster.require_ray`). The top-level handler prints these on one line; set
-``DRILLGYM_TRACEBACK=1`` to see the traceback instead."""
+USER_ERRORS: tuple[type[BaseException], ...] = (UserError, OSError, ModuleNotFoundError)
+"""What a command raises on bad input: a bad value, name, spec or file content (:class:`~drillgym.envs.errors.UserError`,
+the project's one user-error type), a missing, existing or unreadable file, a refused or dropped connection, a port
+in use (``OSError``), an optional package that is not installed, e.g. Ray (``ModuleNotFoundError``,
+:func:`drillgym.eval.scale.cluster.require_ray`). The top-level handler prints these on one line with exit status 2;
+anything else (a plain ``ValueError`` or ``KeyError`` is the project's bug, not the user's) keeps its traceback. Set
+``DRILLGYM_TRACEBACK=1`` to see the traceback of a user error too."""
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):

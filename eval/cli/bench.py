@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 from drillgym.controllers.registry import BEST_CLASSICAL
 from drillgym.envs.effects.cells import cell_effects_spec
+from drillgym.envs.errors import UserError, read_json
 from drillgym.envs.scenario import Scenario
 from drillgym.eval.bench.jobs import controller_label, reference_spec, run_jobs, split_controller_specs
 from drillgym.eval.bench.suites import SUITES
@@ -144,18 +145,18 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
     from drillgym.controllers import make_controller
 
     if args.suite not in SUITES:
-        raise ValueError(f"unknown suite {args.suite!r}; choose from {', '.join(SUITES)}")
+        raise UserError(f"unknown suite {args.suite!r}; choose from {', '.join(SUITES)}")
     if args.seeds < 1:
-        raise ValueError(f"--seeds={args.seeds} must be >= 1")
+        raise UserError(f"--seeds={args.seeds} must be >= 1")
     cell_effects_spec(getattr(args, "cell", "ideal"))
     if args.workers < 1:
-        raise ValueError(f"--workers={args.workers} must be >= 1")
+        raise UserError(f"--workers={args.workers} must be >= 1")
     resume = getattr(args, "resume", False)
     if resume and getattr(args, "overwrite", False):
-        raise ValueError("--resume and --overwrite exclude each other")
+        raise UserError("--resume and --overwrite exclude each other")
     previous = previous_run(args.out)
     if previous and not getattr(args, "overwrite", False) and not resume:
-        raise ValueError(
+        raise UserError(
             f"{args.out} holds a previous run ({', '.join(previous[:3])}{', ...' if len(previous) > 3 else ''}); "
             "pass --overwrite to replace it, --resume to finish it, or another --out "
             "(logs of two runs side by side would mix in a diagnosis)"
@@ -166,15 +167,15 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
         require_ray()
     specs = split_controller_specs(args.controllers)
     if len(set(specs)) != len(specs):
-        raise ValueError(f"--controllers lists a spec twice: {specs}")
+        raise UserError(f"--controllers lists a spec twice: {specs}")
     for spec in specs:
         try:
             make_controller(spec)
         except (ValueError, TypeError, OSError) as e:
-            raise ValueError(f"bad controller spec {spec!r}: {e}") from e
+            raise UserError(f"bad controller spec {spec!r}: {e}") from e
     labels = [controller_label(s) for s in specs]
     if len(set(labels)) != len(labels):
-        raise ValueError(f"controller specs {specs} give clashing file labels {labels}")
+        raise UserError(f"controller specs {specs} give clashing file labels {labels}")
     reference_spec(specs, getattr(args, "reference", None))
     if resume:
         check_resume(args, specs)
@@ -191,14 +192,14 @@ def check_resume(args: argparse.Namespace, specs: list[str]) -> None:
     """Raise ``ValueError`` unless ``--out`` holds a run that this command can resume."""
     out: Path = args.out
     if not (out / "episodes.csv").is_file():
-        raise ValueError(f"--resume: {out / 'episodes.csv'} does not exist, so there is nothing to resume")
+        raise UserError(f"--resume: {out / 'episodes.csv'} does not exist, so there is nothing to resume")
     if not (out / RUN_JSON).is_file():
         return  # a run from before run.json: finished_rows still checks every episode against the grid
-    then = json.loads((out / RUN_JSON).read_text())
+    then = read_json(out / RUN_JSON)
     now = run_settings(args, specs)
     changed = [f"{key} {then.get(key)!r} then, {value!r} now" for key, value in now.items() if then.get(key) != value]
     if changed:
-        raise ValueError(
+        raise UserError(
             f"--resume: the run in {out} had other settings ({'; '.join(changed)}); "
             "rerun its command with --resume, or pass --overwrite to start afresh"
         )
@@ -222,7 +223,7 @@ def finished_rows(out: Path, jobs: list[EpisodeJob]) -> list[dict[str, Any]]:
         key = (row["suite"], row["scenario"], row["controller"], int(row["seed"]))
         job = by_key.get(key)
         if job is None:
-            raise ValueError(
+            raise UserError(
                 f"--resume: {out / 'episodes.csv'} holds an episode this command does not run "
                 f"({key[0]} {key[1]} {key[2]} seed {key[3]}); rerun that run's command, or pass --overwrite"
             )
@@ -237,7 +238,12 @@ def read_episodes_csv(path: Path) -> pd.DataFrame:
 
     dtypes = {c: str for c in TEXT_COLUMNS}
     exact: dict[str, Any] = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
-    return pd.read_csv(path, dtype=dtypes, keep_default_na=False, na_values=[""], **exact)  # pandas 3: exact already
+    try:
+        return pd.read_csv(
+            path, dtype=dtypes, keep_default_na=False, na_values=[""], **exact
+        )  # pandas 3: exact already
+    except ValueError as e:  # pandas' ParserError and EmptyDataError
+        raise UserError(f"{path}: not a readable episodes.csv ({e})") from e
 
 
 def _finished(row: dict[str, Any], log_name: str, out: Path) -> bool:

@@ -8,6 +8,8 @@ import os
 import sys
 from pathlib import Path
 
+from drillgym.envs.errors import UserError
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI arguments."""
@@ -59,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     from drillgym.eval.diagnosis.bench.run import run_bench
 
     if args.quick and args.opt_in:
-        raise ValueError("--opt-in adds full-size cases; it cannot be combined with --quick")
+        raise UserError("--opt-in adds full-size cases; it cannot be combined with --quick")
     cases: list[Case] = quick_cases() if args.quick else full_cases(opt_in=args.opt_in)
     if args.only:
         wanted = {c.strip() for c in args.only.split(",") if c.strip()}

@@ -7,6 +7,7 @@ import json
 import math
 import os
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.perf.rtde import bench, busy_processes
 
 
@@ -42,9 +43,9 @@ def run(args: argparse.Namespace) -> int:
         print("bench-rtde streams servoL to a real robot (within 1 µm of its pose): pass --yes to confirm")
         return 2
     if not args.seconds > 0:
-        raise ValueError(f"--seconds={args.seconds:g} must be > 0")
+        raise UserError(f"--seconds={args.seconds:g} must be > 0")
     if args.load_procs < 0:
-        raise ValueError(f"--load-procs={args.load_procs} must be >= 0")
+        raise UserError(f"--load-procs={args.load_procs} must be >= 0")
     emulator = None if args.robot else EmulatorProcess(max_lifetime_s=args.seconds + 120).start()
     host = args.robot or emulator.host  # type: ignore[union-attr]
     load_before = os.getloadavg()

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from drillgym.envs.cell_params import CellParams
+from drillgym.envs.errors import UserError
 from drillgym.eval.calibration.calibrate import (
     LI2023_CHECKS,
     METRICS,
@@ -91,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     if args.seeds < 1 or args.workers < 1:
-        raise ValueError("--seeds and --workers must be >= 1")
+        raise UserError("--seeds and --workers must be >= 1")
     if args.effects:
         from drillgym.envs.effects import build_effects
 

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS, parse_candidates
+from drillgym.envs.errors import UserError
 from drillgym.eval.cli.bench import previous_run
 
 RECORD_FILES = ("diagnosis.json", "report.md", "gap_map.png", "ranking.png", "overlays.png", "spectra.png")
@@ -49,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
 
     found = previous_run(args.out, RECORD_FILES, ())
     if found:
-        raise ValueError(
+        raise UserError(
             f"{args.out} holds a previous diagnosis ({', '.join(found)}): a diagnosis is never overwritten; "
             "pass another --out"
         )
@@ -58,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     for s in skipped:
         print(f"skipped {s}", file=sys.stderr)
     if len(episodes) < 4:
-        raise ValueError(f"{args.real}: {len(episodes)} usable episode(s); the diagnosis needs at least 4")
+        raise UserError(f"{args.real}: {len(episodes)} usable episode(s); the diagnosis needs at least 4")
     opts = DiagnoseOptions(workers=args.workers, candidates=candidates, seed=args.seed, progress=not args.no_progress)
     diag = run_diagnosis(episodes, opts)
     paths = write_outputs(diag, args.out, skipped, figures=not args.no_figures)

@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.explain.candidates import CANDIDATES, QUICK, candidate
 from drillgym.eval.explain.observations import FOLDS, RUNS
 from drillgym.eval.explain.pipeline import FULL, QUICK_SETTINGS, explain_folds
@@ -39,12 +40,12 @@ def parse_folds(text: str) -> tuple[str, ...]:
         return FOLDS
     folds = tuple(f.strip() for f in text.split(",") if f.strip())
     if not folds:
-        raise ValueError("--folds is empty")
+        raise UserError("--folds is empty")
     bad = [f for f in folds if f not in RUNS]
     if bad:
-        raise ValueError(f"--folds: unknown run(s) {bad}; choose from {list(RUNS)} or 'all'")
+        raise UserError(f"--folds: unknown run(s) {bad}; choose from {list(RUNS)} or 'all'")
     if len(set(folds)) != len(folds):
-        raise ValueError(f"--folds lists a run twice: {list(folds)}")
+        raise UserError(f"--folds lists a run twice: {list(folds)}")
     return folds
 
 
@@ -53,20 +54,20 @@ def run(args: argparse.Namespace) -> int:
     from drillgym.eval.explain.report import markdown
 
     if args.workers < 1:
-        raise ValueError(f"--workers={args.workers} must be >= 1")
+        raise UserError(f"--workers={args.workers} must be >= 1")
     if args.candidates is not None:
         names = [n.strip() for n in args.candidates.split(",") if n.strip()]
         if not names:
-            raise ValueError("--candidates is empty")
+            raise UserError("--candidates is empty")
     else:
         names = list(QUICK) if args.quick else [c.name for c in CANDIDATES]
     for n in names:
         candidate(n)
     if len(set(names)) != len(names):
-        raise ValueError(f"--candidates lists a name twice: {names}")
+        raise UserError(f"--candidates lists a name twice: {names}")
     folds = parse_folds(args.folds)
     if args.out.exists() and not args.out.is_dir():
-        raise ValueError(f"--out {args.out} exists and is not a folder")
+        raise UserError(f"--out {args.out} exists and is not a folder")
     settings = QUICK_SETTINGS if args.quick else FULL
     result = explain_folds(names, settings, args.workers, folds)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -8,6 +8,7 @@ import math
 import sys
 import time
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.real.ft_check import check
 
 
@@ -44,11 +45,11 @@ def run(args: argparse.Namespace) -> int:
     from drillgym.envs.real.netft_calibration import check_calibration, read_calibration
 
     if not (math.isfinite(args.mass_kg) and args.mass_kg > 0):
-        raise ValueError(f"--mass-kg={args.mass_kg:g} must be > 0")
+        raise UserError(f"--mass-kg={args.mass_kg:g} must be > 0")
     if not args.tolerance_pct > 0 or not args.average_s > 0 or (args.wait_s is not None and args.wait_s < 0):
-        raise ValueError("--tolerance-pct and --average-s must be > 0, --wait-s >= 0")
+        raise UserError("--tolerance-pct and --average-s must be > 0, --wait-s >= 0")
     if not args.settle_s >= 0:
-        raise ValueError(f"--settle-s={args.settle_s} must be >= 0")
+        raise UserError(f"--settle-s={args.settle_s} must be >= 0")
     host, port = split_host_port(args.ft, RDT_PORT)
     given = None if args.counts_per_force is None else NetFTCalibration(args.counts_per_force)
     device = read_calibration(host)
@@ -57,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         device,
     )
     if args.wait_s is None and not sys.stdin.isatty():
-        raise ValueError("stdin is not a terminal: cannot ask when the mass hangs; pass --wait-s")
+        raise UserError("stdin is not a terminal: cannot ask when the mass hangs; pass --wait-s")
 
     def wait() -> None:
         if args.wait_s is not None:

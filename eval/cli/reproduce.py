@@ -18,6 +18,7 @@ from typing import Any
 from tqdm import tqdm
 
 from drillgym.controllers.registry import BEST_CLASSICAL
+from drillgym.envs.errors import UserError, read_json
 from drillgym.eval.bench.summary import mean_ci
 from drillgym.eval.reproduce.experiments import (
     KP_SWEEP,
@@ -113,12 +114,12 @@ def run(args: argparse.Namespace) -> int:
     from drillgym.eval.reproduce.report import headline, write_report
 
     if args.seeds < 2:
-        raise ValueError(f"--seeds={args.seeds} must be >= 2 (confidence intervals need two)")
+        raise UserError(f"--seeds={args.seeds} must be >= 2 (confidence intervals need two)")
     given = getattr(args, "explanation", None)  # other commands (demo) build their own arguments
     explanation_path = given if given is not None else args.out / "explanation.json"
     if given is not None and not explanation_path.is_file():
         raise FileNotFoundError(f"--explanation {explanation_path}: no such file")
-    explanation = json.loads(explanation_path.read_text()) if explanation_path.is_file() else None
+    explanation = read_json(explanation_path) if explanation_path.is_file() else None
     seeds = list(range(3 if args.quick else args.seeds))
     kp_values = KP_SWEEP[::2] if args.quick else KP_SWEEP
     out: Path = args.out

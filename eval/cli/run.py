@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from drillgym.envs.cell_params import CellParams
+from drillgym.envs.errors import UserError
 from drillgym.envs.json_safe import json_safe
 from drillgym.envs.real.config import SafetyLimits
 from drillgym.envs.real.emulator.cli import parse_scenario
@@ -143,14 +144,14 @@ def _check_options(args: argparse.Namespace) -> None:
     """Refuse options that do not go together (``ValueError``)."""
     if args.plan is None:
         if args.yes_all:
-            raise ValueError("--yes-all is for --plan (every hole without asking); a single-hole run takes --yes")
+            raise UserError("--yes-all is for --plan (every hole without asking); a single-hole run takes --yes")
         return
     if args.scenario is not None:
-        raise ValueError("--plan FILE holds the scenario (its 'scenario' key, and each hole's); drop --scenario")
+        raise UserError("--plan FILE holds the scenario (its 'scenario' key, and each hole's); drop --scenario")
     if args.episodes != 1:
-        raise ValueError("--plan drills each of its holes once; drop --episodes")
+        raise UserError("--plan drills each of its holes once; drop --episodes")
     if args.yes:
-        raise ValueError(
+        raise UserError(
             "--yes confirms a single-hole run; with --plan the run asks before each hole, or --yes-all drills every "
             "hole without asking"
         )
@@ -160,7 +161,7 @@ def _refuse_previous_record(out: Path) -> None:
     """A run's record is append-only: refuse an ``--out`` that holds one (``ValueError`` naming what is there)."""
     found = previous_run(out, RECORD_FILES, RECORD_FOLDERS)
     if found:
-        raise ValueError(
+        raise UserError(
             f"{out} holds a previous run's record ({', '.join(found)}): a run's record is never overwritten or "
             "added to; pass another --out"
         )
@@ -171,7 +172,7 @@ def _refuse_far_transits(plan: DrillingPlan, limits: SafetyLimits) -> None:
     far = far_transits(plan.holes, limits.reset_max_distance_m)
     if far:
         a, b, distance_m = far[0]
-        raise ValueError(
+        raise UserError(
             f"{plan.path}: {b.label} is {distance_m * 1e3:.0f} mm from {a.label}, farther than the "
             f"{limits.reset_max_distance_m * 1e3:.0f} mm a reset moves the robot: drop --yes-all and jog the robot "
             "over when the run asks before that hole"

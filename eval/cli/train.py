@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from drillgym.controllers.registry import BEST_CLASSICAL
+from drillgym.envs.errors import UserError
 from drillgym.training import train
 from drillgym.training.config import load_config, resolve_config
 
@@ -154,9 +155,9 @@ def _sweep(args: argparse.Namespace) -> int:
     from drillgym.training.sweep import load_sweep
 
     if args.sweep is None:
-        raise ValueError("--ray/--address need --sweep SPEC.yaml (a single run trains on one machine)")
+        raise UserError("--ray/--address need --sweep SPEC.yaml (a single run trains on one machine)")
     if args.resume:
-        raise ValueError("--resume does not apply to --sweep (a failed trial restarts from its checkpoint)")
+        raise UserError("--resume does not apply to --sweep (a failed trial restarts from its checkpoint)")
     from drillgym.eval.scale.cluster import require_ray
 
     require_ray()
@@ -172,9 +173,9 @@ def _check(args: argparse.Namespace) -> list[str]:
     from drillgym.eval.bench.jobs import split_controller_specs
 
     if args.resume or args.export or args.sweep is not None:
-        raise ValueError("--seeds cannot be combined with --resume, --export or --sweep")
+        raise UserError("--seeds cannot be combined with --resume, --export or --sweep")
     if args.jobs < 1 or args.workers < 1 or args.eval_seeds < 2:
-        raise ValueError("--jobs and --workers must be >= 1, --eval-seeds >= 2")
+        raise UserError("--jobs and --workers must be >= 1, --eval-seeds >= 2")
     if args.config is not None:
         args.config = resolve_config(args.config)
         load_config(args.config)
@@ -184,7 +185,7 @@ def _check(args: argparse.Namespace) -> list[str]:
         make_controller(spec)
     missing = named - set(baselines)
     if missing:
-        raise ValueError(f"--baselines {args.baselines!r} must include {sorted(missing)}")
+        raise UserError(f"--baselines {args.baselines!r} must include {sorted(missing)}")
     return baselines
 
 
@@ -206,7 +207,7 @@ def train_seeds(args: argparse.Namespace, out: Path) -> list[int]:
     todo = [s for s in args.seeds if args.retrain or not (out / f"seed{s}" / "policy.zip").exists()]
     unfinished = [s for s in todo if (out / f"seed{s}").exists() and not args.retrain]
     if unfinished:
-        raise ValueError(
+        raise UserError(
             f"seeds {unfinished} have a run folder but no policy.zip (a killed run?): continue each with "
             f"drillgym train --out {out}/seed<N> --resume, or start them over with --retrain"
         )

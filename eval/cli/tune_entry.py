@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.bench.suites import JUDGE_ONLY_SUITES, SUITES
 from drillgym.eval.bench.tune_entry import TUNING_SUITES, best_candidate, candidate_specs, gain_settings, grid_table
 from drillgym.eval.cli.calibrate import comma_floats
@@ -63,18 +64,18 @@ def check_arguments(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     suites = [s.strip() for s in args.suites.split(",") if s.strip()]
     unknown = [s for s in suites if s not in SUITES]
     if unknown or not suites:
-        raise ValueError(f"unknown suite(s) {unknown}; choose from {', '.join(SUITES)}")
+        raise UserError(f"unknown suite(s) {unknown}; choose from {', '.join(SUITES)}")
     judged = [s for s in suites if s in JUDGE_ONLY_SUITES]
     if judged:
-        raise ValueError(
+        raise UserError(
             f"the {' and '.join(judged)} suite(s) judge tuned and learnt controllers; tune on paper and sweep only"
         )
     if args.seeds < 1 or args.workers < 1:
-        raise ValueError("--seeds and --workers must be >= 1")
+        raise UserError("--seeds and --workers must be >= 1")
     if args.kps and "kp=" in args.base:
-        raise ValueError("--kps tunes the base's kp: leave kp out of --base")
+        raise UserError("--kps tunes the base's kp: leave kp out of --base")
     if args.y_gains and "y_gain=" in args.base:
-        raise ValueError("--y-gains tunes the base's y_gain: leave y_gain out of --base")
+        raise UserError("--y-gains tunes the base's y_gain: leave y_gain out of --base")
     specs = candidate_specs(args.base, args.scales, args.depths_mm, args.kps, args.y_gains)
     for spec in specs:
         make_controller(spec)

@@ -9,6 +9,7 @@ import shlex
 import time
 from pathlib import Path
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.bench.tune_table import DEFAULT_BASE
 
 
@@ -40,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     if (out / "table.json").exists():
         raise FileExistsError(f"{out}/table.json exists: a tuned table is never overwritten; choose another --out")
     if args.workers < 1:
-        raise ValueError("--workers must be >= 1")
+        raise UserError("--workers must be >= 1")
     jobs = anchor_jobs(args.base, args.seeds, args.evals, args.step, args.seed_offset)
     budget = len(jobs) * args.seeds * (args.evals + 1)
     print(

@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from drillgym.envs.errors import UserError
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI arguments."""
@@ -28,12 +30,12 @@ def run(args: argparse.Namespace) -> int:
     studies = tuple(SOURCES) if args.studies.strip() == "all" else tuple(x.strip() for x in args.studies.split(","))
     unknown = [x for x in studies if x not in SOURCES]
     if unknown or not studies:
-        raise ValueError(
+        raise UserError(
             f"--studies: unknown study {unknown or args.studies!r}; choose from {', '.join(SOURCES)} or all"
         )
     out: Path = args.out
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ValueError(f"--out {out} exists and is not an empty folder: a validation's record is never overwritten")
+        raise UserError(f"--out {out} exists and is not an empty folder: a validation's record is never overwritten")
     result = validate(studies)
     out.mkdir(parents=True, exist_ok=True)
     figures = {s: plot_study(result, s, out / f"{s}.png") for s in dict.fromkeys(x["study"] for x in result["series"])}

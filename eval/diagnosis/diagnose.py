@@ -21,6 +21,7 @@ from typing import Any
 from tqdm import tqdm
 
 from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, EFFECTS, physics_of
+from drillgym.envs.errors import UserError
 from drillgym.eval.diagnosis.context import DiagnosisData, split_episodes
 from drillgym.eval.diagnosis.episodes import EpisodeData
 from drillgym.eval.diagnosis.fit import FitResult
@@ -85,7 +86,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     """:func:`diagnose`, keeping the episodes' replays and the model scores."""
     opt = options or DiagnoseOptions()
     if len(episodes) < MIN_EPISODES:
-        raise ValueError(f"{len(episodes)} usable episode(s); the diagnosis needs at least {MIN_EPISODES}")
+        raise UserError(f"{len(episodes)} usable episode(s); the diagnosis needs at least {MIN_EPISODES}")
     t0 = time.perf_counter()
     cal, ho = split_episodes(episodes, opt.seed)
     data = DiagnosisData.from_episodes(episodes, cal, ho)

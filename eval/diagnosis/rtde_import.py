@@ -47,12 +47,17 @@ RTDE_MAX_GAP_S = 3.0 / RTDE_RATE_HZ
 """Longest tolerated interval between RTDE states (s); longer is a gap."""
 
 
-def read_rtde_csv(path: Path) -> pd.DataFrame:
-    """An ``ur_rtde`` recording as a table (its header line names the columns)."""
+def _read_csv(path: Path) -> pd.DataFrame:
+    """The CSV table at ``path``; a missing, unreadable or malformed file raises ``LogCheckError`` naming it."""
     try:
-        frame = pd.read_csv(path)
+        return pd.read_csv(path)
     except (OSError, ValueError) as e:
         raise LogCheckError(f"{path}: not a readable CSV ({e})") from e
+
+
+def read_rtde_csv(path: Path) -> pd.DataFrame:
+    """An ``ur_rtde`` recording as a table (its header line names the columns)."""
+    frame = _read_csv(path)
     frame.columns = [c.strip() for c in frame.columns]
     missing = [c for c in ("timestamp", *RTDE_Q, *RTDE_TCP) if c not in frame.columns]
     if missing:
@@ -168,7 +173,7 @@ def _read_rtde(d: Path, t0: float, repairs: list[str]) -> tuple[np.ndarray, np.n
 
 
 def _read_ft(d: Path, host_t0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    ft = pd.read_csv(d / "ft.csv")
+    ft = _read_csv(d / "ft.csv")
     if "t_s" not in ft.columns:
         raise LogCheckError(f"{d / 'ft.csv'}: no t_s column")
     t = ft["t_s"].to_numpy(dtype=float) - host_t0
@@ -178,7 +183,7 @@ def _read_ft(d: Path, host_t0: float) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 def _read_commands(d: Path, host_t0: float) -> tuple[pd.DataFrame, np.ndarray]:
-    cmd = pd.read_csv(d / "commands.csv")
+    cmd = _read_csv(d / "commands.csv")
     missing = [c for c in COMMAND_COLUMNS if c not in cmd.columns]
     if missing:
         raise LogCheckError(f"{d / 'commands.csv'}: missing column(s) {missing}")
@@ -225,7 +230,7 @@ def _tracker(d: Path, host_t0: float, step_end: np.ndarray, n: int) -> tuple[np.
     path = d / "tracker.csv"
     if not path.is_file():
         return np.zeros((n, 3)), np.zeros(n, dtype=bool)
-    tr = pd.read_csv(path)
+    tr = _read_csv(path)
     if "t_s" not in tr.columns:
         raise LogCheckError(f"{path}: no t_s column")
     t = tr["t_s"].to_numpy(dtype=float) - host_t0

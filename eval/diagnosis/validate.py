@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from drillgym.envs.constants import FT_RATE_HZ, SUBSTEPS_PER_STEP
+from drillgym.envs.errors import UserError
 from drillgym.eval.logs.schema import COLUMN_NAMES, SIM_PREFIX
 
 REAL_COLUMNS = tuple(n for n in COLUMN_NAMES if not n.startswith(SIM_PREFIX))
@@ -49,7 +50,7 @@ TIME_TOLERANCE = 0.25
 HEADER_KEYS = ("scenario", "source")
 
 
-class LogCheckError(ValueError):
+class LogCheckError(UserError):
     """A log the diagnosis cannot use as it is; the message names the file, the column and why."""
 
 

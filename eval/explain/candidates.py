@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from drillgym.envs.effects.registry import EFFECTS
+from drillgym.envs.errors import UserError
 
 
 @dataclass(frozen=True)
@@ -102,4 +103,4 @@ def candidate(name: str) -> Candidate:
     for c in CANDIDATES:
         if c.name == name:
             return c
-    raise LookupError(f"unknown candidate {name!r}; choose from {', '.join(c.name for c in CANDIDATES)}")
+    raise UserError(f"unknown candidate {name!r}; choose from {', '.join(c.name for c in CANDIDATES)}")

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.explain.candidates import Candidate
 from drillgym.eval.explain.observations import HELD_OUT_RUN, check_calibration_only, sigma
 
@@ -106,7 +107,7 @@ def fit_candidate(
 
     check_calibration_only(targets, held_out)
     if grid_points < 3:
-        raise ValueError(f"grid_points={grid_points} must be >= 3")
+        raise UserError(f"grid_points={grid_points} must be >= 3")
     seen: dict[float, tuple[float, dict[str, dict[str, float]]]] = {}
 
     def misfit(x: float) -> float:

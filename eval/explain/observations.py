@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.reproduce.paper import LI2023_COMPENSATED, LI2023_UNCOMPENSATED
 
 RUNS = ("none", "kp1", "kp4")
@@ -62,7 +63,7 @@ def calibration_runs(held_out: str = HELD_OUT_RUN) -> tuple[str, ...]:
         ValueError: ``held_out`` is not one of :data:`RUNS`.
     """
     if held_out not in RUNS:
-        raise ValueError(f"unknown held-out run {held_out!r}; choose from {list(RUNS)}")
+        raise UserError(f"unknown held-out run {held_out!r}; choose from {list(RUNS)}")
     return tuple(run for run in RUNS if run != held_out)
 
 
@@ -93,5 +94,5 @@ def check_calibration_only(targets: Mapping[tuple[str, str], float], held_out: s
 def sigma(metric: str, value: float, seed_sd: float) -> float:
     """Assumed standard deviation of one trial's ``metric`` at ``value`` (same unit), given the sim's seed SD."""
     if metric not in FLOORS:
-        raise ValueError(f"unknown metric {metric!r}; choose from {list(FLOORS)}")
+        raise UserError(f"unknown metric {metric!r}; choose from {list(FLOORS)}")
     return math.sqrt(seed_sd**2 + (REL_ALLOWANCE * value) ** 2 + FLOORS[metric] ** 2)

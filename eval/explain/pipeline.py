@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.explain.observations import (
     FOLDS,
     HELD_OUT_RUN,
@@ -60,7 +61,7 @@ def explain(
     fit_seeds = list(range(settings["fit_seeds"]))
     predict_seeds = list(range(settings["predict_seeds"]))
     if len(fit_seeds) > len(predict_seeds):
-        raise ValueError("the fit cannot use more seeds than the prediction")
+        raise UserError("the fit cannot use more seeds than the prediction")
     targets = calibration_targets(held_out)
     if nominal_pred is None:
         nominal_pred = simulate(None, 0.0, RUNS, predict_seeds)
@@ -92,9 +93,9 @@ def explain_folds(
     from drillgym.eval.explain.simulate import close, simulate
 
     if not folds:
-        raise ValueError("at least one fold is needed")
+        raise UserError("at least one fold is needed")
     if len(set(folds)) != len(folds):
-        raise ValueError(f"a fold is listed twice: {list(folds)}")
+        raise UserError(f"a fold is listed twice: {list(folds)}")
     for held_out in folds:
         calibration_runs(held_out)
     nominal_pred = simulate(None, 0.0, RUNS, list(range(settings["predict_seeds"])))

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.controllers.rollout import run_episode
+from drillgym.envs.errors import UserError
 from drillgym.eval.explain.candidates import Candidate
 from drillgym.eval.explain.observations import METRICS
 
@@ -50,7 +51,7 @@ def simulate(candidate: Candidate | None, value: float, runs: tuple[str, ...], s
     from drillgym.eval.calibration.calibrate import fit_controller_model_n
 
     if not seeds:
-        raise ValueError("at least one seed is needed")
+        raise UserError("at least one seed is needed")
     env = _env()
     spec = candidate.effects_spec(value) if candidate else ""
     env.unwrapped.set_effects(build_effects(spec) if spec else None)

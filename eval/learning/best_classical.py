@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.learning.seed_checks import RULES, run_checks
 from drillgym.eval.learning.seed_stats import DEVIATION, POLICY, _natural, normalise_episodes, paired_diff
 
@@ -55,7 +56,7 @@ def choose_best_classical(
     known = set(baselines["controller"])
     missing = [c for c in [default, *candidates] if c not in known]
     if missing:
-        raise ValueError(f"no judge episodes of {missing}; baselines judged: {sorted(known)}")
+        raise UserError(f"no judge episodes of {missing}; baselines judged: {sorted(known)}")
     rows = []
     for candidate in candidates:
         if candidate == default:

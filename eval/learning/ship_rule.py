@@ -15,9 +15,10 @@ before the judge ran:
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
+
+from drillgym.envs.errors import UserError, read_json
 
 
 def selection_rows(out: Path, seeds: list[int]) -> list[dict[str, Any]]:
@@ -27,7 +28,7 @@ def selection_rows(out: Path, seeds: list[int]) -> list[dict[str, Any]]:
         path = out / f"seed{seed}" / "selection.json"
         row: dict[str, Any] = {"seed": seed, "found": path.exists()}
         if path.exists():
-            selection = json.loads(path.read_text())
+            selection = read_json(path)
             chosen = next(c for c in selection["candidates"] if c["candidate"] == selection["chosen"])
             row |= {
                 "chosen": selection["chosen"],
@@ -49,7 +50,7 @@ def ship_seed(rows: list[dict[str, Any]], rule: str) -> int | None:
     if rule == "none":
         return None
     if rule != "selection_deviation":
-        raise ValueError(f"unknown ship rule {rule!r}; choose selection_deviation or none")
+        raise UserError(f"unknown ship rule {rule!r}; choose selection_deviation or none")
     found = [r for r in rows if r["found"]]
     if not found:
         return None

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.envs.constants import CONTROL_DT_S, FT_RATE_HZ, RTDE_RATE_HZ, TRACKER_RATE_HZ
+from drillgym.envs.errors import UserError
 from drillgym.eval.logs.schema import LOG_SCHEMA_VERSION
 
 VERSIONED_PACKAGES = ("drillgym", "numpy", "gymnasium", "pybullet", "pin", "pandas", "pyarrow", "stable-baselines3")
@@ -66,7 +67,7 @@ def build_header(
         A JSON-ready dict (see ``docs/log_schema.md``).
     """
     if source not in SOURCES:
-        raise ValueError(f"source={source!r}; allowed: {SOURCES}")
+        raise UserError(f"source={source!r}; allowed: {SOURCES}")
     unwrapped = env.unwrapped
     spec = getattr(env, "spec", None)
     header = {

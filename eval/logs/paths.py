@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from drillgym.envs.errors import UserError
+
 SUFFIX = ".parquet"
 HEADER_FILE = "header.json"
 PART_GLOB = "part-*.parquet"
@@ -14,7 +16,7 @@ def log_paths(path: str | Path) -> tuple[Path, Path]:
     p = Path(path)
     stem = p.name[: -len(SUFFIX)] if p.name.endswith(SUFFIX) else p.name
     if not stem:
-        raise ValueError(f"{path!s} does not name an episode log")
+        raise UserError(f"{path!s} does not name an episode log")
     return p.with_name(stem), p.with_name(stem + SUFFIX)
 
 

@@ -11,12 +11,13 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.logs.paths import HEADER_FILE, PART_GLOB, log_paths
 from drillgym.eval.logs.schema import HEADER_METADATA_KEY
 from drillgym.eval.logs.writer import schema_for
 
 
-class EpisodeLogError(ValueError):
+class EpisodeLogError(UserError):
     """A log that cannot be read as asked: missing, not a drillgym log, or a corrupt part (named)."""
 
 
@@ -61,7 +62,10 @@ def _read_compacted(path: Path) -> dict[str, Any]:
         raise EpisodeLogError(f"{path}: not a readable Parquet file ({e})") from e
     if HEADER_METADATA_KEY not in meta:
         raise EpisodeLogError(f"{path}: no drillgym header in the Parquet metadata; not an episode log")
-    return dict(json.loads(meta[HEADER_METADATA_KEY]))
+    try:
+        return dict(json.loads(meta[HEADER_METADATA_KEY]))
+    except ValueError as e:
+        raise EpisodeLogError(f"{path}: unreadable drillgym header in the Parquet metadata ({e})") from e
 
 
 def _read_directory(directory: Path, allow_partial: bool) -> tuple[dict[str, Any], pd.DataFrame]:

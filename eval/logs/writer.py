@@ -18,6 +18,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.logs.header import dumps
 from drillgym.eval.logs.paths import HEADER_FILE, log_paths, part_name
 from drillgym.eval.logs.schema import ARROW_SCHEMA, HEADER_METADATA_KEY, SIM_COLUMNS
@@ -48,7 +49,7 @@ class EpisodeLogWriter:
             overwrite: replace an existing log of that name instead of raising ``FileExistsError``.
         """
         if flush_rows < 1:
-            raise ValueError(f"flush_rows={flush_rows} must be >= 1")
+            raise UserError(f"flush_rows={flush_rows} must be >= 1")
         self.dir, self.path = log_paths(path)
         for existing in (self.dir, self.path):
             if existing.exists():

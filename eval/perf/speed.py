@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.envs import SIM_ENV_ID
+from drillgym.envs.errors import UserError
 
 BARE_STEPS_PER_BLOCK = 2000
 """Bare PyBullet steps per timed block (~20 ms on a 2020s core)."""
@@ -56,7 +57,7 @@ def measure(runs: int = 7) -> dict[str, Any]:
     from drillgym.envs.pybullet_world import PyBulletWorld
 
     if runs < 1:
-        raise ValueError(f"runs={runs} must be >= 1")
+        raise UserError(f"runs={runs} must be >= 1")
     load_before = os.getloadavg()
     t0 = time.perf_counter()
     env = gym.make(SIM_ENV_ID)

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.envs.constants import APPROACH_START_M
+from drillgym.envs.errors import UserError
 from drillgym.envs.real.config import SafetyLimits
 
 MM = 1e3
@@ -73,7 +74,7 @@ def target_reach(
     R, entry = T[:3, :3], T[:3, 3]
     servo = _task_points(Path(commands_path), "servoL", entry, R)
     if len(servo) == 0:
-        raise ValueError(f"{commands_path} holds no servoL command: the dry run streamed nothing")
+        raise UserError(f"{commands_path} holds no servoL command: the dry run streamed nothing")
     start = _task_points(Path(commands_path), "moveL", entry, R)
     lateral_c, axial_c = correction_reach_m(R, lim.max_correction_m)
     lateral = np.hypot(servo[:, 0], servo[:, 1])

@@ -37,6 +37,7 @@ import numpy as np
 import yaml
 
 from drillgym.envs.cell_params import R_BASE_TASK
+from drillgym.envs.errors import UserError
 from drillgym.envs.scenario import Scenario
 
 PLAN_KEYS = ("scenario", "holes")
@@ -132,14 +133,14 @@ def load_plan(path: Path, first_seed: int = 0) -> DrillingPlan:
     path = Path(path)
     data = _read(path)
     if not isinstance(data, Mapping):
-        raise ValueError(f"{path}: a plan is a mapping with a 'holes' list; got {type(data).__name__}")
+        raise UserError(f"{path}: a plan is a mapping with a 'holes' list; got {type(data).__name__}")
     _known_keys(data, PLAN_KEYS, f"{path}")
     if "holes" not in data:
-        raise ValueError(f"{path}: missing key 'holes' (a list of holes, each with entry_point_base_mm)")
+        raise UserError(f"{path}: missing key 'holes' (a list of holes, each with entry_point_base_mm)")
     common = _scenario_mapping(data.get("scenario", {}), f"{path}: scenario")
     raw_holes = data["holes"]
     if not isinstance(raw_holes, list) or not raw_holes:
-        raise ValueError(f"{path}: 'holes' must be a non-empty list of holes; got {raw_holes!r}")
+        raise UserError(f"{path}: 'holes' must be a non-empty list of holes; got {raw_holes!r}")
     holes = tuple(_hole(path, k, raw, common, first_seed) for k, raw in enumerate(raw_holes, start=1))
     _check_names(path, holes)
     _check_entries_once(path, holes)
@@ -152,51 +153,51 @@ def _read(path: Path) -> Any:
         try:
             return json.loads(text)
         except json.JSONDecodeError as e:
-            raise ValueError(f"{path}: not valid JSON: {e}") from e
+            raise UserError(f"{path}: not valid JSON: {e}") from e
     if path.suffix.lower() not in (".yaml", ".yml"):
-        raise ValueError(f"{path}: a plan file is YAML (.yaml, .yml) or JSON (.json)")
+        raise UserError(f"{path}: a plan file is YAML (.yaml, .yml) or JSON (.json)")
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as e:
-        raise ValueError(f"{path}: not valid YAML: {' '.join(str(e).split())}") from e
+        raise UserError(f"{path}: not valid YAML: {' '.join(str(e).split())}") from e
 
 
 def _known_keys(data: Mapping[Any, Any], known: Sequence[str], where: str) -> None:
     unknown = sorted(str(k) for k in data if k not in known)
     if unknown:
-        raise ValueError(f"{where}: unknown key(s) {unknown}; expected {list(known)}")
+        raise UserError(f"{where}: unknown key(s) {unknown}; expected {list(known)}")
 
 
 def _scenario_mapping(raw: Any, where: str) -> dict[str, Any]:
     if raw is None:
         return {}
     if not isinstance(raw, Mapping):
-        raise ValueError(f"{where} must be a mapping of the env's arguments (e.g. {{feed_mm_s: 0.5}}); got {raw!r}")
+        raise UserError(f"{where} must be a mapping of the env's arguments (e.g. {{feed_mm_s: 0.5}}); got {raw!r}")
     if "tracker" in raw:
-        raise ValueError(f"{where}: 'tracker' is not a plan value: drillgym run --tracker names the tracker")
+        raise UserError(f"{where}: 'tracker' is not a plan value: drillgym run --tracker names the tracker")
     return {str(k): v for k, v in raw.items()}
 
 
 def _hole(path: Path, index: int, raw: Any, common: dict[str, Any], first_seed: int) -> PlannedHole:
     where = f"{path}: hole {index}"
     if not isinstance(raw, Mapping):
-        raise ValueError(f"{where}: a hole is a mapping with entry_point_base_mm; got {raw!r}")
+        raise UserError(f"{where}: a hole is a mapping with entry_point_base_mm; got {raw!r}")
     name = raw.get("name", f"hole{index}")
     if not isinstance(name, str) or not NAME_PATTERN.match(name):
-        raise ValueError(f"{where}: name {name!r} must be 1-40 letters, digits, '_', '.' or '-' (it names the log)")
+        raise UserError(f"{where}: name {name!r} must be 1-40 letters, digits, '_', '.' or '-' (it names the log)")
     where = f"{path}: hole {index} ({name})"
     _known_keys(raw, HOLE_KEYS, where)
     if "entry_point_base_mm" not in raw:
-        raise ValueError(f"{where}: missing key 'entry_point_base_mm' (x, y, z of the entry point, mm, UR base frame)")
+        raise UserError(f"{where}: missing key 'entry_point_base_mm' (x, y, z of the entry point, mm, UR base frame)")
     entry_m = _entry_point_m(raw["entry_point_base_mm"], where)
     changes = _scenario_mapping(raw.get("scenario", {}), f"{where}: scenario")
     try:
         scenario = Scenario.from_kwargs(**{**common, **changes})
     except (TypeError, ValueError) as e:
-        raise ValueError(f"{where}: scenario: {e}") from e
+        raise UserError(f"{where}: scenario: {e}") from e
     seed = raw.get("seed", first_seed + index - 1)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"{where}: seed {seed!r} must be a whole number >= 0")
+        raise UserError(f"{where}: seed {seed!r} must be a whole number >= 0")
     return PlannedHole(index, name, entry_m, scenario, seed)
 
 
@@ -204,18 +205,18 @@ def _entry_point_m(raw: Any, where: str) -> tuple[float, float, float]:
     what = f"{where}: entry_point_base_mm"
     numbers = isinstance(raw, list) and all(isinstance(v, int | float) and not isinstance(v, bool) for v in raw)
     if not numbers or len(raw) != 3:
-        raise ValueError(f"{what} must be [x, y, z] in mm (UR base frame); got {raw!r}")
+        raise UserError(f"{what} must be [x, y, z] in mm (UR base frame); got {raw!r}")
     if not all(math.isfinite(v) for v in raw):
-        raise ValueError(f"{what} {raw!r} must be finite numbers (no NaN or infinity)")
+        raise UserError(f"{what} {raw!r} must be finite numbers (no NaN or infinity)")
     radius_mm = math.dist(raw, (0.0, 0.0, 0.0))
     lo, hi = ENTRY_RADIUS_MM
     if radius_mm < lo:
-        raise ValueError(
+        raise UserError(
             f"{what} {raw!r} is {radius_mm:.3g} mm from the base origin, inside the robot's base (< {lo:g} mm): "
             "entry points are in mm, not m"
         )
     if radius_mm > hi:
-        raise ValueError(
+        raise UserError(
             f"{what} {raw!r} is {radius_mm:.0f} mm from the base origin, beyond the UR5's reach ({hi:g} mm)"
         )
     return (raw[0] * 1e-3, raw[1] * 1e-3, raw[2] * 1e-3)
@@ -225,7 +226,7 @@ def _check_names(path: Path, holes: Sequence[PlannedHole]) -> None:
     seen: dict[str, PlannedHole] = {}
     for hole in holes:
         if hole.name in seen:
-            raise ValueError(f"{path}: holes {seen[hole.name].index} and {hole.index} are both named {hole.name!r}")
+            raise UserError(f"{path}: holes {seen[hole.name].index} and {hole.index} are both named {hole.name!r}")
         seen[hole.name] = hole
 
 
@@ -235,7 +236,7 @@ def _check_entries_once(path: Path, holes: Sequence[PlannedHole]) -> None:
         for b in holes[i + 1 :]:
             distance_m, tolerance_m = axis_distance_m(a.entry_base_m, b.entry_base_m), same_entry_tolerance_m(a, b)
             if distance_m < tolerance_m:
-                raise ValueError(
+                raise UserError(
                     f"{path}: {a.label} and {b.label} drill the same entry point: their drill axes are "
                     f"{distance_m * 1e3:.2f} mm apart, closer than the drill diameter ({tolerance_m * 1e3:.2f} mm), "
                     "so the second would cut into the first's hole; each entry point is drilled once"

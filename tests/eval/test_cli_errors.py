@@ -2,6 +2,7 @@
 
 import pytest
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.real.emulator.process import free_loopback_host
 from drillgym.eval.cli import COMMANDS, main
 
@@ -90,3 +91,51 @@ def test_a_failed_command_leaves_no_output_folder(argv, tmp_path, capsys):
     out = tmp_path / "out"
     assert _run([*argv, "--out", str(out)]) == 2
     assert not out.exists(), sorted(p.name for p in out.iterdir())
+
+
+def test_a_plain_value_error_in_a_command_is_a_bug_and_keeps_its_traceback(monkeypatch):
+    """Only ``UserError`` (and OSError, a missing optional package) is the user's: a ``ValueError`` raised by the
+    project's own code, like NumPy's on a shape mismatch, propagates out of ``main`` instead of printing as bad input."""
+    import drillgym.eval.cli.bench_speed as command
+
+    def broken(args):
+        raise ValueError("operands could not be broadcast together with shapes (3,) (4,)")
+
+    monkeypatch.setattr(command, "run", broken)
+    with pytest.raises(ValueError, match="broadcast"):
+        main(["bench-speed"])
+
+
+def test_a_user_error_raised_inside_a_command_is_one_line_and_exit_2(monkeypatch, capsys):
+    import drillgym.eval.cli.bench_speed as command
+
+    def refuses(args):
+        raise UserError("--runs=0 must be >= 1")
+
+    monkeypatch.setattr(command, "run", refuses)
+    assert main(["bench-speed"]) == 2
+    assert capsys.readouterr().err == "drillgym bench-speed: error: --runs=0 must be >= 1\n"
+
+
+@pytest.mark.parametrize(
+    ("command", "file_name", "text", "option"),
+    [
+        ("train", "bad.yaml", "algo: [sac\n", "--config"),
+        ("reproduce", "explanation.json", '{"chosen": ', "--explanation"),
+    ],
+    ids=["yaml", "json"],
+)
+def test_a_malformed_input_file_is_one_line_naming_it_and_exit_2(command, file_name, text, option, tmp_path, capsys):
+    path = tmp_path / file_name
+    path.write_text(text)
+    code = _run([command, option, str(path), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.startswith(f"drillgym {command}: error: {path}: not valid ") and err.count("\n") == 1, err
+
+
+def test_emulate_names_a_scenario_that_is_not_json():
+    from drillgym.envs.real.emulator.cli import parse_scenario
+
+    with pytest.raises(UserError, match="not valid JSON"):
+        parse_scenario('{"beta_deg": ')

@@ -13,6 +13,7 @@ import json
 import signal
 from typing import Any
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.key_values import convert, split_items
 from drillgym.envs.real.emulator.config import (
     CONTROL_PORT,
@@ -36,12 +37,16 @@ def parse_scenario(text: str | None) -> Scenario:
     if not text:
         return Scenario()
     if text.lstrip().startswith("{"):
-        return Scenario.from_kwargs(**json.loads(text))
+        try:
+            values = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise UserError(f"--scenario {text!r}: not valid JSON ({e})") from e
+        return Scenario.from_kwargs(**values)
     types = {f.name: f.type for f in dataclasses.fields(Scenario)}
     items = split_items(text, f"--scenario {text!r} (keys: {', '.join(sorted(types))})")
     unknown = sorted(set(items) - set(types))
     if unknown:
-        raise ValueError(f"--scenario: unknown key(s) {unknown}; expected key=value with key in {sorted(types)}")
+        raise UserError(f"--scenario: unknown key(s) {unknown}; expected key=value with key in {sorted(types)}")
     # text and flags as they are; every other field is a number (user units, as the env takes)
     kinds = {key: str(types[key]) if str(types[key]) in ("str", "bool") else float for key in items}
     kwargs: dict[str, Any] = {key: convert(key, raw, kinds[key]) for key, raw in items.items()}

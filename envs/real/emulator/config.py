@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
 from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT
@@ -34,16 +35,16 @@ class ScheduledFault:
 
     def __post_init__(self) -> None:
         if self.kind not in FAULT_KINDS:
-            raise ValueError(f"fault kind {self.kind!r}; choose from {FAULT_KINDS}")
+            raise UserError(f"fault kind {self.kind!r}; choose from {FAULT_KINDS}")
         if self.after_s < 0 or self.value < 0:
-            raise ValueError(f"fault {self.kind}: times must be >= 0, got after {self.after_s}, value {self.value}")
+            raise UserError(f"fault {self.kind}: times must be >= 0, got after {self.after_s}, value {self.value}")
 
     @classmethod
     def parse(cls, text: str) -> ScheduledFault:
         """``KIND@SECONDS`` or ``KIND:VALUE@SECONDS`` (e.g. ``protective_stop@3``, ``delay:0.02@1``)."""
         head, at, when = text.partition("@")
         if not at:
-            raise ValueError(f"fault {text!r}: expected KIND[:VALUE]@SECONDS")
+            raise UserError(f"fault {text!r}: expected KIND[:VALUE]@SECONDS")
         kind, _, value = head.partition(":")
         return cls(kind, float(when), float(value) if value else 0.0)
 
@@ -82,10 +83,10 @@ class EmulatorConfig:
 
     def __post_init__(self) -> None:
         if not self.host.startswith("127."):
-            raise ValueError(f"host={self.host!r}: the emulator serves on loopback (127.0.0.0/8) only")
+            raise UserError(f"host={self.host!r}: the emulator serves on loopback (127.0.0.0/8) only")
         if not 100.0 <= self.ft_rate_hz <= 7000.0:
-            raise ValueError(f"ft_rate_hz={self.ft_rate_hz} outside [100, 7000]")
+            raise UserError(f"ft_rate_hz={self.ft_rate_hz} outside [100, 7000]")
         if not 1 <= self.ft_rdt_buffer_size <= 40:
-            raise ValueError(f"ft_rdt_buffer_size={self.ft_rdt_buffer_size} outside [1, 40]")
+            raise UserError(f"ft_rdt_buffer_size={self.ft_rdt_buffer_size} outside [1, 40]")
         if not 1.0 <= self.tracker_rate_hz <= 500.0:
-            raise ValueError(f"tracker_rate_hz={self.tracker_rate_hz} outside [1, 500]")
+            raise UserError(f"tracker_rate_hz={self.tracker_rate_hz} outside [1, 500]")

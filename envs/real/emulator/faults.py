@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
 
+from drillgym.envs.errors import UserError
 from drillgym.envs.real.emulator.config import FAULT_KINDS, ScheduledFault
 
 if TYPE_CHECKING:
@@ -57,7 +58,7 @@ class FaultState:
     def apply(self, emulator: FaultTarget, kind: str, value: float, t_s: float) -> None:
         """Switch on fault ``kind`` (``value``: delay in s, or link-down duration in s, 0 = until cleared)."""
         if kind not in FAULT_KINDS:
-            raise ValueError(f"fault kind {kind!r}; choose from {FAULT_KINDS}")
+            raise UserError(f"fault kind {kind!r}; choose from {FAULT_KINDS}")
         self.history.append(f"{t_s:.3f} {kind} {value:g}")
         emulator.log(f"fault injected: {kind} ({value:g})")
         if kind == "protective_stop":

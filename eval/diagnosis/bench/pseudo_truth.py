@@ -17,6 +17,7 @@ import zlib
 from pathlib import Path
 from typing import Any
 
+from drillgym.envs.errors import UserError
 from drillgym.eval.diagnosis.bench.cases import Case
 
 EPISODES = 36
@@ -97,11 +98,11 @@ def _read(path: Path) -> dict[str, Any]:
     try:
         table = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise ValueError(f"{path}: not a pseudo-truth table ({e}); name another file or delete it") from e
+        raise UserError(f"{path}: not a pseudo-truth table ({e}); name another file or delete it") from e
     entries = table.values() if isinstance(table, dict) else []
     if not isinstance(table, dict) or not all(
         isinstance(v, dict) and isinstance(v.get("candidate"), str) and isinstance(v.get("params"), dict)
         for v in entries
     ):
-        raise ValueError(f"{path}: not a pseudo-truth table (entries need 'candidate' and 'params')")
+        raise UserError(f"{path}: not a pseudo-truth table (entries need 'candidate' and 'params')")
     return table

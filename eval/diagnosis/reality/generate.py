@@ -19,6 +19,7 @@ import numpy as np
 from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.effects.registry import parse_effect_spec
+from drillgym.envs.errors import UserError
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 from drillgym.eval.diagnosis.reality.bone import ForceScaleReset
 from drillgym.eval.diagnosis.reality.library import REALITY_EFFECTS, describe_parameters, switched_on, switches
@@ -42,14 +43,14 @@ def build_reality(spec: str) -> list[RealityEffect]:
     out: list[RealityEffect] = []
     for name, values in parse_effect_spec(spec):
         if name not in REALITY_EFFECTS:
-            raise ValueError(f"unknown reality effect {name!r}; choose from {sorted(REALITY_EFFECTS)}")
+            raise UserError(f"unknown reality effect {name!r}; choose from {sorted(REALITY_EFFECTS)}")
         try:
             effect = REALITY_EFFECTS[name](**values)
         except ValueError as e:
-            raise ValueError(f"{e}; {describe_parameters(name)}") from e
+            raise UserError(f"{e}; {describe_parameters(name)}") from e
         if not switched_on(effect):
             on = ", ".join(switches(type(effect)))
-            raise ValueError(
+            raise UserError(
                 f"reality effect {name!r} switches nothing on with {spec!r}: set one of {on} away from 0; "
                 f"{describe_parameters(name)}"
             )
@@ -87,7 +88,7 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
     from drillgym.eval.logs import EpisodeLogger, build_header
 
     if episodes < 1:
-        raise ValueError(f"episodes={episodes} must be >= 1")
+        raise UserError(f"episodes={episodes} must be >= 1")
     build_reality(spec)  # validate before creating or running anything
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
