@@ -25,6 +25,7 @@ from drillgym.envs.errors import UserError
 from drillgym.eval.diagnosis.context import DiagnosisData, split_episodes
 from drillgym.eval.diagnosis.episodes import EpisodeData
 from drillgym.eval.diagnosis.fit import FitResult
+from drillgym.eval.diagnosis.gap import pooled
 from drillgym.eval.diagnosis.intervals import off_point_inside, parameter_intervals
 from drillgym.eval.diagnosis.leftover import leftover_search
 from drillgym.eval.diagnosis.location import location_check
@@ -34,15 +35,12 @@ from drillgym.eval.diagnosis.rank import (
     ModelScore,
     alternatives,
     baseline_score,
-    gap_map,
-    gap_significance,
-    locate,
     nameable,
-    pooled,
     score_models,
     singles_by_name,
 )
 from drillgym.eval.diagnosis.verdict import Decision, decide, gap_location, summary
+from drillgym.eval.diagnosis.where import gap_map, gap_significance, locate
 from drillgym.eval.progress import bar_size
 
 MIN_EPISODES = 4

@@ -1,6 +1,6 @@
 """Where the gap lies before and after the per-specimen hardness fit, and whether the fit moved it.
 
-The location (:func:`~drillgym.eval.diagnosis.rank.locate`: the cells holding the most excess gap over all
+The location (:func:`~drillgym.eval.diagnosis.where.locate`: the cells holding the most excess gap over all
 episodes) is read twice, each against the null replays read the same way: on the **raw** gap, every specimen
 taken as preset, and on the gap **after the per-specimen fit**, each episode's specimen hardness profiled out
 (:func:`~drillgym.eval.diagnosis.gap.gap_terms`). The fit can move it: where one channel is wrong in a way a harder
@@ -16,7 +16,7 @@ from typing import Any
 
 from drillgym.eval.diagnosis.channels import GROUP_OF
 from drillgym.eval.diagnosis.context import DiagnosisData
-from drillgym.eval.diagnosis.rank import locate
+from drillgym.eval.diagnosis.where import locate
 
 
 def location_check(data: DiagnosisData, top: int = 3) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""Held-out scores, bootstrap intervals, the parameter penalty, the naming bar, and where the gap lies.
+"""Held-out scores, bootstrap intervals, the parameter penalty and the naming bar.
 
 Gap of a set of episodes: ``G = Σ J / Σ N``, the mean normalised term (:mod:`drillgym.eval.diagnosis.gap`);
 the simulator's own level ``G₀`` comes from null replays (noise and a drawn specimen on). For a model
@@ -9,11 +9,11 @@ the simulator's own level ``G₀`` comes from null replays (noise and a drawn sp
 * bootstrap over held-out episodes (:data:`BOOTSTRAP`): a 95 % interval of the shrink and the
   probability that each model has the best score.
 
-A gap counts when it is significant (:func:`gap_significance`); a model is nameable when it removes at least
+A gap counts when it is significant (:func:`~drillgym.eval.diagnosis.where.gap_significance`); a model is nameable when it removes at least
 :data:`NAME_SHRINK_MIN` of the excess (interval above :data:`NAME_CI_LOW_MIN`) and beats "no effect" on the
 penalised score (:func:`nameable`). When a pair is named over a single, and the guards on what an effect predicts
 where only its physics acts: :mod:`drillgym.eval.diagnosis.pairs`; the verdict on all of it:
-:mod:`drillgym.eval.diagnosis.verdict`. :func:`gap_map` and :func:`locate` say where the gap lies.
+:mod:`drillgym.eval.diagnosis.verdict`. Where the gap lies: :mod:`drillgym.eval.diagnosis.where`.
 """
 
 from __future__ import annotations
@@ -24,38 +24,15 @@ from typing import Any
 
 import numpy as np
 
-from drillgym.eval.diagnosis.channels import ALL_CHANNELS, STAGES
 from drillgym.eval.diagnosis.fit import FitResult
-from drillgym.eval.diagnosis.gap import Terms, pooled
+from drillgym.eval.diagnosis.gap import Terms
 
 BOOTSTRAP = 1000
 """Bootstrap resamples of the held-out episodes."""
-GAP_RATIO_MIN = 1.1
-"""The median episode's gap must exceed the simulator's own level by this factor to count."""
 NAME_SHRINK_MIN = 0.5
 """A model is named only if it removes at least this share of the held-out excess gap."""
 NAME_CI_LOW_MIN = 0.2
 """... and the lower end of its 95 % interval is above this."""
-
-
-def gap_significance(real: list[Terms], null: list[Terms], seed: int = 0) -> dict[str, Any]:
-    """Is the gap beyond the simulator's own scatter? (all episodes, bootstrap over episodes)."""
-    g_null = pooled(null)
-    ratios = np.array([(t.j / t.n) / g_null for t in real])
-    dj = np.array([r.j - n.j for r, n in zip(real, null, strict=True)])
-    nn = np.array([r.n for r in real])
-    rng = np.random.default_rng(seed)
-    idx = rng.integers(0, len(real), size=(BOOTSTRAP, len(real)))
-    excess = dj[idx].sum(axis=1) / nn[idx].sum(axis=1)
-    low = float(np.quantile(excess, 0.025))
-    median_ratio = float(np.median(ratios))
-    return {
-        "gap": pooled(real),
-        "null": g_null,
-        "median_episode_ratio": median_ratio,
-        "excess_ci_low": low,
-        "significant": bool(low > 0.0 and median_ratio >= GAP_RATIO_MIN),
-    }
 
 
 @dataclass
@@ -215,47 +192,3 @@ def alternatives(scores: list[ModelScore], named: ModelScore, s0: float) -> list
             sets.append(set(s.fit.names))
     minimal = [a for a, e in zip(out, sets, strict=True) if not any(o < e for o in sets)]
     return sorted(minimal, key=lambda a: -a["p_better"])
-
-
-def gap_map(terms: list[Terms], null: list[Terms]) -> dict[str, Any]:
-    """Gap by channel and stage: normalised (≈ 1 where the sim explains the data), raw RMS, excess."""
-    tot = sum(terms, Terms.zeros())
-    nul = sum(null, Terms.zeros())
-    with np.errstate(invalid="ignore", divide="ignore"):
-        norm = tot.cell_sum / tot.cell_n
-        rms = np.sqrt(tot.rms_sum / tot.cell_n)
-        null_norm = np.where(nul.cell_n > 0, nul.cell_sum / nul.cell_n, 0.0)
-    excess = tot.cell_sum - tot.cell_n * null_norm
-    return {
-        "channels": list(ALL_CHANNELS),
-        "stages": list(STAGES),
-        "normalised": _nested(norm.T),
-        "null": _nested(np.where(nul.cell_n > 0, null_norm, np.nan).T),
-        "rms": _nested(rms.T),
-        "excess": _nested(excess.T),
-    }
-
-
-def excess_cells(terms: list[Terms], null: list[Terms]) -> np.ndarray:
-    """Excess gap of ``terms`` over the simulator's own level per (stage, channel) cell, clipped at 0, (6, 18)."""
-    tot = sum(terms, Terms.zeros())
-    nul = sum(null, Terms.zeros())
-    with np.errstate(invalid="ignore", divide="ignore"):
-        null_norm = np.where(nul.cell_n > 0, nul.cell_sum / nul.cell_n, 0.0)
-    return np.clip(tot.cell_sum - tot.cell_n * null_norm, 0.0, None)
-
-
-def locate(terms: list[Terms], null: list[Terms], top: int = 3) -> list[dict[str, Any]]:
-    """The cells holding the most excess gap (channel, stage, share of the total excess)."""
-    excess = excess_cells(terms, null)
-    total = float(excess.sum()) or 1.0
-    order = np.argsort(excess, axis=None)[::-1][:top]
-    out = []
-    for k in order:
-        s, c = np.unravel_index(k, excess.shape)
-        out.append({"channel": ALL_CHANNELS[c], "stage": STAGES[s], "share": float(excess[s, c] / total)})
-    return out
-
-
-def _nested(a: np.ndarray) -> list[list[float | None]]:
-    return [[None if not np.isfinite(v) else float(v) for v in row] for row in a]

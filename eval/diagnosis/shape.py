@@ -1,7 +1,7 @@
 """The shape test: a model is named only if its predicted change has the gap's shape, not only its size.
 
 The held-out excess gap (each (stage, channel) cell's terms over the simulator's own level, clipped at 0, as
-:func:`~drillgym.eval.diagnosis.rank.locate` reads it) is summed over **regions**: a stage group (before contact,
+:func:`~drillgym.eval.diagnosis.where.locate` reads it) is summed over **regions**: a stage group (before contact,
 entry, stable, retract) crossed with a channel group (lateral force, thrust, each also as HF: the power about the
 0.1 s block means, so the spectrum's high band; torque, tracker, joint angles). Every region holding at least
 :data:`SHAPE_SHARE_MIN` of the excess must lose at least :data:`SHAPE_REMOVE_MIN` of its own excess under the model. A model whose shrink comes
@@ -28,7 +28,8 @@ from drillgym.eval.diagnosis.channels import (
     TRACKER_CHANNELS,
 )
 from drillgym.eval.diagnosis.gap import Terms
-from drillgym.eval.diagnosis.rank import ModelScore, excess_cells
+from drillgym.eval.diagnosis.rank import ModelScore
+from drillgym.eval.diagnosis.where import excess_cells
 
 SHAPE_SHARE_MIN = 0.25
 """A region holding at least this share of the held-out excess gap must be explained in part."""

@@ -3,7 +3,7 @@
 Pure functions of the held-out scores (:mod:`drillgym.eval.diagnosis.rank`); no replay is run here. The rules
 (the bars are :mod:`~drillgym.eval.diagnosis.rank`'s constants):
 
-* ``no_gap`` when the gap is not significant (:func:`~drillgym.eval.diagnosis.rank.gap_significance`), whatever
+* ``no_gap`` when the gap is not significant (:func:`~drillgym.eval.diagnosis.where.gap_significance`), whatever
   the models do;
 * else the best-scoring single effect is named when it is
   :func:`~drillgym.eval.diagnosis.rank.nameable` (shrink ≥ 50 %, its 95 % interval's low end ≥ 20 %, a penalised
@@ -23,9 +23,11 @@ from typing import Any, NamedTuple
 
 from drillgym.eval.diagnosis.channels import GROUP_OF
 from drillgym.eval.diagnosis.context import DiagnosisData
+from drillgym.eval.diagnosis.gap import pooled
 from drillgym.eval.diagnosis.pairs import pair_beats, pair_roles, single_contradicted
-from drillgym.eval.diagnosis.rank import ModelScore, baseline_score, locate, nameable, pooled, singles_by_name
+from drillgym.eval.diagnosis.rank import ModelScore, baseline_score, nameable, singles_by_name
 from drillgym.eval.diagnosis.shape import shape_test
+from drillgym.eval.diagnosis.where import locate
 
 LEFTOVER_REPORT_RATIO = 3.0
 """When a named model leaves a held-out gap above this many times the simulator's own level (``leftover_ratio``),
@@ -113,7 +115,7 @@ def gap_location(data: DiagnosisData) -> dict[str, Any]:
     """Where the gap lies when nothing is named: the cell holding the most excess gap.
 
     Over all episodes (``data.baseline_terms`` against ``data.null_terms``): ``channel``, ``stage`` and ``share``
-    (that cell's excess over the total, 0–1; :func:`~drillgym.eval.diagnosis.rank.locate`).
+    (that cell's excess over the total, 0–1; :func:`~drillgym.eval.diagnosis.where.locate`).
     """
     top = locate(data.baseline_terms, data.null_terms, top=1)[0]
     return {"channel": top["channel"], "stage": top["stage"], "share": top["share"]}

@@ -18,9 +18,10 @@ from diagnosis_stubs import stub_score
 from drillgym.eval.diagnosis.channels import ALL_CHANNELS, STAGES
 from drillgym.eval.diagnosis.fit import FitResult
 from drillgym.eval.diagnosis.gap import N_CELLS, Terms
-from drillgym.eval.diagnosis.rank import baseline_score, gap_significance, nameable, score_models
+from drillgym.eval.diagnosis.rank import baseline_score, nameable, score_models
 from drillgym.eval.diagnosis.report import why_not_named
 from drillgym.eval.diagnosis.verdict import verdict as verdict_on
+from drillgym.eval.diagnosis.where import gap_significance
 
 NAME_SHRINK = 0.5
 NAME_CI_LOW = 0.2

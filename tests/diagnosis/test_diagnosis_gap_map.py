@@ -1,4 +1,4 @@
-"""Where the gap lies (rank.gap_map, rank.locate) and a model's entry in diagnosis.json (ModelScore.to_json).
+"""Where the gap lies (where.gap_map, where.locate) and a model's entry in diagnosis.json (ModelScore.to_json).
 
 Terms are built by hand in a few cells; the expected maps are written out cell by cell. Comparisons are exact: every
 value is a quotient or square root of small exactly representable numbers chosen to come out exact.
@@ -14,7 +14,8 @@ import pytest
 from drillgym.eval.diagnosis.channels import ALL_CHANNELS, STAGES
 from drillgym.eval.diagnosis.fit import FitResult
 from drillgym.eval.diagnosis.gap import N_CELLS, Terms
-from drillgym.eval.diagnosis.rank import ModelScore, gap_map, locate
+from drillgym.eval.diagnosis.rank import ModelScore
+from drillgym.eval.diagnosis.where import gap_map, locate
 
 APPROACH, ENTRY1, STABLE = (STAGES.index(s) for s in ("approach", "entry1", "stable"))
 FZ, TX, Q0 = (ALL_CHANNELS.index(c) for c in ("fz_n", "tx_nm", "q0_rad"))

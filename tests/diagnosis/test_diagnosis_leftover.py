@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from drillgym.eval.diagnosis.channels import ALL_CHANNELS, STAGES
 from drillgym.eval.diagnosis.fit import FitResult
 from drillgym.eval.diagnosis.gap import N_CELLS, Terms
-from drillgym.eval.diagnosis.rank import ALL_CHANNELS, STAGES, locate, score_models
+from drillgym.eval.diagnosis.rank import score_models
 from drillgym.eval.diagnosis.verdict import LEFTOVER_REPORT_RATIO, summary
+from drillgym.eval.diagnosis.where import locate
 
 
 def _terms(level: float, hot: tuple[int, int] | None = None, extra: float = 0.0) -> Terms:

@@ -18,14 +18,8 @@ from diagnosis_stubs import stub_score
 
 from drillgym.eval.diagnosis.fit import FitResult
 from drillgym.eval.diagnosis.gap import N_CELLS, Terms
-from drillgym.eval.diagnosis.rank import (
-    ModelScore,
-    alternatives,
-    gap_significance,
-    locate,
-    p_better,
-    score_models,
-)
+from drillgym.eval.diagnosis.rank import ModelScore, alternatives, p_better, score_models
+from drillgym.eval.diagnosis.where import gap_significance, locate
 
 
 def _terms(j: float, n: float) -> Terms:
