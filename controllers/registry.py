@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib
 from collections.abc import Callable
-from importlib.metadata import EntryPoint, entry_points
+from importlib.metadata import entry_points
 from typing import Any
 
 from drillgym.controllers.base import Controller
@@ -44,17 +45,42 @@ BEST_CLASSICAL = "li2023_tuned"
 
 
 LOADER_GROUP = "drillgym.controllers"
-"""Entry-point group of controller loaders: ``NAME = "module:function"``, where ``function(rest)`` builds the
-controller of the spec ``NAME:rest`` (the text after the colon, unparsed). The project registers
-``residual`` (:func:`drillgym.training.residual_policy.load_residual_controller`) in its ``pyproject.toml``, so
-the registry builds learnt controllers without importing the training package; other packages may
-register their own."""
+"""Entry-point group of third-party controller loaders: ``NAME = "module:function"``, where ``function(rest)``
+builds the controller of the spec ``NAME:rest`` (the text after the colon, unparsed)."""
+BUILTIN_LOADERS: dict[str, str] = {"table": "drillgym.controllers.schedule_table:load_table_controller"}
+"""Loaders of this package, ``name -> "module:function"`` (imported when a spec uses them)."""
+NEEDS_IMPORT: dict[str, str] = {"residual": "drillgym.training"}
+"""Loaders that a package registers when it is imported (:func:`register_loader`), named in the error when a spec
+uses one before its package was imported (``drillgym.eval`` and the ``drillgym`` command import them all)."""
+_registered: dict[str, str] = {}
+
+
+def register_loader(name: str, target: str) -> None:
+    """Build ``name:rest`` specs with ``target`` (``"module:function"``; ``function(rest)`` returns the controller).
+
+    A package above this one registers its own family when it is imported (``drillgym.training`` registers
+    ``residual``), so the registry never imports upward; a loader registered here wins over an entry point.
+    """
+    module, _, function = target.partition(":")
+    if not module or not function:
+        raise ValueError(f"loader target {target!r}: expected 'module:function'")
+    _registered[name] = target
 
 
 @functools.cache
-def loaders() -> dict[str, EntryPoint]:
-    """Controller loaders registered under :data:`LOADER_GROUP`, by name."""
-    return {ep.name: ep for ep in entry_points(group=LOADER_GROUP)}
+def _entry_point_loaders() -> dict[str, str]:
+    return {ep.name: ep.value for ep in entry_points(group=LOADER_GROUP)}
+
+
+def loaders() -> dict[str, str]:
+    """Controller loaders by name, ``"module:function"``: entry points, this package's, then registered ones."""
+    return {**_entry_point_loaders(), **BUILTIN_LOADERS, **_registered}
+
+
+def _load(target: str) -> Callable[[str], Controller]:
+    module, _, function = target.partition(":")
+    loader: Callable[[str], Controller] = getattr(importlib.import_module(module), function)
+    return loader
 
 
 def parse_spec(spec: str) -> tuple[str, dict[str, str]]:
@@ -63,7 +89,7 @@ def parse_spec(spec: str) -> tuple[str, dict[str, str]]:
     The text after a loader's name (``residual:PATH``) is its own and is not split.
     """
     name, rest = split_named(spec)
-    if name in loaders():
+    if name in loaders() or name in NEEDS_IMPORT:
         return name, {}
     return name, split_items(rest, f"controller spec {spec!r}")
 
@@ -75,8 +101,10 @@ def make_controller(spec: str) -> Controller:
         name, preset = parse_spec(PRESETS[name])
         overrides = {**preset, **overrides}
     if name in loaders():
-        load: Callable[[str], Controller] = loaders()[name].load()
-        return load(spec.strip().partition(":")[2])
+        return _load(loaders()[name])(spec.strip().partition(":")[2])
+    if name in NEEDS_IMPORT:
+        package = NEEDS_IMPORT[name]
+        raise UserError(f"{name}:... controllers are registered by {package}: import {package} first")
     if name not in CONTROLLERS:
         plugins = " or ".join(f"{n}:..." for n in sorted(loaders()))
         raise UserError(

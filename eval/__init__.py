@@ -5,3 +5,5 @@
 across-seed report), ``real`` (``run``, ``ft-check``), ``diagnosis`` (sim-to-real gap), ``explain``
 (``explain-paper``), ``logs`` (episode logs) and ``scale`` (Ray).
 """
+
+from drillgym import training as training  # registers the ``residual:PATH`` controllers for every job below

@@ -4,8 +4,11 @@
 ``make_controller("residual:PATH")`` runs it like any controller.
 """
 
+from drillgym.controllers.registry import register_loader
 from drillgym.controllers.residual import combine
 from drillgym.training.config import TrainConfig, load_config
 from drillgym.training.residual_wrapper import ResidualWrapper
+
+register_loader("residual", "drillgym.training.residual_policy:load_residual_controller")
 
 __all__ = ["ResidualWrapper", "TrainConfig", "combine", "load_config"]
