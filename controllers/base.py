@@ -9,6 +9,7 @@ path prediction), reset at episode start.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import asdict, is_dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -66,8 +67,6 @@ class Controller(ABC):
 
     def describe(self) -> dict[str, Any]:
         """Name and configuration, JSON-ready (written into every episode log)."""
-        from dataclasses import asdict, is_dataclass
-
         cfg = asdict(self.config) if is_dataclass(self.config) and not isinstance(self.config, type) else {}
         return {"name": self.name, "config": {k: _jsonable(v) for k, v in cfg.items()}}
 

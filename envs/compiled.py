@@ -15,12 +15,15 @@ import time
 
 import numpy as np
 
+from drillgym.envs.batched import BatchedDrillEnv
+from drillgym.envs.cell import SimCell
+from drillgym.envs.drill_env import UR5BoneDrillEnv
+from drillgym.envs.scenario import Scenario
+
 
 def compile_kernels() -> float:
     """Run one short simulated step of every kernel (compiling or loading it); the seconds it took."""
     t0 = time.perf_counter()
-    from drillgym.envs.cell import SimCell
-    from drillgym.envs.scenario import Scenario
 
     cell = SimCell(Scenario())
     cell.reset(np.array([0.0, 0.0, -0.05e-3]))
@@ -28,7 +31,6 @@ def compile_kernels() -> float:
     cell.run([(0.0, 0.0, -0.04e-3), (0.0, 0.0, -0.03e-3)])
     cell.end_step()
     cell.marker_base_m()
-    from drillgym.envs.drill_env import UR5BoneDrillEnv
 
     env = UR5BoneDrillEnv()
     env.reset(seed=0)
@@ -38,7 +40,6 @@ def compile_kernels() -> float:
     env.reset(seed=0)
     env.advance_open_loop(np.zeros((1, 4)))
     env.close()
-    from drillgym.envs.batched import BatchedDrillEnv
 
     batch = BatchedDrillEnv(1)
     batch.reset(seed=0)

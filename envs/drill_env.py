@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import difflib
 import math
 from collections import deque
+from dataclasses import fields
 from typing import Any
 
 import gymnasium as gym
@@ -60,9 +62,6 @@ ENV_ARGUMENTS = (
 
 def _check_arguments(scenario_kwargs: dict[str, Any]) -> None:
     """``TypeError`` naming every accepted argument and the closest one for each unknown name."""
-    import difflib
-    from dataclasses import fields
-
     known = sorted([*ENV_ARGUMENTS, *(f.name for f in fields(Scenario))])
     unknown = sorted(set(scenario_kwargs) - set(known))
     if not unknown:

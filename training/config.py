@@ -9,7 +9,11 @@ from typing import Any
 
 import yaml
 
+from drillgym.controllers.plan_schedule import SCHEDULE_SPANS, ScheduleSpec
+from drillgym.controllers.residual import check_mode
 from drillgym.envs.errors import UserError
+from drillgym.training.domain_randomization import check_ranges, training_plan_support
+from drillgym.training.schedule_env import ScheduleReward
 
 ALGOS = ("sac", "td3", "ppo")
 SCHEDULE_MODE = "schedule"
@@ -123,8 +127,6 @@ class TrainConfig:
             raise UserError(f"ship_rule={self.ship_rule!r}; choose selection_deviation or none")
         if self.eval_scenarios not in ("paper", "validation"):
             raise UserError(f"eval_scenarios={self.eval_scenarios!r}; choose paper or validation")
-        from drillgym.controllers.residual import check_mode
-        from drillgym.training.domain_randomization import check_ranges
 
         if self.residual_mode == SCHEDULE_MODE:
             if self.normalize_obs:
@@ -151,16 +153,11 @@ class TrainConfig:
 
         Its plan support comes from the training ranges.
         """
-        from drillgym.controllers.plan_schedule import SCHEDULE_SPANS, ScheduleSpec
-        from drillgym.training.domain_randomization import training_plan_support
-
         spans = {k: float(v) for k, v in (self.schedule_spans or SCHEDULE_SPANS).items()}
         return ScheduleSpec(self.base, spans, training_plan_support(self.dr_ranges))
 
     def schedule_weights(self) -> Any:
         """The :class:`drillgym.training.schedule_env.ScheduleReward` of a ``schedule`` run."""
-        from drillgym.training.schedule_env import ScheduleReward
-
         known = {f.name for f in dataclasses.fields(ScheduleReward)}
         unknown = sorted(set(self.schedule_reward) - known)
         if unknown:

@@ -13,6 +13,7 @@ import numpy as np
 
 from drillgym.controllers.residual import plan_support
 from drillgym.envs.errors import UserError
+from drillgym.envs.scenario import Scenario
 from drillgym.envs.seeds import Purpose, draw_seed, in_namespace, training_stream
 
 TRAINING_RANGES: dict[str, tuple[float, float]] = {
@@ -36,8 +37,6 @@ DR_RANGES: dict[str, tuple[float, float]] = {
 
 def check_ranges(ranges: dict[str, Any]) -> None:
     """Raise ``ValueError`` unless every entry is a numeric scenario argument with ``[low, high]`` inside its limits."""
-    from drillgym.envs.scenario import Scenario
-
     defaults = Scenario()
     for name, bounds in ranges.items():
         default = getattr(defaults, name, None)

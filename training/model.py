@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
+from gymnasium import spaces
 from stable_baselines3 import PPO, SAC, TD3
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
@@ -62,8 +63,6 @@ ALGO_CLASSES: dict[str, type[BaseAlgorithm]] = {"sac": ResidualSAC, "td3": Resid
 
 def build_model(cfg: TrainConfig, env: VecEnv, tensorboard_log: Path | None = None) -> BaseAlgorithm:
     """A fresh model for ``cfg`` with its action output zero-initialised (see :func:`zero_init_residual`)."""
-    from gymnasium import spaces
-
     policy = "MultiInputPolicy" if isinstance(env.observation_space, spaces.Dict) else "MlpPolicy"
     common: dict[str, Any] = {
         "seed": cfg.seed,

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -52,8 +53,6 @@ RUN_FILES = (
 
 def clear_run(out: Path) -> None:
     """Remove a previous run's files from ``out`` (``--overwrite``)."""
-    import shutil
-
     for name in RUN_FILES:
         p = out / name
         if p.is_dir():

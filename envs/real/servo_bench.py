@@ -9,6 +9,7 @@ the caller can match them to the states that echo them.
 from __future__ import annotations
 
 import itertools
+import time
 from typing import Any
 
 CODE_STEP_M = 1e-9
@@ -34,8 +35,6 @@ def sleep_floor(seconds: float, period_s: float) -> dict[str, Any]:
     missed periods are what the machine itself loses (scheduler, hypervisor), however light the loop. Returns
     ``send_t`` (each wake-up, s) and ``cycles``.
     """
-    import time
-
     n_cycles = max(int(seconds / period_s), 1)
     wake_t: list[float] = []
     for _ in range(n_cycles):
@@ -53,8 +52,6 @@ def stream_coded_targets(control: Any, pose0: list[float], seconds: float, perio
     ``control``: a ``ur_rtde`` ``RTDEControlInterface``. Returns ``send_t`` (when each command was sent, s),
     ``send_z`` (its target z, m), ``call_s`` (how long each ``servoL`` call took, s) and ``cycles``; raises ``RuntimeError`` if the controller refuses a command.
     """
-    import time
-
     n_cycles = max(int(seconds / period_s), 1)
     send_t: list[float] = []
     send_z: list[float] = []

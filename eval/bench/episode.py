@@ -23,9 +23,12 @@ from drillgym.controllers import make_controller
 from drillgym.controllers.base import Controller
 from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
+from drillgym.envs.effects import build_effects
 from drillgym.envs.metrics import METRIC_NAMES
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.seeds import Purpose, episode_seed
+from drillgym.eval.bench.suites import suite_scenarios
+from drillgym.eval.logs import EpisodeLogger, build_header
 
 ENV_ID = SIM_ENV_ID
 ENV_CACHE_SIZE = 2
@@ -60,8 +63,6 @@ def grid_jobs(suites: list[str], specs: list[str], seeds: int, purpose: Purpose 
     The seeds are episodes 0..seeds-1 of ``purpose``'s namespace (:mod:`drillgym.envs.seeds`): the judge's are
     plain 0..seeds-1, a tuner's never meet them.
     """
-    from drillgym.eval.bench.suites import suite_scenarios
-
     return [
         EpisodeJob(suite, sc.name, sc.kwargs, spec, episode_seed(purpose, i))
         for suite in suites
@@ -138,8 +139,6 @@ def run_job(job: EpisodeJob) -> dict[str, Any]:
 
 
 def _run(job: EpisodeJob) -> dict[str, Any]:
-    from drillgym.envs.effects import build_effects
-    from drillgym.eval.logs import EpisodeLogger, build_header
 
     env = _env(job.kwargs)
     env.unwrapped.set_effects(build_effects(job.effects) if job.effects else None)  # type: ignore[attr-defined]

@@ -6,8 +6,11 @@ import re
 from collections.abc import Callable
 from typing import Any
 
+from tqdm import tqdm
+
 from drillgym.envs.errors import UserError
 from drillgym.envs.key_values import split_spec_list
+from drillgym.eval.bench.episode import close_cached, run_job
 from drillgym.eval.pool import run_unordered
 
 
@@ -49,10 +52,6 @@ def run_jobs(
     ``on_row`` is called with each row as its episode finishes (``drillgym bench`` appends it to ``episodes.csv``,
     so an interrupted or crashed run keeps every finished episode).
     """
-    from tqdm import tqdm
-
-    from drillgym.eval.bench.episode import close_cached, run_job
-
     rows = []
     with tqdm(total=len(jobs), desc=desc, unit="ep", disable=None) as bar:  # no bar when not a terminal
         try:

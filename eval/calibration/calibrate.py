@@ -20,13 +20,19 @@ import math
 from dataclasses import asdict, dataclass, replace
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
+from scipy.optimize import least_squares
 
+from drillgym.controllers.models import fit_model_peak_n
+from drillgym.controllers.registry import make_controller
 from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.drilling.bone import BUFFALO_CORTICAL, CANCELLOUS_RATIO, BonePreset
+from drillgym.envs.effects import build_effects
 from drillgym.envs.errors import UserError
+from drillgym.envs.metrics import FORCE_FILTER_SAMPLES, moving_average
 from drillgym.envs.scenario import Scenario
 from drillgym.eval.bench.summary import mean_ci
 from drillgym.eval.reproduce.paper import LI2023_UNCOMPENSATED
@@ -102,10 +108,6 @@ def bone_with_lateral_scale(scale: float) -> BonePreset:
 
 def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float, effects: str = "") -> Any:
     """The paper scenario with this structure and these scales (and the unmodelled effects of spec ``effects``)."""
-    import gymnasium as gym
-
-    from drillgym.envs.effects import build_effects
-
     env = gym.make(
         SIM_ENV_ID,
         cell_params=CellParams(**asdict(structure)),
@@ -135,8 +137,6 @@ def calibrate_entry(
     Raises:
         ValueError: ``max_runs`` < 3 or ``rel_tol`` not positive.
     """
-    from scipy.optimize import least_squares
-
     if max_runs < 3 or not rel_tol > 0.0:
         raise UserError(f"max_runs={max_runs} must be >= 3 and rel_tol={rel_tol} > 0")
     targets = np.array([LI2023_UNCOMPENSATED[k] for k in CALIBRATED_METRICS])
@@ -169,9 +169,6 @@ def calibrate_entry(
 
 def fit_controller_model_n(env: Any, trace: dict[str, np.ndarray]) -> float:
     """li2023's model peak (N) fitted to the filtered F/T force of an uncompensated ``trace`` of ``env``."""
-    from drillgym.controllers.models import fit_model_peak_n
-    from drillgym.envs.metrics import FORCE_FILTER_SAMPLES, moving_average
-
     force = np.asarray(trace["ft_force_n"], dtype=float)
     filtered = moving_average(np.hypot(force[:, 0], force[:, 1]), FORCE_FILTER_SAMPLES)
     plan = env.unwrapped.plan
@@ -189,8 +186,6 @@ def predict_li2023(cal: EntryCalibration, seeds: range | list[int], effects: str
 
     li2023's model is fitted to the uncompensated run of the first seed.
     """
-    from drillgym.controllers.registry import make_controller
-
     env = make_env(cal.structure, cal.lateral_scale, cal.stickout_mm, effects)
     try:
         none = [_uncompensated(env, s) for s in seeds]

@@ -16,9 +16,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from drillgym.envs.cell_params import R_BASE_TASK, CellParams
 from drillgym.envs.constants import unscale_action
 from drillgym.envs.scenario import Scenario
 from drillgym.eval.diagnosis.channels import LF_CHANNELS
+from drillgym.eval.diagnosis.rtde_import import import_session
 from drillgym.eval.diagnosis.stages import stage_labels
 from drillgym.eval.diagnosis.validate import LogCheckError, check_log
 from drillgym.eval.logs import EpisodeLogError, read_episode_log
@@ -134,7 +136,6 @@ def set_series_positions(episodes: list[EpisodeData]) -> list[int]:
 
 
 def _default_t_base_task(scenario: Scenario) -> np.ndarray:
-    from drillgym.envs.cell_params import R_BASE_TASK, CellParams
 
     t = np.eye(4)
     t[:3, :3] = R_BASE_TASK
@@ -165,8 +166,6 @@ def load_episodes(directory: str | Path, strict: bool = False) -> tuple[list[Epi
     Returns:
         ``(episodes, skipped)``: the episodes, and one line per skipped log naming the reason.
     """
-    from drillgym.eval.diagnosis.rtde_import import import_session
-
     episodes, skipped = [], []
     for path in find_logs(directory):
         name = path.name.removesuffix(".parquet")

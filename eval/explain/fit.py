@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from drillgym.envs.errors import UserError
 from drillgym.eval.explain.candidates import Candidate
@@ -103,8 +104,6 @@ def fit_candidate(
 
     Targets of any other run raise ``ValueError``.
     """
-    from scipy.optimize import minimize_scalar
-
     check_calibration_only(targets, held_out)
     if grid_points < 3:
         raise UserError(f"grid_points={grid_points} must be >= 3")

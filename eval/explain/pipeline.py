@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.envs.errors import UserError
+from drillgym.eval.explain.fit import nominal_outcome
 from drillgym.eval.explain.observations import (
     FOLDS,
     HELD_OUT_RUN,
@@ -21,6 +22,9 @@ from drillgym.eval.explain.observations import (
     calibration_targets,
     held_out_targets,
 )
+from drillgym.eval.explain.predict import fit_and_predict
+from drillgym.eval.explain.report import build_explanation
+from drillgym.eval.explain.simulate import close, means, simulate
 from drillgym.eval.pool import run_ordered
 
 FULL = {"fit_seeds": 3, "predict_seeds": 5, "grid_points": 9, "refine_evals": 6}
@@ -28,7 +32,6 @@ QUICK_SETTINGS = {"fit_seeds": 1, "predict_seeds": 2, "grid_points": 4, "refine_
 
 
 def _job(args: tuple[Any, ...]) -> dict[str, Any]:
-    from drillgym.eval.explain.predict import fit_and_predict
 
     return fit_and_predict(*args)
 
@@ -54,10 +57,6 @@ def explain(
     ``held_out``: the run the fold holds out (:data:`~drillgym.eval.explain.observations.FOLDS`); ``nominal_pred``:
     the nominal cell's runs over the prediction seeds when already simulated (every fold shares them).
     """
-    from drillgym.eval.explain.fit import nominal_outcome
-    from drillgym.eval.explain.report import build_explanation
-    from drillgym.eval.explain.simulate import close, means, simulate
-
     fit_seeds = list(range(settings["fit_seeds"]))
     predict_seeds = list(range(settings["predict_seeds"]))
     if len(fit_seeds) > len(predict_seeds):
@@ -90,8 +89,6 @@ def explain_folds(
 
     The nominal cell's runs are simulated once for all folds. Each fold's fits see only its calibration runs.
     """
-    from drillgym.eval.explain.simulate import close, simulate
-
     if not folds:
         raise UserError("at least one fold is needed")
     if len(set(folds)) != len(folds):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from drillgym.eval.bench.summary import md_table
 from drillgym.eval.explain.candidates import candidate
 from drillgym.eval.explain.fit import FitOutcome
 from drillgym.eval.explain.observations import (
@@ -147,8 +148,6 @@ def markdown(doc: dict[str, Any]) -> str:
 
 def _fold_markdown(doc: dict[str, Any], level: str = "#") -> list[str]:
     """One fold's table: every model's fit and its predictions of the held-out run."""
-    from drillgym.eval.bench.summary import md_table
-
     held = doc["held_out_run"]
     label = RUN_LABELS[held]
     cal = [run for run, v in doc["li"].items() if v["role"] == "calibration"]
@@ -191,8 +190,6 @@ def _fold_markdown(doc: dict[str, Any], level: str = "#") -> list[str]:
 
 def cross_validation_lines(docs: list[dict[str, Any]]) -> list[str]:
     """A table of the folds: what each fitted on, what it chose, and its predictions of the run it held out."""
-    from drillgym.eval.bench.summary import md_table
-
     rows = []
     for doc in docs:
         held = doc["held_out_run"]
@@ -274,7 +271,6 @@ def reproduction_section(doc: dict[str, Any] | None, source: str = "") -> list[s
                 ok,
             ]
         )
-    from drillgym.eval.bench.summary import md_table
 
     lines.append(md_table(["KP 4 (held out)", "Li", "predicted [interval]", "rel. err", "nominal cell", ""], rows))
     missed = [r[0] for r in rows if r[5].startswith("misses")]

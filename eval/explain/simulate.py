@@ -9,10 +9,15 @@ from __future__ import annotations
 
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
+from drillgym.controllers.registry import make_controller
 from drillgym.controllers.rollout import run_episode
+from drillgym.envs import SIM_ENV_ID
+from drillgym.envs.effects import build_effects
 from drillgym.envs.errors import UserError
+from drillgym.eval.calibration.calibrate import fit_controller_model_n
 from drillgym.eval.explain.candidates import Candidate
 from drillgym.eval.explain.observations import METRICS
 
@@ -24,10 +29,6 @@ _ENV: dict[str, Any] = {}
 
 def _env() -> Any:
     if "env" not in _ENV:
-        import gymnasium as gym
-
-        from drillgym.envs import SIM_ENV_ID
-
         _ENV["env"] = gym.make(SIM_ENV_ID)
     return _ENV["env"]
 
@@ -46,10 +47,6 @@ def simulate(candidate: Candidate | None, value: float, runs: tuple[str, ...], s
         ``{run: {metric: [value per seed]}}`` plus ``"model_peak_n"`` (li2023's fitted model peak, N).
         ``candidate=None`` is the nominal cell.
     """
-    from drillgym.controllers.registry import make_controller
-    from drillgym.envs.effects import build_effects
-    from drillgym.eval.calibration.calibrate import fit_controller_model_n
-
     if not seeds:
         raise UserError("at least one seed is needed")
     env = _env()

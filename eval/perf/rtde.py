@@ -38,7 +38,10 @@ from typing import Any
 
 import numpy as np
 
-from drillgym.envs.real.servo_bench import missed_periods
+from drillgym.envs.real.config import ServoParams
+from drillgym.envs.real.netft import NetFTCalibration
+from drillgym.envs.real.servo_bench import missed_periods, sleep_floor, stream_coded_targets
+from drillgym.envs.real.servo_process import ServoProcess, ServoProcessSpec
 
 POLL_S = 0.0002
 """How often the state is polled for the echo (s)."""
@@ -111,8 +114,6 @@ def _stream_in_thread(
 ) -> tuple[dict[str, Any], str]:
     import rtde_control
 
-    from drillgym.envs.real.servo_bench import sleep_floor, stream_coded_targets
-
     control = rtde_control.RTDEControlInterface(host, 125.0)
     try:
         result = stream_coded_targets(control, pose0, seconds, period)
@@ -127,9 +128,6 @@ def _stream_in_thread(
 def _stream_in_process(
     host: str, pose0: list[float], seconds: float, period: float, floor: bool = False
 ) -> tuple[dict[str, Any], str]:
-    from drillgym.envs.real.config import ServoParams
-    from drillgym.envs.real.netft import NetFTCalibration
-    from drillgym.envs.real.servo_process import ServoProcess, ServoProcessSpec
 
     proc = ServoProcess(ServoProcessSpec(host, ServoParams(), False, None, None, NetFTCalibration()))
     try:

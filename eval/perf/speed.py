@@ -19,10 +19,16 @@ import time
 import tracemalloc
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
+from drillgym.controllers import make_controller
 from drillgym.envs import SIM_ENV_ID
+from drillgym.envs.batched import BatchedDrillEnv
+from drillgym.envs.constants import ACTION_DIM
+from drillgym.envs.drill_env import UR5BoneDrillEnv
 from drillgym.envs.errors import UserError
+from drillgym.envs.pybullet_world import PyBulletWorld
 
 BARE_STEPS_PER_BLOCK = 2000
 """Bare PyBullet steps per timed block (~20 ms on a 2020s core)."""
@@ -51,11 +57,6 @@ def _episode(env: Any, seed: int, action: np.ndarray) -> tuple[float, int, float
 
 def measure(runs: int = 7) -> dict[str, Any]:
     """Time ``runs`` paper-scenario episodes against bare PyBullet steps; ratios, times and memory."""
-    import gymnasium as gym
-
-    from drillgym.envs.constants import ACTION_DIM
-    from drillgym.envs.pybullet_world import PyBulletWorld
-
     if runs < 1:
         raise UserError(f"runs={runs} must be >= 1")
     load_before = os.getloadavg()
@@ -116,10 +117,6 @@ def controller_cycle_times(
     specs: tuple[str, ...] = ("none", "li2023", "zhang2005"), episodes: int = 2
 ) -> dict[str, Any]:
     """Per-call ``predict`` time of each controller over whole paper-scenario episodes (µs: p50, p99, max)."""
-    import gymnasium as gym
-
-    from drillgym.controllers import make_controller
-
     env = gym.make(SIM_ENV_ID)
     out: dict[str, Any] = {}
     for spec in specs:
@@ -150,8 +147,6 @@ def controller_cycle_times(
 
 def _single_env_steps_per_s(seconds: float) -> tuple[float, float]:
     """Zero-action agent steps per second of one single env (whole episodes, resets included), and steps per episode."""
-    from drillgym.envs.drill_env import UR5BoneDrillEnv
-
     env = UR5BoneDrillEnv(pybullet_world=False)
     action = np.zeros(4, dtype=np.float32)
     _episode(env, 0, action)
@@ -168,8 +163,6 @@ def _single_env_steps_per_s(seconds: float) -> tuple[float, float]:
 
 def _batched_steps_per_s(num_envs: int, seconds: float) -> float:
     """Zero-action episode-steps per second of a :class:`~drillgym.envs.batched.BatchedDrillEnv` of ``num_envs``."""
-    from drillgym.envs.batched import BatchedDrillEnv
-
     env = BatchedDrillEnv(num_envs)
     env.reset(seed=0)
     actions = np.zeros((num_envs, 4), dtype=np.float32)

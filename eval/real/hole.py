@@ -27,8 +27,11 @@ from drillgym.envs.json_safe import json_safe
 from drillgym.envs.real.config import SafetyLimits
 from drillgym.envs.real.metrics import OBSERVABLE_METRICS
 from drillgym.envs.real.netft import NetFTCalibration
+from drillgym.eval.logs import EpisodeLogger, build_header, read_episode_log
+from drillgym.eval.real.dry_run import describe_reach, target_reach
 from drillgym.eval.real.load_report import describe_timing, likely_cause, servo_timing
 from drillgym.eval.real.preflight import ENV_ID, seed_emulated_specimen
+from drillgym.eval.real.record_session import RECORDING_MARGIN_S, RtdeFileRecorder, trim_recording, write_side_files
 
 
 @dataclass(frozen=True)
@@ -106,8 +109,6 @@ def drill_hole(
     ``run_extra`` goes into the log header's ``run`` entry. Returns the hole's ``metrics.json`` entry (None if it
     could not start) and its exit code: 0, 1 (could not start) or 3 (ended on a fault).
     """
-    from drillgym.eval.logs import EpisodeLogger, build_header
-
     extra = {"controller_spec": opts.controller_spec, "robot": opts.robot, "dry_run": opts.dry_run, **run_extra}
     specimen = seed_emulated_specimen(opts.robot, seed)
     if specimen is not None:
@@ -163,8 +164,6 @@ def rtde_session(opts: CellOptions, env: gym.Env[Any, Any], log: Path, run: dict
     if not opts.record_rtde:
         yield
         return
-    from drillgym.eval.logs import read_episode_log
-    from drillgym.eval.real.record_session import RECORDING_MARGIN_S, RtdeFileRecorder, trim_recording, write_side_files
 
     session = opts.out / "rtde" / log.stem
     session.mkdir(parents=True, exist_ok=True)
@@ -185,8 +184,6 @@ def rtde_session(opts: CellOptions, env: gym.Env[Any, Any], log: Path, run: dict
 
 def summarise_dry_run(env: gym.Env[Any, Any], commands: Path, out_json: Path) -> None:
     """A dry run: print how far the commanded targets (``commands``) went from the entry point; write ``out_json``."""
-    from drillgym.eval.real.dry_run import describe_reach, target_reach
-
     cell = env.unwrapped
     try:
         reach = target_reach(commands, cell.T_base_task, cell.scenario.depth_m, cell.limits)  # type: ignore[attr-defined]

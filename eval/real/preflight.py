@@ -10,6 +10,7 @@ from typing import Any
 
 from drillgym.envs import REAL_ENV_ID
 from drillgym.envs.real.devices import split_host_port
+from drillgym.envs.real.emulator.process import emulator_control
 from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
 from drillgym.envs.real.netft_calibration import check_calibration, read_calibration
 
@@ -38,8 +39,6 @@ def seed_emulated_specimen(host: str, seed: int) -> dict[str, Any] | None:
     The emulator answers on its control port; a real controller has none there, so the probe costs one
     refused connection and changes nothing.
     """
-    from drillgym.envs.real.emulator.process import emulator_control
-
     try:
         reply = emulator_control(host, {"cmd": "specimen", "seed": int(seed)}, timeout_s=0.5)
     except (OSError, RuntimeError):

@@ -27,10 +27,18 @@ import time
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import pandas as pd
 
+from drillgym.controllers import make_controller
+from drillgym.controllers.rollout import run_episode
 from drillgym.envs.constants import CONTROL_DT_S
+from drillgym.envs.real.config import SafetyLimits
+from drillgym.envs.real.emulator.process import EmulatorProcess
+from drillgym.eval.diagnosis.rtde_import import import_session
+from drillgym.eval.logs import EpisodeLogger, build_header, read_episode_log
+from drillgym.eval.real.preflight import ENV_ID, seed_emulated_specimen
 
 RECORDED_VARIABLES = ("timestamp", "actual_q", "actual_TCP_pose")
 """What the importer needs from the robot (``ur_rtde`` expands a vector as ``name_0 … name_{n-1}``)."""
@@ -161,15 +169,6 @@ def record_emulator_session(
         LogCheckError: the session fails the importer's checks, e.g. the recording missed robot states on a busy
             machine (``ur_rtde`` keeps the newest state it reads); delete ``out`` and run it again.
     """
-    import gymnasium as gym
-
-    from drillgym.controllers import make_controller
-    from drillgym.controllers.rollout import run_episode
-    from drillgym.envs.real.config import SafetyLimits
-    from drillgym.envs.real.emulator.process import EmulatorProcess
-    from drillgym.eval.logs import EpisodeLogger, build_header, read_episode_log
-    from drillgym.eval.real.preflight import ENV_ID, seed_emulated_specimen
-
     scenario = dict(scenario or {"feed_mm_s": 3.0, "depth_mm": 3.0})
     out.mkdir(parents=True, exist_ok=False)
     controller = make_controller(controller_spec)
@@ -214,7 +213,6 @@ def record_emulator_session(
         "metrics": {k: v for k, v in (info.get("metrics") or {}).items() if np.isfinite(v)},
     }
     write_side_files(out, header, frame, rtde_t0, run)
-    from drillgym.eval.diagnosis.rtde_import import import_session
 
     import_session(out)  # the importer's checks: a recording with a gap (a busy machine) raises LogCheckError
     return out

@@ -13,6 +13,7 @@ from drillgym.controllers import make_controller
 from drillgym.controllers.rollout import EpisodeResult, run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.drilling import DrillGeometry, EngagementTable, get_bone_preset, stage_from_depth
+from drillgym.envs.robot.stiffness_experiment import identify_and_compare
 
 KP_SWEEP = (0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0)
 """KP values of the deviation-vs-KP figure (Li Fig. 12)."""
@@ -104,8 +105,6 @@ def force_model_trends() -> dict[str, Any]:
 
 def stiffness_identification(noise_mm: float = 0.05, load_n: float = 100.0, seed: int = 0) -> dict[str, Any]:
     """Li §3.3 and Table 1: identify Kθ from simulated load tests, predict three validation poses."""
-    from drillgym.envs.robot.stiffness_experiment import identify_and_compare
-
     return identify_and_compare(noise_mm=noise_mm, load_n=load_n, seed=seed)
 
 

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import ray
+from tqdm import tqdm
 
 from drillgym.eval.bench.episode import EpisodeJob, run_job
 from drillgym.eval.scale.cluster import RaySession, ray_session
@@ -96,8 +97,6 @@ def chunk_size_for(n_jobs: int, cpus: int, chunks_per_cpu: int = 4, max_size: in
 
 def _import_worker() -> int:
     """Warm-up task: import the episode code (PyBullet, Pinocchio, controllers) in a worker."""
-    import drillgym.eval.bench.episode  # noqa: F401
-
     return 0
 
 
@@ -147,8 +146,6 @@ def run_jobs_ray(
     Returns:
         Rows in completion order (``done_rows`` first), and the timings.
     """
-    from tqdm import tqdm
-
     task = ray.remote(num_cpus=1, max_retries=max_retries, retry_exceptions=False)(run_chunk_task)
     with ray_session(address, num_cpus) as session:
         print(session.describe())

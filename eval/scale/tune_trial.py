@@ -18,6 +18,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from drillgym.training.callbacks import BaseComparisonEvalCallback
 from drillgym.training.config import TrainConfig
+from drillgym.training.env_factory import make_eval_vec_env, make_train_vec_env
 
 METRIC = "eval_deviation_mm"
 """Reported metric: the policy's mean tip deviation over the evaluation episodes (mm; minimised)."""
@@ -68,7 +69,6 @@ def train_trial(config: dict[str, Any]) -> None:
     from ray import tune
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from drillgym.training.env_factory import make_eval_vec_env, make_train_vec_env
     from drillgym.training.model import ALGO_CLASSES, build_model
 
     cfg = TrainConfig(**config)

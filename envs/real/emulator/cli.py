@@ -26,6 +26,7 @@ from drillgym.envs.real.emulator.config import (
     EmulatorConfig,
     ScheduledFault,
 )
+from drillgym.envs.real.emulator.server import Emulator
 from drillgym.envs.real.netft import RDT_PORT, NetFTCalibration
 from drillgym.envs.real.netft_calibration import CAL_PORT
 from drillgym.envs.real.tracker import TRACKER_PORT
@@ -128,8 +129,6 @@ def config_from_args(args: argparse.Namespace) -> EmulatorConfig:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until told to stop."""
-    from drillgym.envs.real.emulator.server import Emulator
-
     emulator = Emulator(config_from_args(args))
 
     def _stop(_signum: int, _frame: object) -> None:

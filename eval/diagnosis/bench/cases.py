@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
 from drillgym.eval.diagnosis.reality.generate import build_reality
 
 
@@ -124,8 +125,6 @@ CLEAN_TRIALS = 6
 
 def opt_in_candidates() -> tuple[str, ...]:
     """The opt-in candidates that model :data:`LATER_SINGLES`' realities."""
-    from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES
-
     names = (_candidate(specs) for specs in LATER_SINGLES.values())
     return tuple(dict.fromkeys(n for n in names if n is not None and n not in DIAGNOSIS_CANDIDATES))
 

@@ -17,8 +17,16 @@ import zlib
 from pathlib import Path
 from typing import Any
 
+from drillgym.envs.effects.registry import EFFECTS
 from drillgym.envs.errors import UserError
 from drillgym.eval.diagnosis.bench.cases import Case
+from drillgym.eval.diagnosis.context import DiagnosisData, Evaluator, baseline_job
+from drillgym.eval.diagnosis.episodes import load_episodes
+from drillgym.eval.diagnosis.fit import fit_model, refit_jointly
+from drillgym.eval.diagnosis.intervals import refined_minimum
+from drillgym.eval.diagnosis.reality.generate import make_reality
+from drillgym.eval.diagnosis.replay import Replayer
+from drillgym.eval.pool import run_unordered
 
 EPISODES = 36
 """Fresh episodes of a reality the pseudo-true value is fitted on (three times the benchmark's 12)."""
@@ -35,8 +43,6 @@ def jobs_for(cases: list[Case], episodes: int = EPISODES) -> list[Job]:
     Not for a random effect's: its mean's truth is the written-down population mean itself, which a fit on other
     episodes would only estimate with their own scatter.
     """
-    from drillgym.envs.effects.registry import EFFECTS
-
     specs = dict.fromkeys(
         c.spec for c in cases if c.kind == "single" and c.truth_values and not EFFECTS[c.truth[0]].per_episode
     )
@@ -46,12 +52,6 @@ def jobs_for(cases: list[Case], episodes: int = EPISODES) -> list[Job]:
 def pseudo_truth(job: Job) -> tuple[str, dict[str, Any]]:
     """``(spec, {"candidate", "params", "episodes", "seed", "calibration_gap", "error"})`` of one job."""
     spec, candidate, episodes = job
-    from drillgym.eval.diagnosis.context import DiagnosisData, Evaluator, baseline_job
-    from drillgym.eval.diagnosis.episodes import load_episodes
-    from drillgym.eval.diagnosis.fit import fit_model, refit_jointly
-    from drillgym.eval.diagnosis.intervals import refined_minimum
-    from drillgym.eval.diagnosis.reality.generate import make_reality
-    from drillgym.eval.diagnosis.replay import Replayer
 
     seed = SEED + zlib.crc32(spec.encode()) % 1_000_000  # the reality's own seed, whatever else is run
     with tempfile.TemporaryDirectory(prefix="drillgym-pseudo-truth-") as tmp:
@@ -82,8 +82,6 @@ def pseudo_truth(job: Job) -> tuple[str, dict[str, Any]]:
 
 def load_or_compute(path: Path, cases: list[Case], workers: int, episodes: int = EPISODES) -> dict[str, Any]:
     """The pseudo-true values of ``cases``' realities: read from ``path``, the missing ones computed and added."""
-    from drillgym.eval.pool import run_unordered
-
     table = _read(path) if path.is_file() else {}
     todo = [j for j in jobs_for(cases, episodes) if j[0] not in table]
     for _, (spec, entry) in run_unordered(pseudo_truth, todo, max(1, workers)):

@@ -9,6 +9,7 @@ process each); each diagnosis runs in its process.
 from __future__ import annotations
 
 import json
+import math
 import statistics
 import sys
 import tempfile
@@ -23,7 +24,9 @@ from tqdm import tqdm
 
 from drillgym.envs.effects.registry import EFFECTS, physics_of
 from drillgym.eval.diagnosis.bench.cases import Case
-from drillgym.eval.diagnosis.reality.generate import episode_name
+from drillgym.eval.diagnosis.diagnose import DiagnoseOptions, run_diagnosis
+from drillgym.eval.diagnosis.episodes import load_episodes
+from drillgym.eval.diagnosis.reality.generate import episode_name, make_reality
 from drillgym.eval.pool import run_unordered
 
 ACCEPTANCE = {
@@ -75,9 +78,6 @@ def run_case(job: CaseJob) -> dict[str, Any]:
 
 def _run_case(job: CaseJob) -> dict[str, Any]:
     case, episodes, candidates, keep = job
-    from drillgym.eval.diagnosis.diagnose import DiagnoseOptions, run_diagnosis
-    from drillgym.eval.diagnosis.episodes import load_episodes
-    from drillgym.eval.diagnosis.reality.generate import make_reality
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="drillgym-reality-") as tmp:
@@ -451,7 +451,6 @@ def _table(intro: str, columns: list[str], rows: list[list[str]]) -> list[str]:
 
 
 def _clean_json(v: Any) -> Any:
-    import math
 
     if isinstance(v, dict):
         return {str(k): _clean_json(x) for k, x in v.items()}

@@ -14,8 +14,10 @@ import json
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
+from drillgym.controllers import make_controller
 from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.effects.registry import parse_effect_spec
@@ -23,6 +25,7 @@ from drillgym.envs.errors import UserError
 from drillgym.eval.diagnosis.reality.base import RealityEffect
 from drillgym.eval.diagnosis.reality.bone import ForceScaleReset
 from drillgym.eval.diagnosis.reality.library import REALITY_EFFECTS, describe_parameters, switched_on, switches
+from drillgym.eval.logs import EpisodeLogger, build_header
 
 BETAS_DEG = (15.0, 20.0, 25.0, 30.0, 35.0)
 FEEDS_MM_S = (0.4, 0.6, 0.8, 1.0)
@@ -82,11 +85,6 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
     Returns:
         The truth: the spec, each effect's parameters and the episodes' scenarios/controllers.
     """
-    import gymnasium as gym
-
-    from drillgym.controllers import make_controller
-    from drillgym.eval.logs import EpisodeLogger, build_header
-
     if episodes < 1:
         raise UserError(f"episodes={episodes} must be >= 1")
     build_reality(spec)  # validate before creating or running anything
