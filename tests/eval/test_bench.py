@@ -11,6 +11,7 @@ from drillgym.controllers.none import NoCompensation, NoCompensationConfig
 from drillgym.controllers.registry import CONTROLLERS
 from drillgym.envs.metrics import METRIC_NAMES
 from drillgym.eval.bench import episode as bench_episode
+from drillgym.eval.bench import jobs as bench_jobs
 from drillgym.eval.bench.episode import EpisodeJob, run_job
 from drillgym.eval.bench.jobs import controller_label, split_controller_specs
 from drillgym.eval.bench.summary import SUMMARY_COLUMNS
@@ -189,7 +190,7 @@ def interrupt_after(monkeypatch, k):
         return real_run_job(job)
 
     real_run_job = bench_episode.run_job
-    monkeypatch.setattr(bench_episode, "run_job", run_job)
+    monkeypatch.setattr(bench_jobs, "run_job", run_job)  # where the pool calls it
     return calls
 
 
@@ -236,7 +237,7 @@ def test_a_resumed_run_reruns_the_episodes_that_failed(tmp_path, monkeypatch):
         row = real_run_job(job)
         return {**row, "error": "RuntimeError: flaky", "traceback": "flaky"} if len(calls) == 2 else row
 
-    monkeypatch.setattr(bench_episode, "run_job", flaky)
+    monkeypatch.setattr(bench_jobs, "run_job", flaky)
     assert main(args) == 1
     assert (out / "errors.log").exists()
     assert main([*args, "--resume"]) == 0
