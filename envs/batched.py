@@ -35,6 +35,7 @@ from drillgym.envs.cell import chains_of
 from drillgym.envs.constants import ACTION_DIM, CONTROL_DT_S, MAX_EPISODE_STEPS, SUBSTEPS_PER_STEP, scale_action
 from drillgym.envs.drill_env import UR5BoneDrillEnv
 from drillgym.envs.drilling.hole import centre_at
+from drillgym.envs.episode_state import new_params, new_state
 from drillgym.envs.errors import UserError
 from drillgym.envs.kernel_state import NOISE_SIZE, draw_noise, record_channels, tracker_sample_is_new
 from drillgym.envs.metrics import episode_metrics
@@ -79,10 +80,9 @@ class BatchedDrillEnv(VectorEnv):
         bins = max(c.hole.filled.shape[0] for c in cells)
         steps = min(MAX_EPISODE_STEPS, math.ceil(first.max_time_s / CONTROL_DT_S) + 2)
         self.arrays = sk.KernelArrays(
-            fs=np.zeros((n, sk.FLOAT_STATE_SIZE)),
-            ist=np.zeros((n, sk.INT_STATE_SIZE), dtype=np.int64),
+            state=new_state(n),
+            params=new_params(n),
             pend=np.zeros((n, sk.PENDING_ROWS, 5)),
-            par=np.zeros((n, sk.PARAM_SIZE)),
             tab=np.zeros((n, sk.TABLE_ROWS, grid)),
             rows=np.zeros((n, grid, 4)),
             chains=np.stack([np.stack(chains_of(c.kin)) for c in cells]),
@@ -91,7 +91,7 @@ class BatchedDrillEnv(VectorEnv):
             bins=np.full((n, 2), -1, dtype=np.int64),
             delay=np.zeros((n, 1, 4)),  # no effects: no delay line
         )
-        self.fs, self.ist, self.par = self.arrays.fs, self.arrays.ist, self.arrays.par
+        self.state, self.params = self.arrays.state, self.arrays.params
         self.command = np.zeros((n, 4))
         self.noise = np.zeros((n, NOISE_SIZE))
         self.record = np.zeros((n, steps * SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
@@ -109,13 +109,12 @@ class BatchedDrillEnv(VectorEnv):
         assert ks is not None
         ks.load(env)
         arrays = self.arrays
-        for name in ("fs", "ist", "pend", "par"):
-            getattr(arrays, name)[i] = getattr(ks.arrays, name)
+        for name in ("state", "params", "pend", "bins"):
+            getattr(arrays, name)[i] = getattr(ks.arrays, name)[0]
         for name in ("tab", "centre", "filled"):  # padded to the batch's largest
-            row = getattr(arrays, name)[i]
+            row, one = getattr(arrays, name)[i], getattr(ks.arrays, name)[0]
             row[...] = 0
-            row[tuple(slice(0, m) for m in getattr(ks.arrays, name).shape)] = getattr(ks.arrays, name)
-        arrays.bins[i] = ks.arrays.bins
+            row[tuple(slice(0, m) for m in one.shape)] = one
         self.recorded[i] = 0
         self.prev_action[i] = 0.0
         self.peak_lateral_n[i] = 0.0
@@ -146,31 +145,28 @@ class BatchedDrillEnv(VectorEnv):
         a = checked_action(actions, "state unchanged", self.num_envs)
         correction, feed_scale = scale_action(a)
         self.command[:, :3], self.command[:, 3] = correction, feed_scale
-        new_tracker = tracker_sample_is_new(self.fs[:, sk.T_S], self.fs[:, sk.TRACKER_STAMP])
+        st = self.state
+        new_tracker = tracker_sample_is_new(st["t_s"], st["tracker_stamp_s"])
         for i, env in enumerate(self.envs):
-            draw_noise(env.np_random, self.noise[i], self.par[i], new_tracker[i])
+            draw_noise(env.np_random, self.noise[i], self.params[i], new_tracker[i])
         sk.advance_batch(*self.arrays, self.command, self.noise, self.record, self.recorded)
-        if self.ist[:, sk.SINGULAR].any():
-            i = int(np.argmax(self.ist[:, sk.SINGULAR]))
-            raise np.linalg.LinAlgError(
-                f"episode {i}: singular TCP Jacobian at q = {self.fs[i, sk.Q_MOTOR : sk.Q_MOTOR + 6]}"
-            )
-        lateral = self.fs[:, sk.STEP_LATERAL]
-        terms = self.reward_weights.terms(
-            self.fs[:, sk.STEP_DEVIATION], lateral, a, self.prev_action, self.peak_lateral_n
-        )
+        if st["singular"].any():
+            i = int(np.argmax(st["singular"]))
+            raise np.linalg.LinAlgError(f"episode {i}: singular TCP Jacobian at q = {st['q_motor_rad'][i]}")
+        lateral = st["step_lateral_n"]
+        terms = self.reward_weights.terms(st["step_deviation_m"], lateral, a, self.prev_action, self.peak_lateral_n)
         np.maximum(self.peak_lateral_n, lateral, out=self.peak_lateral_n)
         self.prev_action = a
         reward = terms["deviation"] + terms["force"] + terms["smooth"] + terms["peak_force"]
-        terminated = self.ist[:, sk.TERMINATED] == 1
-        truncated = self.ist[:, sk.TRUNCATED] == 1
+        terminated = st["terminated"].copy()
+        truncated = st["truncated"].copy()
         if self.max_episode_steps < MAX_EPISODE_STEPS:
-            truncated |= ~terminated & (self.ist[:, sk.STEPS] >= self.max_episode_steps)
-            self.ist[truncated, sk.TRUNCATED] = 1
+            truncated |= ~terminated & (st["steps"] >= self.max_episode_steps)
+            st["truncated"][truncated] = True
         infos: dict[str, Any] = {
-            "t_s": self.fs[:, sk.T_S].copy(),
-            "phase": self.ist[:, sk.PHASE].copy(),
-            "deviation_m": np.hypot(self.fs[:, sk.SAMPLE], self.fs[:, sk.SAMPLE + 1]),
+            "t_s": st["t_s"].copy(),
+            "phase": st["phase"].copy(),
+            "deviation_m": np.hypot(st["sample"][:, 0], st["sample"][:, 1]),
             "reward_terms": terms,
         }
         obs = self._observation()
@@ -198,42 +194,41 @@ class BatchedDrillEnv(VectorEnv):
     # ------------------------------------------------------------------ helpers
     def _observation(self) -> dict[str, np.ndarray]:
         """The single env's observation (:meth:`UR5BoneDrillEnv._observation`) of every episode, batched."""
-        fs, par = self.fs, self.par
-        s = fs[:, sk.PATH_S]
-        r, e = sk.R_BASE_TASK, sk.ENTRY_BASE
-        nominal = par[:, e : e + 3] + par[:, [r + 2, r + 5, r + 8]] * s[:, None]  # entry + R_base_task · (0, 0, s)
+        st, par = self.state, self.params
+        s = st["path_m"]
+        nominal = par["entry_base_m"] + par["R_base_task"][:, :, 2] * s[:, None]  # entry + R_base_task · (0, 0, s)
         tracking = (self.recorded > 0) & self.scenario.tracker
         return observation_of(
-            fs[:, sk.FT_LAST : sk.FT_LAST + 6],
-            fs[:, sk.FT_MEAN : sk.FT_MEAN + 6],
-            fs[:, sk.Q_MOTOR : sk.Q_MOTOR + 6],
-            fs[:, sk.RTDE_TCP : sk.RTDE_TCP + 3] - nominal,
-            np.where(tracking[:, None], fs[:, sk.TRACKER_ERROR : sk.TRACKER_ERROR + 3], 0.0),
+            st["ft_last"],
+            st["ft_mean"],
+            st["q_motor_rad"],
+            st["rtde_tcp_base_m"] - nominal,
+            np.where(tracking[:, None], st["tracker_error_base_m"], 0.0),
             1.0 if self.scenario.tracker else 0.0,
             s,
-            self.ist[:, sk.PHASE],
-            fs[:, sk.CORRECTION : sk.CORRECTION + 3],
-            fs[:, sk.FEED_SCALE],
+            st["phase"],
+            st["correction_base_m"],
+            st["feed_scale"],
             self.num_envs,
         )
 
     def _final_info(self, i: int) -> dict[str, Any]:
         """Episode ``i``'s last info: the single env's privileged entries and its metrics."""
-        fs, ist = self.fs[i], self.ist[i]
-        sample = fs[sk.SAMPLE : sk.SAMPLE + 13]
-        failure = "force_limit" if ist[sk.FAILURE] else None
+        s = self.state[i]
+        sample = s["sample"]
+        failure = "force_limit" if s["failure"] else None
         return {
-            "t_s": float(fs[sk.T_S]),
-            "phase": int(ist[sk.PHASE]),
+            "t_s": float(s["t_s"]),
+            "phase": int(s["phase"]),
             "stage": int(sample[11]),
-            "depth_cmd_m": float(fs[sk.PATH_S]),
+            "depth_cmd_m": float(s["path_m"]),
             "tip_pos_task_m": sample[0:3].copy(),
             "deviation_m": math.hypot(sample[0], sample[1]),
             "force_true_n": sample[6:9].copy(),
             "failure": failure,
-            "specimen_hardness": float(self.par[i, sk.FORCE_SCALE]),
+            "specimen_hardness": float(self.params[i]["force_scale"]),
             "metrics": self.episode_metrics(i),
-            "metrics_truncated": bool(ist[sk.TRUNCATED]),
+            "metrics_truncated": bool(s["truncated"]),
         }
 
     def records(self, i: int) -> SimpleNamespace:
@@ -243,6 +238,6 @@ class BatchedDrillEnv(VectorEnv):
     def episode_metrics(self, i: int) -> dict[str, float]:
         """Episode ``i``'s metrics so far (:func:`drillgym.envs.metrics.episode_metrics`)."""
         sc = self.scenario
-        centre = centre_at(self.arrays.centre[i], self.arrays.bins[i], self.par[i, sk.BIN_M], sc.entry_depth_m)
+        centre = centre_at(self.arrays.centre[i], self.arrays.bins[i], float(self.params[i]["bin_m"]), sc.entry_depth_m)
         offset = math.hypot(centre[0], centre[1]) if centre is not None else math.nan
         return episode_metrics(self.records(i), sc.entry_depth_m, sc.depth_m, offset, feed_phase=int(Phase.FEED))  # type: ignore[arg-type]

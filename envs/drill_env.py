@@ -38,7 +38,6 @@ from drillgym.envs.reward import RewardWeights, checked_action
 from drillgym.envs.robot.ur5 import TRACKER_FRAME
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
-from drillgym.envs.step_kernel import TERMINATED, TRUNCATED
 from drillgym.envs.task import DrillPath, Phase
 
 RESET_OPTIONS = frozenset({"scenario", "effects", "specimen_seed"})
@@ -442,7 +441,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         done, q, tracker, out = self._open_loop(actions, "replay_open_loop")
         if out is not None:
             assert self._kernel is not None
-            self.truncated = bool(self._kernel.ist[TRUNCATED])
+            self.truncated = self._kernel.truncated
             return done, q, tracker, record_channels(out)
         rec = self.recorder
         channels = {name: np.asarray(values) for name, values in rec.__dict__.items()}
@@ -490,8 +489,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def _ended(self) -> tuple[bool, bool]:
         """``(terminated, truncated)`` after a compiled step; the metrics when the episode ended."""
         assert self._kernel is not None
-        ist = self._kernel.ist
-        terminated, truncated = bool(ist[TERMINATED]), bool(ist[TRUNCATED])
+        terminated, truncated = self._kernel.terminated, self._kernel.truncated
         self.truncated = truncated
         if terminated or truncated:
             self.metrics = self.episode_metrics()

@@ -3,9 +3,10 @@
 The single env keeps its state in Python objects (the cell, the path, the tip balance, the queue of
 commands), which unmodelled effects and the rest of the project read and change. Without effects, or
 with only compiled ones (:attr:`Effect.compiled <drillgym.envs.effects.base.Effect.compiled>`; their
-parameters go into the episode's ``par``, :data:`STEP_EFFECTS` for those with a step hook), its step runs :func:`~drillgym.envs.step_kernel.advance`: :class:`KernelState` copies the state in
-(:meth:`~KernelState.load`), the kernel advances it, and :meth:`~KernelState.store` copies it back, so
-every reader sees what the Python step would have left. The batched env builds the same arrays for N
+parameters go into the episode's ``params``, :data:`STEP_EFFECTS` for those with a step hook), its step runs
+:func:`~drillgym.envs.step_kernel.advance_batch` on one episode's named state (:mod:`drillgym.envs.episode_state`):
+:class:`KernelState` copies the state in (:meth:`~KernelState.load`), the kernel advances it, and
+:meth:`~KernelState.store` copies it back, so every reader sees what the Python step would have left. The batched env builds the same arrays for N
 episodes (:mod:`drillgym.envs.batched`) from each episode's :class:`KernelState`, and shares :func:`draw_noise`
 and :func:`record_channels` with it.
 """
@@ -29,6 +30,7 @@ from drillgym.envs.effects.bone import ThermalSoftening
 from drillgym.envs.effects.joints import JointFriction
 from drillgym.envs.effects.spindle import SpindleSag
 from drillgym.envs.effects.timing import Latency
+from drillgym.envs.episode_state import STATE_SCALARS, StateScalars, new_params, new_state
 from drillgym.envs.task import Phase
 
 UR5BoneDrillEnv = Any
@@ -52,6 +54,7 @@ def table_rows(table: EngagementTable, depth_profile: np.ndarray | None = None) 
 
 
 def episode_params(
+    p: np.void,
     cell: SimCell,
     latency_s: float,
     force_limit_n: float,
@@ -60,85 +63,82 @@ def episode_params(
     s_start_m: float,
     ft_noise_std: np.ndarray,
     tracker_noise_m: float,
-) -> np.ndarray:
-    """An episode's constant parameters (:data:`~drillgym.envs.step_kernel.PARAM_SIZE`) for the cell as it is now."""
+) -> None:
+    """Write an episode's constant parameters (a :data:`~drillgym.envs.episode_state.PARAMS` record) for the cell as it is now."""
     sc, solver, geo = cell.scenario, cell.solver, cell.geometry
-    par = np.zeros(sk.PARAM_SIZE)
-    par[sk.LATENCY_S] = latency_s
-    par[sk.SERVO_GAIN] = cell.servo_gain
-    par[sk.TAN_BETA] = solver.tan_beta
-    par[sk.K_LAT] = solver.k_lat_n
-    par[sk.GUIDANCE_EXPONENT] = solver.guidance_exponent
-    par[sk.WALL_FLOOR] = solver.wall_floor
-    par[sk.WALL_LENGTH] = solver.wall_length_m
-    par[sk.FORCE_SCALE] = solver.force_scale
-    par[sk.TRACKER_NOISE] = tracker_noise_m
-    par[sk.FORCE_LIMIT] = force_limit_n
-    par[sk.SENSOR_ARM] = cell.sensor_arm_m
-    par[sk.DEPTH] = sc.depth_m
-    par[sk.FEED_M_S] = sc.feed_m_s
-    par[sk.MAX_TIME_S] = max_time_s
-    par[sk.N_LIPS] = geo.n_lips
-    par[sk.REV_PER_S] = sc.spindle_rpm / 60.0
-    par[sk.SIN_KAPPA] = math.sin(geo.kappa_rad)
-    par[sk.R_BASE_TASK : sk.R_BASE_TASK + 9] = cell.R_base_task.ravel()
-    par[sk.ENTRY_BASE : sk.ENTRY_BASE + 3] = cell.entry_base_m
-    par[sk.C_TOOL : sk.C_TOOL + 9] = cell.C_tool.ravel()
-    par[sk.STIFFNESS : sk.STIFFNESS + 6] = cell.joints.stiffness_nm_rad
-    par[sk.MARKER_START : sk.MARKER_START + 3] = marker_start_base_m
-    par[sk.S_START] = s_start_m
-    par[sk.BOUNDS : sk.BOUNDS + 4] = solver._bounds
-    par[sk.FT_STD : sk.FT_STD + 6] = ft_noise_std
-    par[sk.N_GRID] = solver.grid.shape[0]
-    par[sk.N_BINS] = cell.hole.filled.shape[0]
-    par[sk.BIN_M] = cell.hole.bin_m
-    par[sk.OMEGA] = 2.0 * math.pi * sc.spindle_rpm / 60.0
+    p["latency_s"] = latency_s
+    p["servo_gain"] = cell.servo_gain
+    p["tan_beta"] = solver.tan_beta
+    p["k_lat_n"] = solver.k_lat_n
+    p["guidance_exponent"] = solver.guidance_exponent
+    p["wall_floor"] = solver.wall_floor
+    p["wall_length_m"] = solver.wall_length_m
+    p["force_scale"] = solver.force_scale
+    p["tracker_noise_m"] = tracker_noise_m
+    p["force_limit_n"] = force_limit_n
+    p["sensor_arm_m"] = cell.sensor_arm_m
+    p["depth_m"] = sc.depth_m
+    p["feed_m_s"] = sc.feed_m_s
+    p["max_time_s"] = max_time_s
+    p["n_lips"] = geo.n_lips
+    p["rev_per_s"] = sc.spindle_rpm / 60.0
+    p["sin_kappa"] = math.sin(geo.kappa_rad)
+    p["R_base_task"] = cell.R_base_task
+    p["entry_base_m"] = cell.entry_base_m
+    p["C_tool"] = cell.C_tool
+    p["stiffness_nm_rad"] = cell.joints.stiffness_nm_rad
+    p["marker_start_base_m"] = marker_start_base_m
+    p["s_start_m"] = s_start_m
+    p["stage_bounds_m"] = solver._bounds
+    p["ft_std"] = ft_noise_std
+    p["n_grid"] = solver.grid.shape[0]
+    p["n_bins"] = cell.hole.filled.shape[0]
+    p["bin_m"] = cell.hole.bin_m
+    p["omega_rad_s"] = 2.0 * math.pi * sc.spindle_rpm / 60.0
     if cell.geometry_offset_task_m is not None:  # the offsets themselves are state (``load``)
-        par[sk.GEOMETRY_ON] = par[sk.TARGET_OFFSET_ON] = 1.0
+        p["geometry_on"] = p["target_offset_on"] = True
     if cell.marker_offset_base_m is not None:
-        par[sk.MARKER_ON] = 1.0
-    par[sk.ENTRY_GUIDANCE] = solver.entry_guidance
-    return par
+        p["marker_on"] = True
+    p["entry_guidance"] = solver.entry_guidance
 
 
-def _thermal_softening(effect: Effect, par: np.ndarray) -> None:
-    par[sk.SOFTENING] = effect.values["softening"]
-    par[sk.SOFTENING_WORK_J] = effect.values["work_j"]
+def _thermal_softening(effect: Effect, p: np.void) -> None:
+    p["softening"] = effect.values["softening"]
+    p["softening_work_j"] = effect.values["work_j"]
 
 
-def _joint_friction(effect: Effect, par: np.ndarray) -> None:
+def _joint_friction(effect: Effect, p: np.void) -> None:
     c, tv = effect.values["coulomb_rad"], effect.values["viscous_s"]
-    par[sk.FRICTION_COULOMB], par[sk.FRICTION_VISCOUS] = c, tv
+    p["friction_coulomb_rad"], p["friction_viscous_s"] = c, tv
     if c != 0.0 or tv != 0.0:
-        par[sk.FRICTION_ON] = par[sk.TARGET_OFFSET_ON] = 1.0
+        p["friction_on"] = p["target_offset_on"] = True
 
 
-def _joint_backlash(effect: Effect, par: np.ndarray) -> None:
+def _joint_backlash(effect: Effect, p: np.void) -> None:
     half = 0.5 * effect.values["play_rad"]
-    par[sk.BACKLASH_HALF] = half
+    p["backlash_half_rad"] = half
     if half > 0.0:  # the links move the tool and the marker from the first step on
-        par[sk.GEOMETRY_ON] = par[sk.MARKER_ON] = par[sk.TARGET_OFFSET_ON] = 1.0
+        p["geometry_on"] = p["marker_on"] = p["target_offset_on"] = True
 
 
-def _latency(effect: Effect, par: np.ndarray) -> None:
-    par[sk.EXTRA_LATENCY] = effect.values["extra_latency_s"]
+def _latency(effect: Effect, p: np.void) -> None:
+    p["extra_latency_s"] = effect.values["extra_latency_s"]
 
 
-def _spindle_sag(effect: Effect, par: np.ndarray) -> None:
-    par[sk.SPINDLE_SAG] = effect.values["sag_per_nm"]
+def _spindle_sag(effect: Effect, p: np.void) -> None:
+    p["spindle_sag_per_nm"] = effect.values["sag_per_nm"]
 
 
-STEP_EFFECTS: dict[str, Callable[[Effect, np.ndarray], None]] = {
+STEP_EFFECTS: dict[str, Callable[[Effect, np.void], None]] = {
     ThermalSoftening.name: _thermal_softening,
     JointFriction.name: _joint_friction,
     JointBacklash.name: _joint_backlash,
     Latency.name: _latency,
     SpindleSag.name: _spindle_sag,
 }
-"""The effects with a step hook the compiled step runs, by name: each writes its parameters into ``par``
-(the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._friction_lag``, ``step_kernel._backlash``,
-``step_kernel._delayed``,
-the spindle share in ``step_kernel.advance``)."""
+"""The effects with a step hook the compiled step runs, by name: each writes its parameters into the episode's
+``params`` record (the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._friction_lag``,
+``step_kernel._backlash``, ``step_kernel._delayed``, the spindle share in ``step_kernel.advance``)."""
 
 
 def tracker_sample_is_new(t_s: Any, stamp_s: Any) -> Any:
@@ -151,16 +151,16 @@ def tracker_sample_is_new(t_s: Any, stamp_s: Any) -> Any:
     return np.floor(t_s * TRACKER_RATE_HZ + 1e-9) / TRACKER_RATE_HZ != stamp_s  # sensors.latest_sample_time_s
 
 
-def draw_noise(rng: np.random.Generator, noise: np.ndarray, par: np.ndarray, tracker_new: bool) -> None:
+def draw_noise(rng: np.random.Generator, noise: np.ndarray, p: np.void, tracker_new: bool) -> None:
     """The step's standard normals into ``noise`` from the episode's generator, in the Python step's order.
 
-    The F/T's (5x6) if it is noisy, then the tracker's (3) if it is noisy and its sample is new (``par``:
-    the episode's parameters).
+    The F/T's (5x6) if it is noisy, then the tracker's (3) if it is noisy and its sample is new (``p``: the
+    episode's parameters).
     """
     nf = 6 * SUBSTEPS_PER_STEP
-    if par[sk.FT_STD] > 0:
+    if p["ft_std"][0] > 0:
         rng.standard_normal(out=noise[:nf])
-    if par[sk.TRACKER_NOISE] > 0 and tracker_new:
+    if p["tracker_noise_m"] > 0 and tracker_new:
         rng.standard_normal(out=noise[nf:])
 
 
@@ -184,7 +184,7 @@ PHASES = tuple(Phase)
 
 
 class KernelState:
-    """The compiled step's arrays for one env's episode (built at ``reset``, without effects or with compiled ones).
+    """The compiled step's arrays for one env's episode (N = 1; built at ``reset``, without effects or with compiled ones).
 
     The arrays hold the episode's state from the first step on; after each step :meth:`store` writes it into
     the env's Python objects, which the observation, the info and every other reader use. Nothing in the
@@ -197,43 +197,45 @@ class KernelState:
         if cell.solver.guidance_hook is not None:
             raise ValueError("the compiled step has no guidance hook; step this env in Python")
         hole = cell.hole
-        fs = np.zeros(sk.FLOAT_STATE_SIZE)
-        fs[sk.KEY_CHIP] = math.nan
         self.arrays = sk.KernelArrays(
-            fs=fs,
-            ist=np.zeros(sk.INT_STATE_SIZE, dtype=np.int64),
-            pend=np.zeros((sk.PENDING_ROWS, 5)),
-            par=episode_params(
-                cell,
-                env.scenario.latency_s,
-                env.scenario.force_limit_n,
-                env.max_time_s,
-                env.marker_start_base,
-                env.s_start_m,
-                env.ft._noise_std,
-                env.tracker.noise_m,
-            ),
-            tab=table_rows(cell.table, cell.solver.depth_profile),
-            rows=np.empty((cell.solver.grid.shape[0], 4)),
-            chains=np.stack(chains_of(cell.kin)),
-            centre=hole.centre_xy_m,
-            filled=hole.filled,
-            bins=hole.bins,
-            delay=np.zeros((sk.DELAY_ROWS, 4)),
+            state=new_state(1),
+            params=new_params(1),
+            pend=np.zeros((1, sk.PENDING_ROWS, 5)),
+            tab=table_rows(cell.table, cell.solver.depth_profile)[None],
+            rows=np.empty((1, cell.solver.grid.shape[0], 4)),
+            chains=np.stack(chains_of(cell.kin))[None],
+            centre=hole.centre_xy_m[None],
+            filled=hole.filled[None],
+            bins=hole.bins[None],
+            delay=np.zeros((1, sk.DELAY_ROWS, 4)),
         )
-        self.fs, self.ist, self.pend, self.par = fs, self.arrays.ist, self.arrays.pend, self.arrays.par
+        self.state, self.params, self.pend = self.arrays.state, self.arrays.params, self.arrays.pend[0]
+        self.s, self.p = self.state[0], self.params[0]
+        self._scalars = self.state.view(STATE_SCALARS)
+        episode_params(
+            self.p,
+            cell,
+            env.scenario.latency_s,
+            env.scenario.force_limit_n,
+            env.max_time_s,
+            env.marker_start_base,
+            env.s_start_m,
+            env.ft._noise_std,
+            env.tracker.noise_m,
+        )
         effects = [] if env.effects is None else env.effects.effects
         if env.effects is not None and not env.effects.compiled:
             raise ValueError(f"the compiled step does not run all of {effects!r}; step this env in Python")
         for e in effects:
             hook = STEP_EFFECTS.get(type(e).name)
             if hook is not None:
-                hook(e, self.par)
+                hook(e, self.p)
         self._thermal = next((e for e in effects if isinstance(e, ThermalSoftening)), None)
         backlash = next((e for e in effects if isinstance(e, JointBacklash)), None)
-        self._backlash = backlash if self.par[sk.BACKLASH_HALF] > 0.0 else None
-        self.noise = np.zeros(NOISE_SIZE)
-        self.command = np.zeros(4)
+        self._backlash = backlash if self.p["backlash_half_rad"] > 0.0 else None
+        self.noise = np.zeros((1, NOISE_SIZE))
+        self.command = np.zeros((1, 4))
+        self.recorded = np.zeros(1, dtype=np.int64)
         self.loaded = False
 
     def step(self, env: UR5BoneDrillEnv, correction_base_m: np.ndarray, feed_scale: float) -> np.ndarray:
@@ -242,21 +244,22 @@ class KernelState:
             self.load(env)
         t_apply = env.t_s + env.scenario.latency_s  # as the kernel queues it
         cmd = self.command
-        cmd[:3] = correction_base_m
-        cmd[3] = feed_scale
-        draw_noise(env.np_random, self.noise, self.par, tracker_sample_is_new(env.t_s, env.tracker_stamp))
-        out = np.empty((SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
-        sk.advance(*self.arrays, cmd, self.noise, out)
-        if self.ist[sk.SINGULAR]:
+        cmd[0, :3] = correction_base_m
+        cmd[0, 3] = feed_scale
+        draw_noise(env.np_random, self.noise[0], self.p, tracker_sample_is_new(env.t_s, env.tracker_stamp))
+        out = np.empty((1, SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
+        self.recorded[0] = 0
+        sk.advance_batch(*self.arrays, cmd, self.noise, out, self.recorded)
+        if self.s["singular"]:
             raise np.linalg.LinAlgError(f"singular TCP Jacobian at q = {env.cell.q_motor_rad.tolist()} rad")
         env.pending.append((t_apply, correction_base_m, feed_scale))
         self.store(env)
-        return out
+        return out[0]
 
     @property
     def noiseless(self) -> bool:
         """Whether the episode's F/T and tracker have no noise (a step then draws nothing)."""
-        return not (self.par[sk.FT_STD : sk.FT_STD + 6] > 0.0).any() and not self.par[sk.TRACKER_NOISE] > 0.0
+        return not (self.p["ft_std"] > 0.0).any() and not self.p["tracker_noise_m"] > 0.0
 
     def open_loop(self, env: UR5BoneDrillEnv, commands: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
         """Advance ``env`` through ``commands`` (T, 4: correction m base frame, feed scale) in one call.
@@ -273,55 +276,70 @@ class KernelState:
         q = np.full((n, 6), math.nan)
         tracker = np.full((n, 3), math.nan)
         done = sk.advance_open_loop(*self.arrays, np.ascontiguousarray(commands, dtype=float), out, q, tracker)
-        if self.ist[sk.SINGULAR]:
-            raise np.linalg.LinAlgError(
-                f"singular TCP Jacobian at q = {self.fs[sk.Q_MOTOR : sk.Q_MOTOR + 6].tolist()} rad"
-            )
+        s = self.s
+        if s["singular"]:
+            raise np.linalg.LinAlgError(f"singular TCP Jacobian at q = {s['q_motor_rad'].tolist()} rad")
         pend = self.pend
         env.pending.clear()
-        for k in range(self.ist[sk.PENDING]):  # the queue as the kernel left it: every command applied was popped
+        for k in range(int(s["pending"])):  # the queue as the kernel left it: every command applied was popped
             env.pending.append((float(pend[k, 0]), pend[k, 1:4].copy(), float(pend[k, 4])))
-        env.correction_base_m = self.fs[sk.CORRECTION : sk.CORRECTION + 3].copy()
+        env.correction_base_m = s["correction_base_m"].copy()
         self.store(env)
         return done, q, tracker, out[: SUBSTEPS_PER_STEP * done]
 
+    @property
+    def terminated(self) -> bool:
+        """Whether the episode ended at the last step."""
+        return bool(self.s["terminated"])
+
+    @property
+    def truncated(self) -> bool:
+        """Whether the episode hit its time or step limit at the last step."""
+        return bool(self.s["truncated"])
+
     def load(self, env: UR5BoneDrillEnv) -> None:
         """Copy the env's state into the arrays (at the episode's first step)."""
-        fs, ist, cell, solver = self.fs, self.ist, env.cell, env.cell.solver
-        fs[sk.T_S] = env.t_s
-        fs[sk.PATH_S] = env.path.s_m
-        fs[sk.FEED_SCALE] = env.feed_scale
-        fs[sk.CORRECTION : sk.CORRECTION + 3] = env.correction_base_m
-        fs[sk.SOLVER : sk.SOLVER + 8] = [*solver.rigid, *solver.tip, solver.bottom_z, solver.depth_local]
-        fs[sk.RTDE_TCP : sk.RTDE_TCP + 3] = env.rtde_tcp_base
-        fs[sk.TRACKER_STAMP] = env.tracker_stamp
-        fs[sk.TRACKER_READING : sk.TRACKER_READING + 3] = env.tracker_reading
-        fs[sk.Q_MOTOR : sk.Q_MOTOR + 6] = cell.q_motor_rad
-        fs[sk.JACOBIAN : sk.JACOBIAN + 36] = cell.J_tcp.ravel()
-        fs[sk.C_ROBOT : sk.C_ROBOT + 9] = cell.C_robot.ravel()
-        self.par[sk.FORCE_SCALE] = solver.force_scale
-        fs[sk.FORCE_SCALE_NOW] = solver.force_scale
-        fs[sk.SPINDLE_SHARE] = cell.spindle_rpm / cell.scenario.spindle_rpm
+        s, p, cell, solver = self.s, self.p, env.cell, env.cell.solver
+        s["t_s"] = env.t_s
+        s["path_m"] = env.path.s_m
+        s["feed_scale"] = env.feed_scale
+        s["correction_base_m"] = env.correction_base_m
+        s["tip_balance"] = [*solver.rigid, *solver.tip, solver.bottom_z, solver.depth_local]
+        s["rtde_tcp_base_m"] = env.rtde_tcp_base
+        s["tracker_stamp_s"] = env.tracker_stamp
+        s["tracker_reading_base_m"] = env.tracker_reading
+        s["q_motor_rad"] = cell.q_motor_rad
+        s["jacobian"] = cell.J_tcp
+        s["c_robot_m_n"] = cell.C_robot
+        p["force_scale"] = solver.force_scale
+        s["force_scale_now"] = solver.force_scale
+        s["spindle_share"] = cell.spindle_rpm / cell.scenario.spindle_rpm
         if cell.geometry_offset_task_m is not None:
-            fs[sk.GEOMETRY_OFFSET : sk.GEOMETRY_OFFSET + 3] = cell.geometry_offset_task_m
+            s["geometry_offset_task_m"] = cell.geometry_offset_task_m
         if cell.marker_offset_base_m is not None:
-            fs[sk.MARKER_OFFSET : sk.MARKER_OFFSET + 3] = cell.marker_offset_base_m
-        fs[sk.TARGET_OFFSET : sk.TARGET_OFFSET + 3] = fs[sk.GEOMETRY_OFFSET : sk.GEOMETRY_OFFSET + 3]
+            s["marker_offset_base_m"] = cell.marker_offset_base_m
+        s["target_offset_task_m"] = s["geometry_offset_task_m"]
         if self._backlash is not None:
-            fs[sk.LINK_Q : sk.LINK_Q + 3] = self._backlash.q_link[:3]
-            fs[sk.LINK_TIP : sk.LINK_TIP + 3], fs[sk.LINK_MARKER : sk.LINK_MARKER + 3] = self._backlash.share
+            s["link_q_rad"] = self._backlash.q_link[:3]
+            s["link_tip_task_m"], s["link_marker_base_m"] = self._backlash.share
         smp = cell.sample
-        o = sk.SAMPLE
-        fs[o : o + 10] = [*smp.tip, *smp.rigid, *smp.force, smp.torque_axis]
-        fs[o + 10 : o + 13] = smp.depth_local, smp.stage, 1.0 if smp.cutting else 0.0
+        s["sample"] = [
+            *smp.tip,
+            *smp.rigid,
+            *smp.force,
+            smp.torque_axis,
+            smp.depth_local,
+            smp.stage,
+            1.0 if smp.cutting else 0.0,
+        ]
         if self._thermal is not None:
-            fs[sk.WORK_J] = self._thermal.work_j
-        ist[sk.PHASE] = int(env.path.phase)
-        ist[sk.TOUCHING] = 1 if solver.touching else 0
-        ist[sk.BRACKET] = solver._j
-        ist[sk.FAILURE] = 0 if env.failure is None else 1
-        ist[sk.STEPS] = env.steps
-        ist[sk.PENDING] = len(env.pending)
+            s["work_j"] = self._thermal.work_j
+        s["phase"] = int(env.path.phase)
+        s["touching"] = solver.touching
+        s["bracket"] = solver._j
+        s["failure"] = env.failure is not None
+        s["steps"] = env.steps
+        s["pending"] = len(env.pending)
         for k, (t_apply, corr, scale) in enumerate(env.pending):
             self.pend[k, 0] = t_apply
             self.pend[k, 1:4] = corr
@@ -330,56 +348,53 @@ class KernelState:
 
     def store(self, env: UR5BoneDrillEnv) -> None:
         """Copy the arrays back into the env's state (its queue has the step's command appended already)."""
-        fs, cell, solver = self.fs, env.cell, env.cell.solver
-        v = fs.tolist()
-        i = self.ist.tolist()
-        env.t_s = v[sk.T_S]
-        env.path.s_m = v[sk.PATH_S]
-        env.path.phase = PHASES[i[sk.PHASE]]
-        env.feed_scale = v[sk.FEED_SCALE]
+        cell, solver = env.cell, env.cell.solver
+        v = StateScalars._make(self._scalars[0].item())  # Python numbers
+        s = self.s
+        env.t_s = v.t_s
+        env.path.s_m = v.path_m
+        env.path.phase = PHASES[v.phase]
+        env.feed_scale = v.feed_scale
         pending = env.pending
-        for _ in range(len(pending) - i[sk.PENDING]):  # the commands applied: the last one is in effect
+        for _ in range(len(pending) - v.pending):  # the commands applied: the last one is in effect
             env.correction_base_m = pending.popleft()[1]
-        o = sk.SOLVER
-        solver.rigid, solver.tip = v[o : o + 3], v[o + 3 : o + 6]
-        solver.bottom_z, solver.depth_local = v[o + 6], v[o + 7]
-        solver.touching, solver._j = i[sk.TOUCHING] == 1, i[sk.BRACKET]
-        o = sk.SAMPLE
-        solver.force, solver.torque = v[o + 6 : o + 9], v[o + 9]
+        tb = s["tip_balance"].tolist()
+        solver.rigid, solver.tip = tb[0:3], tb[3:6]
+        solver.bottom_z, solver.depth_local = tb[6], tb[7]
+        solver.touching, solver._j = v.touching, v.bracket
+        smp = s["sample"].tolist()
+        solver.force, solver.torque = smp[6:9], smp[9]
         cell.sample = ContactSample(
-            (v[o], v[o + 1], v[o + 2]),
-            (v[o + 3], v[o + 4], v[o + 5]),
-            (v[o + 6], v[o + 7], v[o + 8]),
-            v[o + 9],
-            v[o + 10],
-            int(v[o + 11]),
-            v[o + 12] == 1.0,
+            (smp[0], smp[1], smp[2]),
+            (smp[3], smp[4], smp[5]),
+            (smp[6], smp[7], smp[8]),
+            smp[9],
+            smp[10],
+            int(smp[11]),
+            smp[12] == 1.0,
         )
-        env.rtde_tcp_base = fs[sk.RTDE_TCP : sk.RTDE_TCP + 3].copy()
-        env.ft_last = fs[sk.FT_LAST : sk.FT_LAST + 6].copy()
-        env.ft_mean = fs[sk.FT_MEAN : sk.FT_MEAN + 6].copy()
-        env.tracker_stamp = v[sk.TRACKER_STAMP]
-        env.tracker_reading = fs[sk.TRACKER_READING : sk.TRACKER_READING + 3].copy()
-        env.tracker_error_base = fs[sk.TRACKER_ERROR : sk.TRACKER_ERROR + 3].copy()
-        env.tracker_lateral_m = v[sk.TRACKER_LATERAL]
-        env.step_deviation_m = v[sk.STEP_DEVIATION]
-        env.step_lateral_n = v[sk.STEP_LATERAL]
-        cell.q_motor_rad = fs[sk.Q_MOTOR : sk.Q_MOTOR + 6].copy()
-        cell.J_tcp = fs[sk.JACOBIAN : sk.JACOBIAN + 36].copy().reshape(6, 6)
-        cell.C_robot = fs[sk.C_ROBOT : sk.C_ROBOT + 9].copy().reshape(3, 3)
+        env.rtde_tcp_base = s["rtde_tcp_base_m"].copy()
+        env.ft_last = s["ft_last"].copy()
+        env.ft_mean = s["ft_mean"].copy()
+        env.tracker_stamp = v.tracker_stamp_s
+        env.tracker_reading = s["tracker_reading_base_m"].copy()
+        env.tracker_error_base = s["tracker_error_base_m"].copy()
+        env.tracker_lateral_m = v.tracker_lateral_m
+        env.step_deviation_m = v.step_deviation_m
+        env.step_lateral_n = v.step_lateral_n
+        cell.q_motor_rad = s["q_motor_rad"].copy()
+        cell.J_tcp = s["jacobian"].copy()
+        cell.C_robot = s["c_robot_m_n"].copy()
         cell.C_total = cell.C_robot + cell.C_tool
-        solver.force_scale = v[sk.FORCE_SCALE_NOW]
-        cell.spindle_rpm = cell.scenario.spindle_rpm * v[sk.SPINDLE_SHARE]
+        solver.force_scale = v.force_scale_now
+        cell.spindle_rpm = cell.scenario.spindle_rpm * v.spindle_share
         if self._thermal is not None:
-            self._thermal.work_j = v[sk.WORK_J]
+            self._thermal.work_j = v.work_j
         if self._backlash is not None:  # the links moved the tool and the marker
-            self._backlash.q_link[:3] = fs[sk.LINK_Q : sk.LINK_Q + 3]
-            self._backlash.share = (
-                fs[sk.LINK_TIP : sk.LINK_TIP + 3].copy(),
-                fs[sk.LINK_MARKER : sk.LINK_MARKER + 3].copy(),
-            )
-            cell.geometry_offset_task_m = fs[sk.GEOMETRY_OFFSET : sk.GEOMETRY_OFFSET + 3].copy()
-            cell.marker_offset_base_m = fs[sk.MARKER_OFFSET : sk.MARKER_OFFSET + 3].copy()
-        if i[sk.FAILURE] and env.failure is None:
+            self._backlash.q_link[:3] = s["link_q_rad"]
+            self._backlash.share = (s["link_tip_task_m"].copy(), s["link_marker_base_m"].copy())
+            cell.geometry_offset_task_m = s["geometry_offset_task_m"].copy()
+            cell.marker_offset_base_m = s["marker_offset_base_m"].copy()
+        if v.failure and env.failure is None:
             env.failure = "force_limit"
-        env.steps = i[sk.STEPS]
+        env.steps = v.steps

@@ -1,0 +1,219 @@
+"""An episode's state and constant parameters as named fields, with a leading episode axis.
+
+The compiled step (:mod:`drillgym.envs.step_kernel`) works on two NumPy structured arrays of shape ``(N,)``:
+``state`` (:data:`STATE`, what a step changes) and ``params`` (:data:`PARAMS`, what is fixed for the episode).
+Numba takes them as it takes plain arrays: ``state[i]`` is episode ``i``'s record, passed by reference, whose
+fields read and write in place (``s.t_s += dt``, ``s.q_motor_rad[:] = q``). From Python, ``state["t_s"]`` is a
+view of every episode's time and ``state[0]["jacobian"]`` episode 0's 6x6 Jacobian. The single env holds N = 1,
+the batched env (:mod:`drillgym.envs.batched`) N.
+
+Each field is declared once, below, with its unit and frame: :data:`STATE_FIELDS` and :data:`PARAM_FIELDS` are
+the documentation, the dtypes are built from them. Flags are booleans, counts and codes ``int64``, the rest
+``float64``. Frames: "base" the robot base, "task" the hole's frame (z along the planned axis), "sensor" the
+F/T sensor's.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from drillgym.envs.drilling.contact_kernel import ROW_SIZE, STATE_SIZE
+
+
+class Field(NamedTuple):
+    """One named field: its name, NumPy type, shape (``()`` for a scalar) and what it holds (unit, frame)."""
+
+    name: str
+    dtype: str
+    shape: tuple[int, ...]
+    doc: str
+
+
+def _f(name: str, doc: str, *shape: int) -> Field:
+    return Field(name, "f8", shape, doc)
+
+
+def _i(name: str, doc: str) -> Field:
+    return Field(name, "i8", (), doc)
+
+
+def _b(name: str, doc: str) -> Field:
+    return Field(name, "?", (), doc)
+
+
+STATE_FIELDS: tuple[Field, ...] = (
+    _f("t_s", "Simulated time (s)."),
+    _f("path_m", "Nominal depth along the planned axis (m)."),
+    _f("feed_scale", "Feed override in effect (-)."),
+    _f("correction_base_m", "Tip correction in effect (m, base frame).", 3),
+    _f(
+        "tip_balance",
+        "The tip balance's state (:data:`~drillgym.envs.drilling.contact_kernel.STATE_SIZE`): rigid tip (3), "
+        "true tip (3), deepest point cut, local depth (m, task frame).",
+        STATE_SIZE,
+    ),
+    _f("key_chip_m", "Chip thickness the cached force rows were made for (m; NaN: none yet)."),
+    _f("key_scale", "Specimen hardness factor the cached force rows were made for (-)."),
+    _f("rtde_tcp_base_m", "The RTDE TCP position (m, base frame).", 3),
+    _f("ft_last", "Latest F/T reading (N and N·m, sensor frame).", 6),
+    _f("ft_mean", "Mean of the step's F/T readings (N and N·m, sensor frame).", 6),
+    _f("tracker_stamp_s", "Time stamp of the latest tracker sample (s; -1 before the first)."),
+    _f("tracker_reading_base_m", "Latest tracker reading (m, base frame).", 3),
+    _f(
+        "tracker_error_base_m",
+        "Tracker reading minus where a rigid arm on the nominal path puts the marker (m, base frame).",
+        3,
+    ),
+    _f("tracker_lateral_m", "Lateral part of the tracker error (m, task xy)."),
+    _f("step_deviation_m", "Mean true tip deviation over the step's samples (m)."),
+    _f("step_lateral_n", "Mean true lateral force over the step's samples (N)."),
+    _f("q_motor_rad", "Motor-side joint angles (rad).", 6),
+    _f("jacobian", "TCP Jacobian at ``q_motor_rad`` (base axes; rows: linear (m/rad), angular (rad/rad)).", 6, 6),
+    _f("c_robot_m_n", "Arm compliance at the TCP (m/N, task axes).", 3, 3),
+    _f(
+        "sample",
+        "The latest sample's row (:data:`~drillgym.envs.drilling.contact_kernel.ROW_SIZE`): tip (3), rigid tip "
+        "(3), force (3, N), torque about the axis (N·m), local depth (m), stage, cutting (0/1); task frame.",
+        ROW_SIZE,
+    ),
+    _f(
+        "target_offset_task_m",
+        "This step's shift of the servo target (m, task frame): the geometry offset plus, with joint friction, "
+        "its servo lag (used where ``params.target_offset_on``).",
+        3,
+    ),
+    _f("work_j", "Cutting work done so far (J; thermal softening)."),
+    _f("force_scale_now", "The force scale in effect: the specimen's, after thermal softening if on (-)."),
+    _f("spindle_share", "The spindle's speed as a share of the scenario's (1 without spindle sag)."),
+    _f(
+        "geometry_offset_task_m",
+        "Where the physical tool sits away from the controller's model (m, task frame; used where "
+        "``params.geometry_on``): constant but for joint backlash, whose links move it.",
+        3,
+    ),
+    _f("marker_offset_base_m", "The same for the tracker marker (m, base frame; used where ``params.marker_on``).", 3),
+    _f("link_q_rad", "Joint backlash: the link angles of the first three joints (rad).", 3),
+    _f("link_tip_task_m", "Joint backlash: its share of the geometry offset (m, task frame).", 3),
+    _f("link_marker_base_m", "Joint backlash: its share of the marker offset (m, base frame).", 3),
+    _i("phase", "Path phase (:class:`~drillgym.envs.task.Phase`)."),
+    _b("touching", "Whether the tip touched bone at the latest sample."),
+    _i("bracket", "The depth grid's bracket of the latest root (warm start)."),
+    _b("failure", "True once the measured force exceeded the limit."),
+    _i("steps", "Agent steps taken."),
+    _i("pending", "Commands queued in the command queue ``pend``."),
+    _b("terminated", "The episode ended (drilled and retracted, or the force limit)."),
+    _b("truncated", "The episode hit its time or step limit."),
+    _b("singular", "The inverse kinematics met a singular Jacobian (the caller raises)."),
+    _b("tracker_new", "This step's tracker sample is new (its noise was drawn)."),
+    _i("delay_count", "Samples held in the delay line ``delay`` (extra latency)."),
+)
+"""What a step changes, per episode."""
+
+PARAM_FIELDS: tuple[Field, ...] = (
+    _f("latency_s", "Command latency (s)."),
+    _f("servo_gain", "Servo tracking gain per physics update (-)."),
+    _f("tan_beta", "Tangent of the surface's slope at the entry (-)."),
+    _f("k_lat_n", "Lateral cut stiffness times the axial advance per update (N)."),
+    _f("guidance_exponent", "Exponent of the engaged share in the side guidance (-)."),
+    _f("wall_floor", "Side guidance at the hole's wall start, as a share of full guidance (-)."),
+    _f("wall_length_m", "Depth over which the wall's guidance builds up (m)."),
+    _f("force_scale", "The specimen's hardness factor (-)."),
+    _f("tracker_noise_m", "Tracker noise std (m; 0: noiseless)."),
+    _f("force_limit_n", "F/T force magnitude that ends the episode (N)."),
+    _f("sensor_arm_m", "Distance from the F/T sensor to the tip along the tool axis (m)."),
+    _f("depth_m", "Hole depth (m)."),
+    _f("feed_m_s", "Nominal feed (m/s)."),
+    _f("max_time_s", "Episode time limit (s)."),
+    _f("n_lips", "Cutting lips of the drill (-)."),
+    _f("rev_per_s", "Spindle speed (rev/s)."),
+    _f("sin_kappa", "Sine of the lips' half point angle (-)."),
+    _f("R_base_task", "Rotation from the task frame to the base frame (-).", 3, 3),
+    _f("entry_base_m", "The entry point (m, base frame).", 3),
+    _f("C_tool", "Drill compliance at the tip (m/N, task axes).", 3, 3),
+    _f("stiffness_nm_rad", "Joint stiffness (N·m/rad).", 6),
+    _f("marker_start_base_m", "The tracker marker's model position at the start (m, base frame).", 3),
+    _f("s_start_m", "Nominal depth at the start (m)."),
+    _f("stage_bounds_m", "The stage bounds (m).", 4),
+    _f("ft_std", "F/T noise std per axis (N and N·m).", 6),
+    _i("n_grid", "Rows of the force table in use."),
+    _i("n_bins", "Bins of the hole in use."),
+    _f("bin_m", "Axial size of a hole bin (m)."),
+    _f(
+        "backlash_half_rad",
+        "Joint backlash: half the play of each of the first three joints (rad; 0: off; "
+        ":class:`~drillgym.envs.effects.backlash.JointBacklash`).",
+    ),
+    _b("geometry_on", "The cell has a geometry offset."),
+    _b("marker_on", "The cell has a marker offset."),
+    _b("target_offset_on", "The servo target is shifted (a geometry offset or joint friction)."),
+    _f("entry_guidance", "Extra side guidance while the lips enter (share of full guidance at first touch)."),
+    _f("softening", "Thermal softening: asymptotic fractional loss of hardness (0: off)."),
+    _f("softening_work_j", "Thermal softening: cutting work for 63 % of the loss (J)."),
+    _f("omega_rad_s", "Spindle speed (rad/s)."),
+    _f("friction_coulomb_rad", "Joint friction: Coulomb position error per moving joint (rad)."),
+    _f("friction_viscous_s", "Joint friction: viscous position error per joint speed (s)."),
+    _b("friction_on", "Joint friction is on."),
+    _f(
+        "extra_latency_s",
+        "Extra delay of the whole servo target (s; 0: off; :class:`~drillgym.envs.effects.timing.Latency`).",
+    ),
+    _f(
+        "spindle_sag_per_nm",
+        "Spindle speed loss per N·m of cutting torque (1/(N·m); 0: off; "
+        ":class:`~drillgym.envs.effects.spindle.SpindleSag`).",
+    ),
+)
+"""What is fixed for an episode (set at reset from the cell, the scenario and the compiled effects)."""
+
+
+def _dtype(fields: tuple[Field, ...]) -> np.dtype:
+    return np.dtype([(f.name, f.dtype, f.shape) for f in fields], align=True)
+
+
+STATE = _dtype(STATE_FIELDS)
+"""The state's record type."""
+PARAMS = _dtype(PARAM_FIELDS)
+"""The parameters' record type."""
+
+
+def _scalar_view(fields: tuple[Field, ...], dtype: np.dtype) -> np.dtype:
+    """``dtype``'s scalar fields alone, at their offsets: a view whose ``item()`` makes no array views."""
+    scalars = [f for f in fields if f.shape == ()]
+    offsets = dtype.fields
+    assert offsets is not None
+    spec: Any = {
+        "names": [f.name for f in scalars],
+        "formats": [f.dtype for f in scalars],
+        "offsets": [offsets[f.name][1] for f in scalars],
+        "itemsize": dtype.itemsize,
+    }
+    return np.dtype(spec)
+
+
+def _tuple_of(name: str, fields: tuple[Field, ...]) -> Any:
+    """A named tuple of ``fields``' scalars (built from the declarations, so typed ``Any``)."""
+    return namedtuple(name, [f.name for f in fields if f.shape == ()])
+
+
+STATE_SCALARS = _scalar_view(STATE_FIELDS, STATE)
+"""The state's scalar fields (``state.view(STATE_SCALARS)[i].item()``: episode ``i``'s as Python numbers)."""
+
+
+StateScalars: Any = _tuple_of("StateScalars", STATE_FIELDS)
+"""One episode's scalar state fields as Python numbers, by name: ``StateScalars._make(view[i].item())``."""
+
+
+def new_state(n: int) -> np.ndarray:
+    """``n`` episodes' state, zero but for ``key_chip_m`` (NaN: no force rows cached yet)."""
+    state = np.zeros(n, dtype=STATE)
+    state["key_chip_m"] = math.nan
+    return state
+
+
+def new_params(n: int) -> np.ndarray:
+    """``n`` episodes' parameters, all zero (every effect off)."""
+    return np.zeros(n, dtype=PARAMS)

@@ -1,0 +1,47 @@
+"""The named episode state (envs/episode_state.py): declared fields, their record layout, and the scalar view."""
+
+import math
+
+import numpy as np
+
+from drillgym.envs.episode_state import (
+    PARAM_FIELDS,
+    PARAMS,
+    STATE,
+    STATE_FIELDS,
+    STATE_SCALARS,
+    StateScalars,
+    new_params,
+    new_state,
+)
+
+
+def test_every_declared_field_is_in_its_record_with_its_shape_and_a_documented_meaning():
+    for fields, dtype in ((STATE_FIELDS, STATE), (PARAM_FIELDS, PARAMS)):
+        assert [f.name for f in fields] == list(dtype.names)
+        assert len({f.name for f in fields}) == len(fields)
+        for f in fields:
+            assert dtype.fields[f.name][0].shape == f.shape, f.name
+            assert f.doc.strip().endswith((".", ")")) and len(f.doc) > 10, f.name
+
+
+def test_the_scalar_view_reads_each_scalar_field_of_an_episode_as_a_python_number():
+    state = new_state(3)
+    rng = np.random.default_rng(0)
+    for f in STATE_FIELDS:
+        state[f.name] = (
+            rng.integers(0, 2, state[f.name].shape) if f.dtype != "f8" else rng.normal(size=state[f.name].shape)
+        )
+    v = StateScalars._make(state.view(STATE_SCALARS)[1].item())
+    for name in v._fields:
+        got, want = getattr(v, name), state[name][1]
+        assert type(got) in (float, int, bool) and got == want, name
+    assert set(v._fields) == {f.name for f in STATE_FIELDS if f.shape == ()}
+
+
+def test_a_new_state_caches_no_force_rows_and_new_params_switch_every_effect_off():
+    state, params = new_state(2), new_params(2)
+    assert np.isnan(state["key_chip_m"]).all() and math.isnan(state[0]["key_chip_m"])
+    for name in ("softening", "backlash_half_rad", "extra_latency_s", "spindle_sag_per_nm", "friction_coulomb_rad"):
+        assert (params[name] == 0.0).all()
+    assert not params["friction_on"].any() and not params["geometry_on"].any()
