@@ -6,7 +6,6 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy import signal
 
 from drillgym.envs.constants import PHYSICS_DT_S
 from drillgym.envs.effects.base import Effect, EffectHost, Param, TraceView
@@ -20,6 +19,8 @@ def mode_filter(freq_hz: float, damping: float, dt_s: float = PHYSICS_DT_S) -> t
     wrench's first response. This is the zero-order-hold discretisation advanced by one sample (its numerator
     shifted one tap earlier); the plain one reads each wrench one sample late, a 10 ms delay of its own.
     """
+    from scipy import signal  # 1.3 s to import: only where a resonance is built
+
     w = 2.0 * math.pi * freq_hz
     b, a, _ = signal.cont2discrete(([w * w], [1.0, 2.0 * damping * w, w * w]), dt_s, method="zoh")
     b = np.ravel(b)
@@ -83,9 +84,11 @@ class FTResonance(Effect):
     @staticmethod
     def _ring(filters: Any, w: np.ndarray, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``H w`` of wrench rows (n, 6) from the modes' ``state`` (2, 6), and their state after the rows."""
+        from scipy.signal import lfilter  # see mode_filter
+
         y, after = np.empty_like(w), np.empty_like(state)
         for (b, a), cols in zip(filters, (LATERAL, ~LATERAL), strict=True):
-            y[:, cols], after[:, cols] = signal.lfilter(b, a, w[:, cols], axis=0, zi=state[:, cols])
+            y[:, cols], after[:, cols] = lfilter(b, a, w[:, cols], axis=0, zi=state[:, cols])
         return y, after
 
     def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
