@@ -54,7 +54,8 @@ CHANNEL_GROUPS = {
 """Channel groups of a region."""
 
 
-def _region_masks() -> dict[str, np.ndarray]:
+def region_masks() -> dict[str, np.ndarray]:
+    """Each region's (stage, channel) cells: every stage group crossed with every channel group."""
     out = {}
     for cg, channels in CHANNEL_GROUPS.items():
         for sg, stages in STAGE_GROUPS.items():
@@ -66,7 +67,7 @@ def _region_masks() -> dict[str, np.ndarray]:
     return out
 
 
-REGIONS = _region_masks()
+REGIONS = region_masks()
 """Region name (``"channel group, stage group"``) -> its (stage, channel) cells."""
 
 

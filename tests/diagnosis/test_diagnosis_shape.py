@@ -13,6 +13,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+import drillgym.eval.diagnosis.shape as shape
 import drillgym.eval.diagnosis.verdict as rules
 from drillgym.eval.diagnosis.channels import ALL_CHANNELS, STAGES
 from drillgym.eval.diagnosis.fit import FitResult
@@ -22,7 +23,7 @@ from drillgym.eval.diagnosis.report import shape_lines, why_not_named
 from drillgym.eval.diagnosis.shape import SHAPE_REMOVE_MIN, SHAPE_SHARE_MIN, shape_test
 
 APPROACH, STABLE = STAGES.index("approach"), STAGES.index("stable")
-FZ, FY_HF = ALL_CHANNELS.index("fz_n"), ALL_CHANNELS.index("fy_hf_n")
+FZ, FY, FY_HF = ALL_CHANNELS.index("fz_n"), ALL_CHANNELS.index("fy_n"), ALL_CHANNELS.index("fy_hf_n")
 
 
 def _terms(cells: dict[tuple[int, int], float]) -> Terms:
@@ -100,3 +101,45 @@ def test_a_model_that_is_not_nameable_is_not_shape_tested():
     weak = _model({}, score=100.0)  # scores no better than "no effect"
     rules.decide({"significant": True}, [weak], before, SimpleNamespace(baseline_terms=before, null_terms=NULL), NULL)
     assert weak.shape is None and weak.to_json()["shape"] is None
+
+
+def test_each_region_is_one_stage_group_crossed_with_one_channel_group():
+    masks = shape.region_masks()
+    assert len(masks) == 7 * 4 and masks.keys() == shape.REGIONS.keys()
+    expected = {
+        "thrust, entry": [(s, "fz_n") for s in ("entry1", "entry2", "entry3")],
+        "lateral force, before contact": [("approach", "fx_n"), ("approach", "fy_n")],
+        "thrust HF, retract": [("retract", "fz_hf_n")],
+        "tracker, stable": [("stable", f"tracker_{a}_task_m") for a in "xyz"],
+        "joint angles, entry": [(s, f"q{j}_rad") for s in ("entry1", "entry2", "entry3") for j in range(6)],
+    }
+    for name, cells in expected.items():
+        want = np.zeros((len(STAGES), len(ALL_CHANNELS)), dtype=bool)
+        for stage, channel in cells:
+            want[STAGES.index(stage), ALL_CHANNELS.index(channel)] = True
+        assert masks[name].dtype == bool and np.array_equal(masks[name], want), name
+    covered = sum(m.astype(int) for m in masks.values())
+    assert covered.max() == 1 and covered.sum() == len(STAGES) * len(ALL_CHANNELS)  # a partition of the cells
+
+
+def test_a_gap_with_no_excess_has_no_region_to_explain():
+    result = shape_test(_model({}), [_terms({})], NULL)
+    assert result == {"name": "an_effect", "passes": True, "regions": [], "reason": None}
+
+
+def test_a_small_gap_is_judged_by_its_shares_not_its_size():
+    """Excess 0.3 + 0.2 (total below 1): the untouched 40 % region still refuses the model."""
+    before = [_terms({(STABLE, FZ): 0.3, (STABLE, FY): 0.2})]
+    result = shape_test(_model({(STABLE, FY): 0.2}), before, NULL)
+    assert not result["passes"] and result["reason"].startswith(
+        "the gap has 40 % of its excess at lateral force, stable"
+    )
+
+
+def test_the_reason_names_the_largest_failing_region_first_and_rounds_to_whole_percent():
+    """Thrust, stable (60 %, 10.45 % removed) and lateral force, stable (40 %, none removed) both fail; the larger is
+    named, though its name sorts after the other's."""
+    before = [_terms({(STABLE, FZ): 60.0, (STABLE, FY): 40.0})]
+    result = shape_test(_model({(STABLE, FZ): 60.0 - 0.1045 * 60.0, (STABLE, FY): 40.0}), before, NULL)
+    assert [r["region"] for r in result["regions"]] == ["thrust, stable", "lateral force, stable"]
+    assert result["reason"] == "the gap has 60 % of its excess at thrust, stable; the model removes 10 % of it"
