@@ -32,9 +32,10 @@ from gymnasium.vector.utils import batch_space
 
 from drillgym.envs import step_kernel as sk
 from drillgym.envs.cell import chains_of
-from drillgym.envs.constants import ACTION_DIM, CONTROL_DT_S, MAX_EPISODE_STEPS, SUBSTEPS_PER_STEP, scale_action
+from drillgym.envs.constants import ACTION_DIM, CONTROL_DT_S, MAX_EPISODE_STEPS, SUBSTEPS_PER_STEP, scaled_rows
 from drillgym.envs.drill_env import UR5BoneDrillEnv
 from drillgym.envs.drilling.hole import centre_at
+from drillgym.envs.effects.registry import build_effects
 from drillgym.envs.episode_state import new_params, new_state
 from drillgym.envs.errors import UserError
 from drillgym.envs.kernel_state import NOISE_SIZE, draw_noise, record_channels, tracker_sample_is_new
@@ -51,13 +52,26 @@ class BatchedDrillEnv(VectorEnv):
         num_envs: episodes stepped together (>= 1).
         max_episode_steps: truncate an episode after this many agent steps (default and upper bound: the
             registration's 4000, which the env applies itself); ``gym.make_vec`` passes the registration's.
+        autoreset: True (Gymnasium's SAME_STEP): an ended episode's slot restarts in the same call; False: it
+            stays ended (not stepped, reward 0, flags False) until the next :meth:`reset`, for running a set
+            of seeded episodes once each (:attr:`active` says which still run).
+        effects: an effect spec (:func:`drillgym.envs.effects.build_effects`, e.g. a cell of
+            :data:`drillgym.envs.effects.cells.CELLS`) built afresh for every episode; compiled effects only
+            (:attr:`Effect.compiled <drillgym.envs.effects.base.Effect.compiled>`), else a ``UserError``.
         **env_kwargs: the single env's arguments (scenario, ``cell_params``, ``bone_material``, reward
             weights); rendering is not available.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}  # noqa: RUF012
 
-    def __init__(self, num_envs: int, max_episode_steps: int | None = None, **env_kwargs: Any) -> None:
+    def __init__(
+        self,
+        num_envs: int,
+        max_episode_steps: int | None = None,
+        autoreset: bool = True,
+        effects: str = "",
+        **env_kwargs: Any,
+    ) -> None:
         if not isinstance(num_envs, int) or num_envs < 1:
             raise UserError(f"num_envs={num_envs!r} must be an integer >= 1")
         limit = MAX_EPISODE_STEPS if max_episode_steps is None else max_episode_steps
@@ -67,6 +81,10 @@ class BatchedDrillEnv(VectorEnv):
         if env_kwargs.get("render_mode") is not None:
             raise UserError("BatchedDrillEnv does not render; use UR5BoneDrillEnv(render_mode='rgb_array')")
         self.num_envs = num_envs
+        self.autoreset = autoreset
+        self.effects = effects
+        if effects:
+            build_effects(effects)  # a bad spec fails here, not at the first reset
         self.envs = [UR5BoneDrillEnv(pybullet_world=False, **env_kwargs) for _ in range(num_envs)]
         first = self.envs[0]
         self.scenario = first.scenario
@@ -98,33 +116,52 @@ class BatchedDrillEnv(VectorEnv):
         self.recorded = np.zeros(n, dtype=np.int64)
         self.prev_action = np.zeros((n, ACTION_DIM))
         self.peak_lateral_n = np.zeros(n)
+        self.active = np.zeros(n, dtype=bool)
+        """Which episodes are running (all after :meth:`reset`; with ``autoreset=False`` an ended one drops out)."""
         self._ready = False
 
     # ------------------------------------------------------------------ episodes
     def _reset_one(self, i: int, seed: int | None) -> None:
         """Reset slot ``i`` (the single env's ``reset(seed=seed)``) and copy its state into the arrays."""
         env = self.envs[i]
+        if self.effects:
+            env.set_effects(build_effects(self.effects))
         env.reset(seed=seed)
         ks = env._kernel
-        assert ks is not None
+        if ks is None:
+            raise UserError(f"effects {self.effects!r} do not all run in the compiled step; use UR5BoneDrillEnv")
         ks.load(env)
+        for name in ("tab", "rows", "centre", "filled", "delay"):
+            self._fit(name, getattr(ks.arrays, name).shape[1:])
         arrays = self.arrays
         for name in ("state", "params", "pend", "bins"):
             getattr(arrays, name)[i] = getattr(ks.arrays, name)[0]
-        for name in ("tab", "centre", "filled"):  # padded to the batch's largest
+        for name in ("tab", "centre", "filled", "delay"):  # padded to the batch's largest
             row, one = getattr(arrays, name)[i], getattr(ks.arrays, name)[0]
             row[...] = 0
             row[tuple(slice(0, m) for m in one.shape)] = one
         self.recorded[i] = 0
         self.prev_action[i] = 0.0
         self.peak_lateral_n[i] = 0.0
+        self.active[i] = True
+
+    def _fit(self, name: str, shape: tuple[int, ...]) -> None:
+        """Grow array ``name`` (zero-padded, contents kept) so that each episode's row holds ``shape``."""
+        old = getattr(self.arrays, name)
+        if all(m <= k for m, k in zip(shape, old.shape[1:], strict=True)):
+            return
+        new = np.zeros((old.shape[0], *(max(m, k) for m, k in zip(shape, old.shape[1:], strict=True))), old.dtype)
+        new[tuple(slice(0, k) for k in old.shape)] = old
+        self.arrays = self.arrays._replace(**{name: new})
 
     def reset(
         self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Reset every episode: ``seed`` (int: episode ``i`` gets ``seed + i``; or one seed per episode)."""
         if options:
-            raise UserError(f"reset(options={options!r}): BatchedDrillEnv takes no options (one scenario, no effects)")
+            raise UserError(
+                f"reset(options={options!r}): BatchedDrillEnv takes no options (one scenario; effects at construction)"
+            )
         if seed is None or isinstance(seed, int):
             seeds: list[int | None] = [None if seed is None else seed + i for i in range(self.num_envs)]
         else:
@@ -139,17 +176,20 @@ class BatchedDrillEnv(VectorEnv):
     def step(
         self, actions: np.ndarray
     ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        """One agent step of every episode (``actions``: (num_envs, 4) in [-1, 1]); ended episodes are reset."""
+        """One agent step of every running episode (``actions``: (num_envs, 4) in [-1, 1]).
+
+        Ended episodes are reset (``autoreset``) or drop out of :attr:`active`; a slot that is not active is not
+        stepped (its action is still checked), its reward is 0 and its flags False.
+        """
         if not self._ready:
             raise RuntimeError("step() before reset(); call reset() first")
         a = checked_action(actions, "state unchanged", self.num_envs)
-        correction, feed_scale = scale_action(a)
-        self.command[:, :3], self.command[:, 3] = correction, feed_scale
-        st = self.state
+        self.command[:] = scaled_rows(a)  # the single env's feed scale, bit for bit
+        st, running = self.state, self.active.copy()
         new_tracker = tracker_sample_is_new(st["t_s"], st["tracker_stamp_s"])
-        for i, env in enumerate(self.envs):
-            draw_noise(env.np_random, self.noise[i], self.params[i], new_tracker[i])
-        sk.advance_batch(*self.arrays, self.command, self.noise, self.record, self.recorded)
+        for i in np.flatnonzero(running).tolist():
+            draw_noise(self.envs[i].np_random, self.noise[i], self.params[i], new_tracker[i])
+        sk.advance_batch(*self.arrays, self.command, self.noise, self.record, self.recorded, running)
         if st["singular"].any():
             i = int(np.argmax(st["singular"]))
             raise np.linalg.LinAlgError(f"episode {i}: singular TCP Jacobian at q = {st['q_motor_rad'][i]}")
@@ -157,11 +197,11 @@ class BatchedDrillEnv(VectorEnv):
         terms = self.reward_weights.terms(st["step_deviation_m"], lateral, a, self.prev_action, self.peak_lateral_n)
         np.maximum(self.peak_lateral_n, lateral, out=self.peak_lateral_n)
         self.prev_action = a
-        reward = terms["deviation"] + terms["force"] + terms["smooth"] + terms["peak_force"]
-        terminated = st["terminated"].copy()
-        truncated = st["truncated"].copy()
+        reward = np.where(running, terms["deviation"] + terms["force"] + terms["smooth"] + terms["peak_force"], 0.0)
+        terminated = st["terminated"] & running
+        truncated = st["truncated"] & running
         if self.max_episode_steps < MAX_EPISODE_STEPS:
-            truncated |= ~terminated & (st["steps"] >= self.max_episode_steps)
+            truncated |= running & ~terminated & (st["steps"] >= self.max_episode_steps)
             st["truncated"][truncated] = True
         infos: dict[str, Any] = {
             "t_s": st["t_s"].copy(),
@@ -174,11 +214,14 @@ class BatchedDrillEnv(VectorEnv):
         if ended.size:
             final_info: dict[str, Any] = {}
             for i in ended.tolist():
-                final_info = self._add_info(final_info, self._final_info(i), i)
+                final_info = self._add_info(final_info, self.final_info(i), i)
             infos["final_obs"] = {k: v.copy() for k, v in obs.items()}
             infos["_final_obs"] = terminated | truncated
             infos["final_info"] = final_info
             infos["_final_info"] = terminated | truncated
+            if not self.autoreset:
+                self.active[ended] = False
+                return obs, reward, terminated, truncated, infos
             for i in ended.tolist():
                 self._reset_one(i, None)
             fresh = self._observation()
@@ -212,7 +255,7 @@ class BatchedDrillEnv(VectorEnv):
             self.num_envs,
         )
 
-    def _final_info(self, i: int) -> dict[str, Any]:
+    def final_info(self, i: int) -> dict[str, Any]:
         """Episode ``i``'s last info: the single env's privileged entries and its metrics."""
         s = self.state[i]
         sample = s["sample"]
@@ -230,6 +273,11 @@ class BatchedDrillEnv(VectorEnv):
             "metrics": self.episode_metrics(i),
             "metrics_truncated": bool(s["truncated"]),
         }
+
+    def last_step_channels(self, i: int) -> dict[str, np.ndarray]:
+        """Episode ``i``'s recorded channels of its last step (five rows, one per F/T sample)."""
+        k = int(self.recorded[i])
+        return record_channels(self.record[i, k - SUBSTEPS_PER_STEP : k])
 
     def records(self, i: int) -> SimpleNamespace:
         """Episode ``i``'s recorded channels so far: the recorder's (arrays, one row per F/T sample)."""

@@ -236,6 +236,7 @@ class KernelState:
         self.noise = np.zeros((1, NOISE_SIZE))
         self.command = np.zeros((1, 4))
         self.recorded = np.zeros(1, dtype=np.int64)
+        self.active = np.ones(1, dtype=bool)
         self.loaded = False
 
     def step(self, env: UR5BoneDrillEnv, correction_base_m: np.ndarray, feed_scale: float) -> np.ndarray:
@@ -249,7 +250,7 @@ class KernelState:
         draw_noise(env.np_random, self.noise[0], self.p, tracker_sample_is_new(env.t_s, env.tracker_stamp))
         out = np.empty((1, SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
         self.recorded[0] = 0
-        sk.advance_batch(*self.arrays, cmd, self.noise, out, self.recorded)
+        sk.advance_batch(*self.arrays, cmd, self.noise, out, self.recorded, self.active)
         if self.s["singular"]:
             raise np.linalg.LinAlgError(f"singular TCP Jacobian at q = {env.cell.q_motor_rad.tolist()} rad")
         env.pending.append((t_apply, correction_base_m, feed_scale))

@@ -507,15 +507,19 @@ def advance_batch(
     noise: np.ndarray,
     record: np.ndarray,
     recorded: np.ndarray,
+    active: np.ndarray,
 ) -> None:  # pragma: no cover (compiled)
-    """:func:`advance` for every episode of N episodes' arrays (:class:`KernelArrays`, in order).
+    """:func:`advance` for every active episode of N episodes' arrays (:class:`KernelArrays`, in order).
 
     ``command`` (N, 4) and ``noise`` (N, :data:`~drillgym.envs.kernel_state.NOISE_SIZE`) hold each episode's
-    command and standard normals. The step's rows go to ``record[i]`` from row ``recorded[i]`` on, which
-    advances by five (the caller sizes ``record`` for the longest episode). The single env is N = 1.
+    command and standard normals; ``active`` (N, bool) which episodes step (the others are left as they are).
+    The step's rows go to ``record[i]`` from row ``recorded[i]`` on, which advances by five (the caller sizes
+    ``record`` for the longest episode). The single env is N = 1.
     """
     n = SUBSTEPS_PER_STEP
     for i in range(state.shape[0]):
+        if not active[i]:
+            continue
         k = recorded[i]
         advance(
             state[i], params[i], pend[i], tab[i], rows[i], chains[i], centre[i], filled[i], bins[i], delay[i],

@@ -11,6 +11,7 @@ from bitwise import largest_difference
 
 from drillgym.envs.batched import BatchedDrillEnv
 from drillgym.envs.drill_env import UR5BoneDrillEnv
+from drillgym.envs.effects.registry import build_effects
 
 TOLERANCE = 1e-12
 """Largest relative difference allowed (see ``test_step_kernel.py``: the compiled step's last-bit rounding)."""
@@ -125,3 +126,54 @@ def test_make_vec_builds_the_batched_env_and_truncates_at_its_step_limit():
         assert infos["final_info"]["metrics_truncated"].all()
     finally:
         batch.close()
+
+
+def test_without_autoreset_an_ended_episode_stays_ended_and_is_not_stepped():
+    batch = BatchedDrillEnv(2, autoreset=False, max_episode_steps=20)
+    try:
+        batch.reset(seed=0)
+        for _ in range(19):
+            batch.step(np.zeros((2, 4)))
+        batch.active[1] = False  # as if episode 1 had ended already
+        _, reward, terminated, truncated, _infos = batch.step(np.zeros((2, 4)))
+        assert truncated.tolist() == [True, False] and not terminated.any() and reward[1] == 0.0
+        assert batch.final_info(0)["metrics_truncated"] and not batch.active.any()
+        frozen = (batch.state.tobytes(), batch.record.tobytes(), batch.recorded.tolist())
+        _, reward, terminated, truncated, _ = batch.step(np.ones((2, 4)))
+        assert not (terminated.any() or truncated.any() or reward.any())
+        assert frozen == (batch.state.tobytes(), batch.record.tobytes(), batch.recorded.tolist())
+        assert batch.recorded.tolist() == [100, 95]
+        batch.reset(seed=0)
+        assert batch.active.all()
+    finally:
+        batch.close()
+
+
+def test_compiled_effects_run_in_every_episode_as_in_the_single_env():
+    spec = "joint_backlash:play_rad=8e-4+latency:extra_latency_s=0.12+thermal_softening:softening=0.5,work_j=5"
+    batch = BatchedDrillEnv(2, effects=spec)
+    single = UR5BoneDrillEnv(pybullet_world=False)
+    actions = _actions(3, 400, 2)
+    try:
+        batch.reset(seed=5)
+        single.reset(seed=6, options={"effects": build_effects(spec)})
+        assert batch.arrays.delay.shape[1] >= 1024  # grown for the delay line
+        for step in range(400):
+            obs_b, _, term_b, _trunc_b, infos = batch.step(actions[step])
+            obs_s, _, term_s, trunc_s, _info_s = single.step(actions[step, 1])
+            seen = {k: v[1] for k, v in (infos["final_obs"] if term_s or trunc_s else obs_b).items()}
+            assert largest_difference(seen, obs_s)[0] == 0.0, f"step {step}"
+            if term_s or trunc_s:
+                assert term_b[1] == term_s
+                break
+        assert term_s or trunc_s
+    finally:
+        batch.close()
+        single.close()
+
+
+def test_effects_the_compiled_step_does_not_run_are_refused():
+    with pytest.raises(ValueError, match="compiled step"):
+        BatchedDrillEnv(1, effects="servo_deadband:band_m=1e-4").reset(seed=0)
+    with pytest.raises(ValueError):
+        BatchedDrillEnv(1, effects="no_such_effect:x=1")
