@@ -1,12 +1,15 @@
-"""The one rollout loop: run an episode with any policy that follows SB3's ``predict`` protocol.
+"""The rollout loops: run episodes with any policy that follows SB3's ``predict`` protocol.
 
-Classical, residual and learned controllers alike; the benchmark, the model selection, the reproduction,
-the calibration and the real-cell runs all go through :func:`run_episode`.
+Classical, residual and learned controllers alike. :func:`run_episode` runs one episode on any env (the
+simulated cell with any effect, the real cell); :func:`run_episodes` runs a set of seeded episodes of one
+simulated scenario at once on the batched engine (:class:`drillgym.envs.batched.BatchedDrillEnv`), one policy
+copy per episode, with the results :func:`run_episode` gives on the single env, bit for bit.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -14,6 +17,7 @@ import gymnasium as gym
 import numpy as np
 
 from drillgym import envs  # noqa: F401  (registers the ids)
+from drillgym.envs.batched import BatchedDrillEnv
 from drillgym.envs.constants import ACTION_DIM
 
 
@@ -104,3 +108,77 @@ def run_episode(
         }
     t_s = float(info.get("t_s", math.nan))
     return EpisodeResult(seed, dict(metrics), trace, steps, t_s, str(failure), dict(info), np.asarray(rewards))
+
+
+StepHook = Callable[[BatchedDrillEnv, int, np.ndarray, dict[str, np.ndarray], list[int], np.ndarray], None]
+"""``on_step(batch, step, actions, obs, running, ended)`` of :func:`run_episodes`: after agent step ``step`` (0 first) of
+the episodes in ``running`` (slot indices), with the actions sent (N, 4), the observation after it (ended episodes'
+last) and which episodes ended at it (N, bool)."""
+
+
+def run_episodes(
+    make_policy: Callable[[], PolicyPredictor],
+    seeds: Sequence[int],
+    env_kwargs: dict[str, Any] | None = None,
+    effects: str = "",
+    on_step: StepHook | None = None,
+) -> list[EpisodeResult]:
+    """Run one episode per seed of a simulated scenario on the batched engine, each with its own policy.
+
+    Args:
+        make_policy: builds one policy (a :class:`drillgym.controllers.Controller`, a trained model...); each
+            episode gets its own copy, handed its episode's plan (``set_plan``) as :func:`run_episode` does.
+        seeds: the episodes' reset seeds, one batch slot each.
+        env_kwargs: the single env's arguments (scenario, cell parameters).
+        effects: an effect spec of compiled effects (:class:`~drillgym.envs.batched.BatchedDrillEnv`).
+        on_step: called after every step (:data:`StepHook`), e.g. to log the episodes as they run.
+
+    Returns:
+        One :class:`EpisodeResult` per seed, in order, equal to :func:`run_episode` on the single env with
+        ``keep_trace=False`` (its ``info`` is the batched env's final info of the episode).
+    """
+    n = len(seeds)
+    batch = BatchedDrillEnv(n, autoreset=False, effects=effects, **(env_kwargs or {}))
+    try:
+        obs, _ = batch.reset(seed=[int(s) for s in seeds])
+        policies = [make_policy() for _ in range(n)]
+        for policy, env in zip(policies, batch.envs, strict=True):
+            if hasattr(policy, "set_plan"):
+                policy.set_plan(env.plan)
+        states: list[Any] = [None] * n
+        start = np.ones(n, dtype=bool)
+        rewards: list[list[float]] = [[] for _ in range(n)]
+        results: list[EpisodeResult | None] = [None] * n
+        actions = np.zeros((n, ACTION_DIM), dtype=np.float32)
+        step = 0
+        while batch.active.any():
+            running = np.flatnonzero(batch.active).tolist()
+            for i in running:
+                one = {k: v[i] for k, v in obs.items()}
+                actions[i], states[i] = policies[i].predict(
+                    one, state=states[i], episode_start=np.array([start[i]]), deterministic=True
+                )
+            obs, reward, terminated, truncated, _ = batch.step(actions)
+            if on_step is not None:
+                on_step(batch, step, actions, obs, running, terminated | truncated)
+            step += 1
+            for i in running:
+                rewards[i].append(float(reward[i]))
+                start[i] = False
+                if terminated[i] or truncated[i]:
+                    info = batch.final_info(i)  # the slot stays as it ended (autoreset off)
+                    failure = info["failure"] or ("truncated" if truncated[i] and not terminated[i] else "")
+                    results[i] = EpisodeResult(
+                        int(seeds[i]),
+                        {k: float(v) for k, v in info["metrics"].items()},
+                        {},
+                        len(rewards[i]),
+                        float(info["t_s"]),
+                        str(failure),
+                        info,
+                        np.asarray(rewards[i]),
+                    )
+        assert all(r is not None for r in results)
+        return results  # type: ignore[return-value]
+    finally:
+        batch.close()

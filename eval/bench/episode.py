@@ -1,8 +1,11 @@
-"""One benchmark episode: build (or reuse) the env, run a controller on it, optionally log it.
+"""Benchmark episodes: build (or reuse) the env, run a controller on it, optionally log it.
 
-:func:`run_job` is what a worker process runs; it never raises (an error becomes the row's ``error``),
-so one bad episode does not stop a benchmark. Envs and controllers are cached per process (an env
-costs ~0.15 s to build, an episode ~0.1 s), which is safe because ``reset(seed)`` replays an episode
+:func:`run_batch` is what a worker process runs: the seeds of one (scenario, controller, cell) on the batched
+engine (:func:`drillgym.controllers.rollout.run_episodes`, one controller copy per episode; the same rows as on
+the single env, bit for bit), or episode by episode (:func:`run_job`) where the cell has effects the compiled step
+does not run, or where the batch fails (so that each episode's error is its own). Neither raises (an error becomes
+the row's ``error``), so one bad episode does not stop a benchmark. Single envs and controllers are cached per
+process (an env costs ~0.15 s to build, an episode ~0.1 s), which is safe because ``reset(seed)`` replays an episode
 bit for bit whatever ran before, and ``set_plan`` resets a controller.
 """
 
@@ -21,14 +24,16 @@ import gymnasium as gym
 
 from drillgym.controllers import make_controller
 from drillgym.controllers.base import Controller
-from drillgym.controllers.rollout import run_episode
+from drillgym.controllers.rollout import EpisodeResult, run_episode, run_episodes
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.effects import build_effects
+from drillgym.envs.effects.base import EffectStack
 from drillgym.envs.metrics import METRIC_NAMES
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.seeds import Purpose, episode_seed
 from drillgym.eval.bench.suites import suite_scenarios
 from drillgym.eval.logs import EpisodeLogger, build_header
+from drillgym.eval.logs.batch_logger import BatchLogger
 
 ENV_ID = SIM_ENV_ID
 ENV_CACHE_SIZE = 2
@@ -117,8 +122,8 @@ def run_controller_episode(env: gym.Env, controller: Controller, seed: int) -> d
     return run_episode(env, controller, seed, keep_trace=False).row()
 
 
-def run_job(job: EpisodeJob) -> dict[str, Any]:
-    """Run one job; the row of ``episodes.csv`` (metrics NaN and ``error`` set if it raised)."""
+def _blank_row(job: EpisodeJob) -> dict[str, Any]:
+    """The row of ``episodes.csv`` before the episode ran: its identity, metrics NaN, no error."""
     row: dict[str, Any] = {"suite": job.suite, "scenario": job.scenario}
     try:
         row.update(Scenario.from_kwargs(**job.kwargs).to_dict())
@@ -127,6 +132,12 @@ def run_job(job: EpisodeJob) -> dict[str, Any]:
     row.update({"controller": job.controller, "seed": job.seed})
     row.update(dict.fromkeys(METRIC_NAMES, math.nan))
     row.update({"steps": 0, "sim_time_s": math.nan, "failure": "", "error": "", "log": job.log_name})
+    return row
+
+
+def run_job(job: EpisodeJob) -> dict[str, Any]:
+    """Run one job on a single env; the row of ``episodes.csv`` (metrics NaN and ``error`` set if it raised)."""
+    row = _blank_row(job)
     t0 = time.perf_counter()
     try:
         row.update(_run(job))
@@ -155,3 +166,72 @@ def _run(job: EpisodeJob) -> dict[str, Any]:
         raise
     logger.close_log()  # not logger.close(): the cached env stays open
     return result
+
+
+BATCH_MAX = 64
+"""Episodes per batched call at most (the batched engine's throughput is flat beyond ~16)."""
+
+
+def batch_key(job: EpisodeJob) -> tuple[str, str, str, str, str]:
+    """What the episodes of one batch share: suite, scenario, its arguments, controller and cell."""
+    return (job.suite, job.scenario, json.dumps(job.kwargs, sort_keys=True), job.controller, job.effects)
+
+
+def batchable(job: EpisodeJob) -> bool:
+    """Whether the job's cell runs on the batched engine (no effects, or compiled ones only)."""
+    if not job.effects:
+        return True
+    try:
+        return EffectStack(build_effects(job.effects)).compiled
+    except ValueError:
+        return False  # a bad spec: the single env reports it, episode by episode
+
+
+def run_batch(jobs: list[EpisodeJob]) -> list[dict[str, Any]]:
+    """Run jobs that share a :func:`batch_key` together on the batched engine; their rows, in order.
+
+    Each row's ``wall_time_s`` is the batch's wall time over its episodes. Falls back to :func:`run_job`, episode by
+    episode, for a cell the batched engine does not run or when the batch raised.
+    """
+    if len({batch_key(j) for j in jobs}) != 1:
+        raise ValueError("run_batch takes the jobs of one (suite, scenario, kwargs, controller, cell)")
+    first = jobs[0]
+    if len(jobs) == 1 or not batchable(first):
+        return [run_job(j) for j in jobs]
+    t0 = time.perf_counter()
+    try:
+        results = _run_batched(jobs)
+    except Exception:  # attribute the error to its episode: run them one by one
+        return [run_job(j) for j in jobs]
+    wall_s = (time.perf_counter() - t0) / len(jobs)
+    return [{**_blank_row(j), **r.row(), "wall_time_s": wall_s} for j, r in zip(jobs, results, strict=True)]
+
+
+def _run_batched(jobs: list[EpisodeJob]) -> list[EpisodeResult]:
+    """The batch's episodes on the batched engine, logged where the jobs ask for logs."""
+    first = jobs[0]
+    seeds = [j.seed for j in jobs]
+
+    def make() -> Controller:
+        return make_controller(first.controller)
+
+    if all(j.log_path is None for j in jobs):
+        return run_episodes(make, seeds, first.kwargs, first.effects)
+    logger: list[BatchLogger] = []  # made at the first step, once the batch is reset
+
+    def log(batch: Any, step: int, actions: Any, obs: Any, running: list[int], ended: Any) -> None:
+        if not logger:
+            extra = {"suite": first.suite, "scenario": first.scenario, "controller_spec": first.controller}
+            paths = [j.log_path for j in jobs]
+            logger.append(BatchLogger(batch, paths, seeds, make().describe(), {**extra, "effects": first.effects}))
+        logger[0].log_step(step, actions, obs, running, ended)
+
+    try:
+        results = run_episodes(make, seeds, first.kwargs, first.effects, on_step=log)
+    except BaseException:
+        for lg in logger:
+            lg.abandon()  # keep what was recorded, as a crash would
+        raise
+    for lg in logger:
+        lg.close()
+    return results

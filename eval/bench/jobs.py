@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable
 from typing import Any
@@ -10,7 +11,7 @@ from tqdm import tqdm
 
 from drillgym.envs.errors import UserError
 from drillgym.envs.key_values import split_spec_list
-from drillgym.eval.bench.episode import close_cached, run_job
+from drillgym.eval.bench.episode import BATCH_MAX, batch_key, close_cached, run_batch
 from drillgym.eval.pool import run_unordered
 
 
@@ -41,6 +42,20 @@ def reference_spec(specs: list[str], name: str | None) -> str:
     raise UserError(f"--reference {name!r} is not one of the --controllers; choose from {choices}")
 
 
+def batches(jobs: list[Any], workers: int = 1) -> list[list[Any]]:
+    """The jobs in batches for :func:`~drillgym.eval.bench.episode.run_batch`, in order.
+
+    Jobs of one :func:`~drillgym.eval.bench.episode.batch_key` go together, at most
+    :data:`~drillgym.eval.bench.episode.BATCH_MAX` and at most an even share of all jobs per worker, so that
+    ``workers`` processes each get work.
+    """
+    size = max(1, min(BATCH_MAX, math.ceil(len(jobs) / max(workers, 1))))
+    groups: dict[Any, list[Any]] = {}
+    for job in jobs:
+        groups.setdefault(batch_key(job), []).append(job)
+    return [group[k : k + size] for group in groups.values() for k in range(0, len(group), size)]
+
+
 def run_jobs(
     jobs: list[Any],
     workers: int,
@@ -49,23 +64,28 @@ def run_jobs(
 ) -> list[dict[str, Any]]:
     """Run every job (in-process for ``workers == 1``, else in spawned processes); rows in any order.
 
-    ``on_row`` is called with each row as its episode finishes (``drillgym bench`` appends it to ``episodes.csv``,
-    so an interrupted or crashed run keeps every finished episode).
+    The jobs run in :func:`batches` on the batched engine where their cell allows (the rows are those of the single
+    env, bit for bit). ``on_row`` is called with each row as its batch finishes (``drillgym bench`` appends it to
+    ``episodes.csv``, so an interrupted or crashed run keeps every finished episode).
     """
     rows = []
     with tqdm(total=len(jobs), desc=desc, unit="ep", disable=None) as bar:  # no bar when not a terminal
         try:
-            for _, row in run_unordered(run_job, jobs, workers, on_error=_worker_failed):
-                bar.update(1)
-                rows.append(row)
-                if on_row is not None:
-                    on_row(row)
+            for _, batch_rows in run_unordered(run_batch, batches(jobs, workers), workers, on_error=_worker_failed):
+                bar.update(len(batch_rows))
+                for row in batch_rows:
+                    rows.append(row)
+                    if on_row is not None:
+                        on_row(row)
         finally:
             close_cached()  # the envs of an in-process run
     return rows
 
 
-def _worker_failed(job: Any, e: Exception) -> dict[str, Any]:
-    """A worker that died (not an episode error, which run_job records) becomes an error row."""
-    row = {"suite": job.suite, "scenario": job.scenario, "controller": job.controller, "seed": job.seed}
-    return {**row, "error": f"worker failed: {type(e).__name__}: {e}", "log": job.log_name}
+def _worker_failed(jobs: list[Any], e: Exception) -> list[dict[str, Any]]:
+    """A worker that died (not an episode error, which the job runners record) gives error rows for its batch."""
+    rows = []
+    for job in jobs:
+        row = {"suite": job.suite, "scenario": job.scenario, "controller": job.controller, "seed": job.seed}
+        rows.append({**row, "error": f"worker failed: {type(e).__name__}: {e}", "log": job.log_name})
+    return rows

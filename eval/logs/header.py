@@ -53,6 +53,7 @@ def build_header(
     seed: int | None = None,
     source: str = "sim",
     extra: dict[str, Any] | None = None,
+    env_id: str | None = None,
 ) -> dict[str, Any]:
     """Header of one episode of ``env`` (a gymnasium env, wrapped or not).
 
@@ -62,6 +63,7 @@ def build_header(
         seed: the reset seed; None lets :class:`drillgym.eval.logs.EpisodeLogger` fill it in at ``reset``.
         source: ``"sim"`` or ``"real"``.
         extra: anything else worth keeping (e.g. the benchmark suite and scenario name), under ``"run"``.
+        env_id: the env's registered id, for an env not made by ``gym.make`` (default: its spec's, or its class name).
 
     Returns:
         A JSON-ready dict (see ``docs/log_schema.md``).
@@ -73,7 +75,7 @@ def build_header(
     header = {
         "schema_version": LOG_SCHEMA_VERSION,
         "source": source,
-        "env_id": spec.id if spec is not None else type(unwrapped).__name__,
+        "env_id": env_id or (spec.id if spec is not None else type(unwrapped).__name__),
         "seed": seed,
         "scenario": unwrapped.scenario.to_dict(),
         "controller": controller,

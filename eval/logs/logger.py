@@ -70,36 +70,9 @@ class EpisodeLogger(gym.Wrapper):
         return obs, reward, terminated, truncated, info
 
     def _rows(self, rec: Any, n0: int, action: Any, obs: dict[str, np.ndarray]) -> dict[str, Any]:
-        n = len(rec.t_s) - n0
         u: Any = self.env.unwrapped  # latest sensor readings: rtde_tcp_base, tracker_reading
-        ft = np.hstack([np.asarray(rec.ft_force_n[n0:]), np.asarray(rec.ft_torque_nm[n0:])]).reshape(n, 6)
-        tip = np.asarray(rec.tip_task_m[n0:], dtype=float).reshape(n, 3)
-        corr, feed_scale = scale_action(np.clip(np.asarray(action, dtype=float), -1.0, 1.0))
-        valid = bool(obs["tracker_valid"][0] > 0.5)
-        tracker = np.asarray(u.tracker_reading, dtype=float) if valid else np.full(3, np.nan)
-        held = {
-            **dict(zip(("cmd_dx_base_m", "cmd_dy_base_m", "cmd_dz_base_m"), corr.tolist(), strict=True)),
-            "cmd_feed_scale": feed_scale,
-            **{f"q{i}_rad": float(q) for i, q in enumerate(obs["q_rad"])},
-            **_xyz("tcp_", "_base_m", u.rtde_tcp_base),
-            **_xyz("tracker_", "_base_m", tracker),
-            **_xyz("tracker_err_", "_base_m", obs["tracker_error_base_m"]),
-            "tracker_valid": valid,
-        }
-        return {
-            "t_s": rec.t_s[n0:],
-            "step": [self._step] * n,
-            "phase": rec.phase[n0:],
-            "depth_cmd_m": rec.depth_cmd_m[n0:],
-            **{
-                name: ft[:, i]
-                for i, name in enumerate(("ft_fx_n", "ft_fy_n", "ft_fz_n", "ft_tx_nm", "ft_ty_nm", "ft_tz_nm"))
-            },
-            **{k: [v] * n for k, v in held.items()},
-            **{f"sim_tip_{a}_task_m": tip[:, i] for i, a in enumerate("xyz")},
-            "sim_stage": rec.stage[n0:],
-            "sim_deviation_m": rec.deviation_m[n0:],
-        }
+        channels = {name: getattr(rec, name)[n0:] for name in SAMPLE_CHANNELS}
+        return step_rows(channels, self._step, action, obs, u.rtde_tcp_base, u.tracker_reading)
 
     def close_log(self) -> Path | None:
         """Compact the log now (episode cut short or finished); the env stays open. Returns its path."""
@@ -113,6 +86,68 @@ class EpisodeLogger(gym.Wrapper):
         """Compact the log, then close the env."""
         self.close_log()
         super().close()
+
+
+SAMPLE_CHANNELS = (
+    "t_s",
+    "phase",
+    "depth_cmd_m",
+    "ft_force_n",
+    "ft_torque_nm",
+    "tip_task_m",
+    "stage",
+    "deviation_m",
+)
+"""The recorder's channels (:class:`drillgym.envs.metrics.EpisodeRecorder`) a log's rows take, one per F/T sample."""
+
+
+def step_rows(
+    channels: dict[str, Any],
+    step: int,
+    action: Any,
+    obs: dict[str, np.ndarray],
+    rtde_tcp_base_m: Any,
+    tracker_reading_base_m: Any,
+) -> dict[str, Any]:
+    """One agent step's log rows, column-wise (:mod:`drillgym.eval.logs.schema`), one per F/T sample.
+
+    Args:
+        channels: the step's samples of :data:`SAMPLE_CHANNELS` (lists or arrays, one entry per sample).
+        step: the agent step's index in the episode.
+        action: the action sent (clipped to [-1, 1] here, as the env does).
+        obs: the observation after the step (joint angles, tracker error and validity are held for its samples).
+        rtde_tcp_base_m: the latest RTDE TCP position (m, base frame), held for the step's samples.
+        tracker_reading_base_m: the latest tracker reading (m, base frame; NaN in the log while not valid).
+    """
+    n = len(channels["t_s"])
+    ft = np.hstack([np.asarray(channels["ft_force_n"]), np.asarray(channels["ft_torque_nm"])]).reshape(n, 6)
+    tip = np.asarray(channels["tip_task_m"], dtype=float).reshape(n, 3)
+    corr, feed_scale = scale_action(np.clip(np.asarray(action, dtype=float), -1.0, 1.0))
+    valid = bool(obs["tracker_valid"][0] > 0.5)
+    tracker = np.asarray(tracker_reading_base_m, dtype=float) if valid else np.full(3, np.nan)
+    held = {
+        **dict(zip(("cmd_dx_base_m", "cmd_dy_base_m", "cmd_dz_base_m"), corr.tolist(), strict=True)),
+        "cmd_feed_scale": feed_scale,
+        **{f"q{i}_rad": float(q) for i, q in enumerate(obs["q_rad"])},
+        **_xyz("tcp_", "_base_m", rtde_tcp_base_m),
+        **_xyz("tracker_", "_base_m", tracker),
+        **_xyz("tracker_err_", "_base_m", obs["tracker_error_base_m"]),
+        "tracker_valid": valid,
+    }
+    return {
+        "t_s": channels["t_s"],
+        "step": [step] * n,
+        "phase": channels["phase"],
+        "depth_cmd_m": channels["depth_cmd_m"],
+        **{
+            name: ft[:, i]
+            for i, name in enumerate(("ft_fx_n", "ft_fy_n", "ft_fz_n", "ft_tx_nm", "ft_ty_nm", "ft_tz_nm"))
+        },
+        **{k: [v] * n for k, v in held.items()},
+        **{f"sim_tip_{a}_task_m": tip[:, i] for i, a in enumerate("xyz")},
+        "sim_stage": channels["stage"],
+        "sim_deviation_m": channels["deviation_m"],
+    }
 
 
 def _xyz(prefix: str, suffix: str, values: Any) -> dict[str, float]:

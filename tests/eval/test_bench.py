@@ -180,17 +180,17 @@ def test_one_seed_reports_no_interval_and_counts_in_the_singular(tmp_path):
 
 
 def interrupt_after(monkeypatch, k):
-    """Make the in-process episodes raise KeyboardInterrupt (a Ctrl-C) in the (k+1)-th; count the calls."""
+    """Make the in-process batch that holds the (k+1)-th episode raise KeyboardInterrupt (a Ctrl-C); count the episodes."""
     calls = []
 
-    def run_job(job):
-        calls.append(job.key)
-        if len(calls) == k + 1:
+    def run_batch(jobs):
+        calls.extend(job.key for job in jobs)
+        if len(calls) > k:
             raise KeyboardInterrupt
-        return real_run_job(job)
+        return real_run_batch(jobs)
 
-    real_run_job = bench_episode.run_job
-    monkeypatch.setattr(bench_jobs, "run_job", run_job)  # where the pool calls it
+    real_run_batch = bench_episode.run_batch
+    monkeypatch.setattr(bench_jobs, "run_batch", run_batch)  # where the pool calls it
     return calls
 
 
@@ -205,12 +205,12 @@ def test_an_interrupted_run_keeps_its_finished_episodes_and_resume_completes_it(
     assert main([*args, "--out", str(whole)]) == 0
     capsys.readouterr()
 
-    calls = interrupt_after(monkeypatch, 3)
+    calls = interrupt_after(monkeypatch, 2)  # the batch of li2023's two seeds is cut
     assert main([*args, "--out", str(out)]) == 130
     err = capsys.readouterr().err
     episodes = pd.read_csv(out / "episodes.csv")
-    assert len(episodes) == 3 and episodes["error"].isna().all()
-    assert "episodes.csv keeps the 3 of 4 episodes that finished" in err and "drillgym bench: interrupted" in err
+    assert len(episodes) == 2 and episodes["error"].isna().all()
+    assert "episodes.csv keeps the 2 of 4 episodes that finished" in err and "drillgym bench: interrupted" in err
     resume = f"drillgym bench --suite paper --controllers none,li2023 --cell ideal --seeds 2 --out {out} --resume"
     assert resume in err
     assert not (out / "summary.md").exists()
@@ -219,7 +219,7 @@ def test_an_interrupted_run_keeps_its_finished_episodes_and_resume_completes_it(
 
     calls.clear()
     assert main([*args, "--out", str(out), "--resume"]) == 0
-    assert len(calls) == 1  # only the episode that had not finished
+    assert len(calls) == 2  # only the episodes that had not finished
     pd.testing.assert_frame_equal(read_text_columns(out / "episodes.csv"), read_text_columns(whole / "episodes.csv"))
     for name in ("summary.csv", "paired.csv"):
         assert (out / name).read_text() == (whole / name).read_text()
@@ -229,15 +229,19 @@ def test_an_interrupted_run_keeps_its_finished_episodes_and_resume_completes_it(
 def test_a_resumed_run_reruns_the_episodes_that_failed(tmp_path, monkeypatch):
     out = tmp_path / "bench"
     args = ["bench", "--controllers", "none", "--seeds", "2", "--no-logs", "--out", str(out)]
-    real_run_job = bench_episode.run_job
+    real_run_batch = bench_episode.run_batch
     calls = []
 
-    def flaky(job):
-        calls.append(job.seed)
-        row = real_run_job(job)
-        return {**row, "error": "RuntimeError: flaky", "traceback": "flaky"} if len(calls) == 2 else row
+    def flaky(jobs):
+        rows = real_run_batch(jobs)
+        first = not calls
+        calls.extend(job.seed for job in jobs)
+        return [
+            {**r, "error": "RuntimeError: flaky", "traceback": "flaky"} if first and i == 1 else r
+            for i, r in enumerate(rows)
+        ]
 
-    monkeypatch.setattr(bench_jobs, "run_job", flaky)
+    monkeypatch.setattr(bench_jobs, "run_batch", flaky)
     assert main(args) == 1
     assert (out / "errors.log").exists()
     assert main([*args, "--resume"]) == 0

@@ -1,0 +1,78 @@
+"""The benchmark's batches: episodes of one (scenario, controller, cell) on the batched engine, as on the single env.
+
+``run_batch`` must give the rows and the logs ``run_job`` gives episode by episode (timing and the logs' creation
+time aside), bit for bit; fall back to the single env for cells the compiled step does not run and for a batch that
+raises; and ``batches`` must group and split the grid as documented.
+"""
+
+import pandas as pd
+import pytest
+
+from drillgym.eval.bench import episode as bench_episode
+from drillgym.eval.bench.episode import BATCH_MAX, EpisodeJob, run_batch, run_job
+from drillgym.eval.bench.jobs import batches
+from drillgym.eval.logs.reader import read_episode_log
+
+
+def _jobs(controller: str, seeds: list[int], out=None, effects: str = "", kwargs=None) -> list[EpisodeJob]:
+    jobs = []
+    for s in seeds:
+        name = f"{controller}_{s}.parquet"
+        path = None if out is None else out / name
+        jobs.append(EpisodeJob("paper", "paper", kwargs or {}, controller, s, path, name if out else "", effects))
+    return jobs
+
+
+def _without_timing(row: dict) -> dict:
+    return {k: v for k, v in row.items() if k != "wall_time_s"}
+
+
+def test_a_batch_gives_the_rows_and_logs_of_its_episodes_run_one_by_one(tmp_path):
+    spec = "joint_friction:coulomb_rad=4e-4,viscous_s=0.005"
+    batched = run_batch(_jobs("zhang2005", [2, 0, 1], tmp_path / "b", spec))
+    single = [run_job(j) for j in _jobs("zhang2005", [2, 0, 1], tmp_path / "s", spec)]
+    assert [_without_timing(r) for r in batched] == [_without_timing(r) for r in single]
+    assert all(r["error"] == "" and r["steps"] > 100 for r in batched)
+    for s in (2, 0, 1):
+        hb, db = read_episode_log(tmp_path / "b" / f"zhang2005_{s}.parquet")
+        hs, ds = read_episode_log(tmp_path / "s" / f"zhang2005_{s}.parquet")
+        hb.pop("created_utc"), hs.pop("created_utc")
+        assert hb == hs
+        pd.testing.assert_frame_equal(db, ds, check_exact=True)
+
+
+def test_a_cell_with_effects_the_compiled_step_does_not_run_goes_episode_by_episode(monkeypatch):
+    ran = []
+    monkeypatch.setattr(bench_episode, "run_job", lambda job: ran.append(job.seed) or {"seed": job.seed})
+    rows = run_batch(_jobs("none", [0, 1], effects="servo_deadband:band_m=1e-4"))
+    assert ran == [0, 1] and [r["seed"] for r in rows] == [0, 1]
+
+
+def test_a_batch_that_raises_runs_its_episodes_one_by_one_so_each_error_is_its_own(monkeypatch):
+    def boom(jobs):
+        raise RuntimeError("batch failed")
+
+    monkeypatch.setattr(bench_episode, "_run_batched", boom)
+    rows = run_batch(_jobs("none", [0], kwargs={"beta_deg": 80.0}) + _jobs("none", [1], kwargs={"beta_deg": 80.0}))
+    assert all("beta_deg" in r["error"] for r in rows)  # the single env's own error, per episode
+
+
+def test_jobs_of_mixed_batches_are_refused():
+    with pytest.raises(ValueError, match="one"):
+        run_batch(_jobs("none", [0]) + _jobs("li2023", [0]))
+
+
+def test_batches_group_by_controller_and_cell_and_split_for_the_workers():
+    grid = (
+        _jobs("none", list(range(10)))
+        + _jobs("li2023", list(range(10)))
+        + _jobs("none", [0, 1], effects="latency:extra_latency_s=0.1")
+    )
+    one = batches(grid, workers=1)
+    assert [(b[0].controller, b[0].effects, len(b)) for b in one] == [
+        ("none", "", 10),
+        ("li2023", "", 10),
+        ("none", "latency:extra_latency_s=0.1", 2),
+    ]
+    assert [len(b) for b in batches(grid, workers=4)] == [6, 4, 6, 4, 2]  # at most 22 / 4 -> 6 per batch
+    assert max(len(b) for b in batches(_jobs("none", list(range(200))), workers=1)) == BATCH_MAX
