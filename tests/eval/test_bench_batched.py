@@ -5,6 +5,7 @@ time aside), bit for bit; fall back to the single env for cells the compiled ste
 raises; and ``batches`` must group and split the grid as documented.
 """
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -76,3 +77,34 @@ def test_batches_group_by_controller_and_cell_and_split_for_the_workers():
     ]
     assert [len(b) for b in batches(grid, workers=4)] == [6, 4, 6, 4, 2]  # at most 22 / 4 -> 6 per batch
     assert max(len(b) for b in batches(_jobs("none", list(range(200))), workers=1)) == BATCH_MAX
+
+
+def test_a_batch_cut_short_leaves_each_log_readable_up_to_its_last_logged_step(tmp_path, monkeypatch):
+    """A controller that raises at step 30 of the second episode: every open log keeps its parts and the steps logged
+    since, as the single env's logger does when an episode raises (then the batch reruns episode by episode)."""
+    import drillgym.controllers.rollout as rollout
+    from drillgym.eval.logs.batch_logger import BatchLogger
+
+    kept = []
+    real = BatchLogger.abandon
+
+    def abandon(self):
+        real(self)
+        kept.append([read_episode_log(j.log_path.with_suffix(""), allow_partial=True)[1] for j in jobs])
+
+    monkeypatch.setattr(BatchLogger, "abandon", abandon)
+    calls = {"n": 0}
+    real_step = rollout.BatchedDrillEnv.step
+
+    def step(self, actions):
+        calls["n"] += 1
+        if calls["n"] == 31:
+            raise RuntimeError("controller exploded")
+        return real_step(self, actions)
+
+    monkeypatch.setattr(rollout.BatchedDrillEnv, "step", step)
+    jobs = _jobs("li2023", [0, 1], tmp_path)
+    with pytest.raises(RuntimeError, match="exploded"):
+        bench_episode._run_batched(jobs)
+    assert [len(df) for df in kept[0]] == [150, 150]  # 30 steps of 5 samples each, 100 of them in a part
+    assert (kept[0][0]["step"].to_numpy() == np.repeat(np.arange(30), 5)).all()
