@@ -21,7 +21,7 @@ from drillgym.controllers.residual import PLAN_KEY, PREV_RESIDUAL_KEY, ResidualC
 from drillgym.envs.errors import UserError
 from drillgym.training.config import TrainConfig
 from drillgym.training.domain_randomization import training_plan_support
-from drillgym.training.policy_bundle import PolicyBundle, load_bundle, resolve_policy
+from drillgym.training.policy_bundle import PolicyBundle, bundle_paths, load_bundle, resolve_policy
 
 
 class BundlePolicy:
@@ -64,6 +64,22 @@ def _single_thread_inference() -> None:
         torch.set_num_threads(1)
 
 
+_BUNDLES: dict[tuple[str, tuple[int, ...]], PolicyBundle] = {}
+"""Bundles loaded in this process, by path and their files' sizes and modification times."""
+
+
+def _loaded(resolved: Path | str) -> PolicyBundle:
+    """:func:`load_bundle`, once per process for the same files (a batch builds one controller per episode).
+
+    The bundle is shared: its model predicts without state and its normaliser's statistics are fixed.
+    """
+    files = [p for p in bundle_paths(Path(resolved)) if p.exists()]
+    key = (str(resolved), tuple(v for p in files for v in (p.stat().st_size, p.stat().st_mtime_ns)))
+    if key not in _BUNDLES:
+        _BUNDLES[key] = load_bundle(resolved)
+    return _BUNDLES[key]
+
+
 def load_residual_controller(path: Path | str) -> ResidualController | PlanScheduledController:
     """``residual:PATH`` (or a shipped policy's name) -> controller (used by :func:`drillgym.controllers.make_controller`).
 
@@ -74,7 +90,7 @@ def load_residual_controller(path: Path | str) -> ResidualController | PlanSched
         raise UserError("residual controllers need a path: residual:PATH/TO/policy.zip")
     _single_thread_inference()
     resolved = resolve_policy(str(path))
-    bundle = load_bundle(resolved)
+    bundle = _loaded(resolved)
     spaces = getattr(bundle.model.observation_space, "spaces", {})
     cfg = bundle.config
     if cfg.schedule:
