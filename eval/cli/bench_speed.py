@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from drillgym.eval.perf.speed import batched_throughput, controller_cycle_times, measure
+from drillgym.envs.errors import UserError
+from drillgym.eval.perf.speed import batched_throughput, controller_cycle_times, measure, rollout_throughput
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -20,15 +21,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--batch-seconds", type=float, default=3.0, help="seconds per throughput measure (3 rounds; default 3)"
     )
+    parser.add_argument(
+        "--rollout-controllers",
+        default="li2023,zhang2005",
+        help="controllers whose episodes per second are measured on the single env and on the batched engine, as "
+        "drillgym bench runs them (comma-separated; '' skips; default li2023,zhang2005)",
+    )
+    parser.add_argument(
+        "--rollout-seeds",
+        type=int,
+        default=20,
+        help="episodes per controller and engine in each of 3 rounds (default 20)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym bench-speed``."""
+    if args.rollout_seeds < 1:
+        raise UserError(f"--rollout-seeds={args.rollout_seeds} must be >= 1")
     result = measure(args.runs)
     result["controllers"] = controller_cycle_times()
     sizes = tuple(int(n) for n in args.batch_sizes.split(",") if n.strip())
     if sizes:
         result["batched"] = batched_throughput(sizes, args.batch_seconds)
+    specs = tuple(s.strip() for s in args.rollout_controllers.split(",") if s.strip())
+    if specs:
+        result["rollouts"] = rollout_throughput(specs, args.rollout_seeds)
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
@@ -70,6 +88,18 @@ def run(args: argparse.Namespace) -> int:
             print(
                 f"  batched, N = {n:4s}  {r['episodes_per_s_median']:7.1f}   "
                 f"{r['speedup_over_single_median']:.1f}x the single env"
+            )
+    if "rollouts" in result:
+        r = result["rollouts"]
+        print(
+            f"controller episodes per second on one core ({r['seeds']} seeds, median of {r['runs']} interleaved rounds; "
+            "the same results either way)"
+        )
+        for spec in specs:
+            t = r[spec]
+            print(
+                f"  {spec:12s} single env {t['single_env_episodes_per_s_median']:6.1f}   "
+                f"batched {t['batched_episodes_per_s_median']:6.1f}   {t['speedup_median']:.1f}x"
             )
     print("controller cycle time (one predict per 50 ms agent step; Li's budget: 50 ms)")
     for spec, t in result["controllers"].items():

@@ -23,6 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 from drillgym.controllers import make_controller
+from drillgym.controllers.rollout import run_episode, run_episodes
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.batched import BatchedDrillEnv
 from drillgym.envs.constants import ACTION_DIM
@@ -210,3 +211,39 @@ def batched_throughput(sizes: tuple[int, ...] = (1, 16, 64), seconds: float = 3.
         "seconds_per_measure": seconds,
         "runs": runs,
     }
+
+
+def rollout_throughput(
+    specs: tuple[str, ...] = ("li2023", "zhang2005"), seeds: int = 20, runs: int = 3
+) -> dict[str, Any]:
+    """Controller episodes per second on one core, on the single env and on the batched engine.
+
+    ``seeds`` episodes one by one on the single env (:func:`~drillgym.controllers.rollout.run_episode`, one
+    controller) and together on the batched engine
+    (:func:`~drillgym.controllers.rollout.run_episodes`, one copy per episode, as ``drillgym bench`` runs them),
+    interleaved in ``runs`` rounds per controller; the medians and each round's ratio (the results are the same,
+    bit for bit).
+    """
+    out: dict[str, Any] = {"seeds": seeds, "runs": runs}
+    env = gym.make(SIM_ENV_ID)
+    for spec in specs:
+        make_controller(spec)  # a bad spec fails before any timing
+        single, batched, ratio = [], [], []
+        for _ in range(runs):
+            controller = make_controller(spec)
+            t0 = time.perf_counter()
+            for s in range(seeds):
+                run_episode(env, controller, s, keep_trace=False)
+            single.append(seeds / (time.perf_counter() - t0))
+            t0 = time.perf_counter()
+            run_episodes(lambda spec=spec: make_controller(spec), list(range(seeds)))
+            batched.append(seeds / (time.perf_counter() - t0))
+            ratio.append(batched[-1] / single[-1])
+        out[spec] = {
+            "single_env_episodes_per_s_median": statistics.median(single),
+            "batched_episodes_per_s_median": statistics.median(batched),
+            "speedup_median": statistics.median(ratio),
+            "speedup_runs": ratio,
+        }
+    env.close()
+    return out

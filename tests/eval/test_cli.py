@@ -19,7 +19,8 @@ def test_unknown_command_is_an_error_naming_it(capsys):
 
 
 def test_bench_speed_json_reports_a_real_time_factor(capsys):
-    assert main(["bench-speed", "--runs", "1", "--json", "--batch-sizes", "1,4", "--batch-seconds", "0.3"]) == 0
+    argv = ["--runs", "1", "--json", "--batch-sizes", "1,4", "--batch-seconds", "0.3", "--rollout-seeds", "2"]
+    assert main(["bench-speed", *argv, "--rollout-controllers", "none"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["real_time_factor_median"] > 0
     assert result["env_step_per_bare_pybullet_step_median"] > 0
@@ -31,6 +32,9 @@ def test_bench_speed_json_reports_a_real_time_factor(capsys):
     assert batched["single_env_episodes_per_s_median"] > 0
     assert set(batched["batched"]) == {"1", "4"}
     assert all(b["episodes_per_s_median"] > 0 for b in batched["batched"].values())
+    rollouts = result["rollouts"]
+    assert rollouts["seeds"] == 2 and len(rollouts["none"]["speedup_runs"]) == 3
+    assert rollouts["none"]["batched_episodes_per_s_median"] > 0
 
 
 def test_demo_runs_the_reproduction_and_says_where_the_results_are(tmp_path, capsys):
