@@ -10,8 +10,9 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from importlib.metadata import entry_points
+from types import MappingProxyType
 from typing import Any
 
 from drillgym.controllers.base import Controller
@@ -53,6 +54,8 @@ NEEDS_IMPORT: dict[str, str] = {"residual": "drillgym.training"}
 """Loaders that a package registers when it is imported (:func:`register_loader`), named in the error when a spec
 uses one before its package was imported (``drillgym.eval`` and the ``drillgym`` command import them all)."""
 _registered: dict[str, str] = {}
+_merged: dict[str, str] | None = None
+"""Every loader by name, merged once (:func:`loaders`); :func:`register_loader` drops it."""
 
 
 def register_loader(name: str, target: str) -> None:
@@ -61,10 +64,12 @@ def register_loader(name: str, target: str) -> None:
     A package above this one registers its own family when it is imported (``drillgym.training`` registers
     ``residual``), so the registry never imports upward; a loader registered here wins over an entry point.
     """
+    global _merged
     module, _, function = target.partition(":")
     if not module or not function:
         raise ValueError(f"loader target {target!r}: expected 'module:function'")
     _registered[name] = target
+    _merged = None
 
 
 @functools.cache
@@ -72,9 +77,12 @@ def _entry_point_loaders() -> dict[str, str]:
     return {ep.name: ep.value for ep in entry_points(group=LOADER_GROUP)}
 
 
-def loaders() -> dict[str, str]:
-    """Controller loaders by name, ``"module:function"``: entry points, this package's, then registered ones."""
-    return {**_entry_point_loaders(), **BUILTIN_LOADERS, **_registered}
+def loaders() -> Mapping[str, str]:
+    """Controller loaders by name, ``"module:function"``: entry points, this package's, then registered ones (read-only)."""
+    global _merged
+    if _merged is None:
+        _merged = {**_entry_point_loaders(), **BUILTIN_LOADERS, **_registered}
+    return MappingProxyType(_merged)
 
 
 def _load(target: str) -> Callable[[str], Controller]:

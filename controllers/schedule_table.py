@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.controllers.plan_schedule import PlanScheduledController, ScheduleSpec
-from drillgym.envs.errors import UserError
+from drillgym.envs.errors import UserError, read_json
 
 TABLE_FORMAT = "drillgym-schedule-table/1"
 """``format`` of a table file."""
@@ -170,11 +170,9 @@ def load_table(text: str) -> ScheduleTable:
         raise UserError("table controllers need a file: table:PATH/TO/table.json (or table:shipped)")
     path = resolve_table(text)
     try:
-        data = json.loads(path.read_text())
+        data = read_json(path)
     except FileNotFoundError:
         raise FileNotFoundError(f"schedule table {path} not found (drillgym tune-table writes one)") from None
-    except json.JSONDecodeError as e:
-        raise UserError(f"{path}: not JSON ({e})") from e
     return table_from_dict(data, str(path))
 
 

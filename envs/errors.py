@@ -16,6 +16,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 
 class UserError(ValueError):
     """Bad input that the caller can fix; the message names the input and what is allowed."""
@@ -31,3 +33,15 @@ def read_json(path: str | Path) -> Any:
         return json.loads(text)
     except json.JSONDecodeError as e:
         raise UserError(f"{path}: not valid JSON ({e})") from e
+
+
+def read_yaml(path: str | Path) -> Any:
+    """The YAML value in the file at ``path`` (None for an empty file); a file that is not YAML raises :class:`UserError`.
+
+    A missing or unreadable file raises ``OSError`` as usual.
+    """
+    text = Path(path).read_text()
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise UserError(f"{path}: not valid YAML ({' '.join(str(e).split())})") from e

@@ -7,11 +7,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from drillgym.controllers.plan_schedule import SCHEDULE_SPANS, ScheduleSpec
 from drillgym.controllers.residual import check_mode
-from drillgym.envs.errors import UserError
+from drillgym.envs.errors import UserError, read_yaml
 from drillgym.training.domain_randomization import check_ranges, training_plan_support
 from drillgym.training.schedule_env import ScheduleReward
 
@@ -173,15 +171,6 @@ CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 """The training configurations shipped with the package (``--config NAME`` finds ``NAME.yaml`` here)."""
 
 
-def read_yaml(path: Path) -> Any:
-    """The YAML value in the file at ``path`` (``{}`` for an empty file); a YAML error raises ``UserError``."""
-    text = path.read_text()
-    try:
-        return yaml.safe_load(text) or {}
-    except yaml.YAMLError as e:
-        raise UserError(f"{path}: not valid YAML ({' '.join(str(e).split())})") from e
-
-
 def resolve_config(path: Path | str) -> Path:
     """A YAML path, or the name of a shipped configuration (``smoke``, ``residual_sac``, ...)."""
     p = Path(path)
@@ -202,7 +191,7 @@ def load_config(path: Path | None, overrides: dict[str, Any] | None = None) -> T
     data: dict[str, Any] = {}
     if path is not None:
         path = resolve_config(path)
-        loaded = read_yaml(Path(path))
+        loaded = read_yaml(Path(path)) or {}
         if not isinstance(loaded, dict):
             raise UserError(f"{path}: expected a mapping of TrainConfig fields, got {type(loaded).__name__}")
         data.update(loaded)

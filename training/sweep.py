@@ -29,8 +29,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from drillgym.envs.errors import UserError
-from drillgym.training.config import TrainConfig, load_config, read_yaml
+from drillgym.envs.errors import UserError, read_yaml
+from drillgym.training.config import TrainConfig, load_config
 
 SEARCH_KINDS = ("choice", "grid", "uniform", "loguniform", "randint")
 """Distributions a search entry may use."""
@@ -115,7 +115,7 @@ def _check_search(search: Any, base: TrainConfig) -> dict[str, tuple[str, list[A
 def load_sweep(path: Path, overrides: dict[str, Any] | None = None, base_config: Path | None = None) -> SweepSpec:
     """Read and check a sweep file; ``overrides`` replace fixed fields, ``base_config`` the file's base."""
     path = Path(path)
-    data = read_yaml(path)
+    data = read_yaml(path) or {}
     if not isinstance(data, dict):
         raise UserError(f"{path}: expected a mapping, got {type(data).__name__}")
     unknown = sorted(set(data) - set(SPEC_KEYS))

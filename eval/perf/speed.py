@@ -12,6 +12,7 @@ one) slows both sides alike. Reported: the median over runs of that ratio and of
 
 from __future__ import annotations
 
+import functools
 import os
 import resource
 import statistics
@@ -236,7 +237,7 @@ def rollout_throughput(
                 run_episode(env, controller, s, keep_trace=False)
             single.append(seeds / (time.perf_counter() - t0))
             t0 = time.perf_counter()
-            run_episodes(lambda spec=spec: make_controller(spec), list(range(seeds)))
+            run_episodes(functools.partial(make_controller, spec), list(range(seeds)))
             batched.append(seeds / (time.perf_counter() - t0))
             ratio.append(batched[-1] / single[-1])
         out[spec] = {

@@ -25,7 +25,6 @@ name used twice, and two holes that would drill the same entry point: drill axes
 from __future__ import annotations
 
 import itertools
-import json
 import math
 import re
 from collections.abc import Mapping, Sequence
@@ -34,10 +33,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from drillgym.envs.cell_params import R_BASE_TASK
-from drillgym.envs.errors import UserError
+from drillgym.envs.errors import UserError, read_json, read_yaml
 from drillgym.envs.scenario import Scenario
 
 PLAN_KEYS = ("scenario", "holes")
@@ -148,18 +146,12 @@ def load_plan(path: Path, first_seed: int = 0) -> DrillingPlan:
 
 
 def _read(path: Path) -> Any:
-    text = path.read_text()  # OSError names the file
-    if path.suffix.lower() == ".json":
-        try:
-            return json.loads(text)
-        except json.JSONDecodeError as e:
-            raise UserError(f"{path}: not valid JSON: {e}") from e
-    if path.suffix.lower() not in (".yaml", ".yml"):
+    suffix = path.suffix.lower()
+    if suffix == ".json":
+        return read_json(path)  # OSError names the file
+    if suffix not in (".yaml", ".yml"):
         raise UserError(f"{path}: a plan file is YAML (.yaml, .yml) or JSON (.json)")
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        raise UserError(f"{path}: not valid YAML: {' '.join(str(e).split())}") from e
+    return read_yaml(path)
 
 
 def _known_keys(data: Mapping[Any, Any], known: Sequence[str], where: str) -> None:

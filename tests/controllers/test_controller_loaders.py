@@ -53,11 +53,15 @@ def test_the_table_family_is_built_in():
 
 def test_a_registered_loader_builds_its_specs_and_wins_over_an_entry_point(monkeypatch):
     monkeypatch.setattr(registry, "_registered", {})
+    monkeypatch.setattr(registry, "_merged", None)  # restored, with the cache of before, at the test's end
     monkeypatch.setattr(registry, "_entry_point_loaders", lambda: {"mine": "no_such_module:nothing"})
+    assert registry.loaders()["mine"] == "no_such_module:nothing"
     registry.register_loader("mine", "drillgym.controllers.schedule_table:load_table_controller")
     assert isinstance(registry.make_controller("mine:shipped"), PlanScheduledController)
     with pytest.raises(ValueError, match="module:function"):
         registry.register_loader("bad", "no_colon")
+    with pytest.raises(TypeError):
+        registry.loaders()["mine"] = "x"  # read-only: the merged table is shared
 
 
 def test_an_unknown_family_lists_the_loaders():

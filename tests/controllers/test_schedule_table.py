@@ -78,7 +78,7 @@ def test_bad_table_files_get_clear_errors(tmp_path):
     with pytest.raises(FileNotFoundError, match="tune-table writes one"):
         make_controller(f"table:{tmp_path / 'missing.json'}")
     (tmp_path / "bad.json").write_text("{not json")
-    with pytest.raises(ValueError, match="not JSON"):
+    with pytest.raises(ValueError, match="not valid JSON"):
         load_table(str(tmp_path / "bad.json"))
     with pytest.raises(ValueError, match="not a schedule table"):
         table_from_dict({"format": "other"})
