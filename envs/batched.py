@@ -1,10 +1,13 @@
 """N drilling episodes stepped in lock-step: a native ``gymnasium.vector.VectorEnv``.
 
 Each episode is the single env's (:class:`~drillgym.envs.drill_env.UR5BoneDrillEnv`) without unmodelled
-effects: the same scenario, the same seeded specimen and sensor noise, the same physics, one compiled call
-(:func:`~drillgym.envs.step_kernel.advance_batch`) for all N per agent step, with the state on arrays whose
-first axis is the episode. Episode ``i`` of ``reset(seed=s)`` is the single env's ``reset(seed=s + i)``, and
-its records and metrics equal the single env's to rounding (``tests/envs/test_batched.py``).
+effects or with compiled ones (``effects=``): the same scenario, the same seeded specimen and sensor noise, the
+same physics, one compiled call (:func:`~drillgym.envs.step_kernel.advance_batch`) for all N per agent step, with
+the state on arrays whose first axis is the episode (:mod:`drillgym.envs.episode_state`). Episode ``i`` of
+``reset(seed=s)`` is the single env's ``reset(seed=s + i)``, and its records and metrics equal the single env's
+(``tests/envs/test_batched.py``). Each episode's sensor noise comes from its own generator, drawn ahead in blocks
+into a buffer the compiled step reads; when the episode ends its generator is put back where the single env's
+step-by-step draws would have left it.
 
 An episode that ends is reset in the same call (``autoreset_mode`` SAME_STEP): its last observation and
 info are in ``infos["final_obs"]`` and ``infos["final_info"]`` (with the episode's metrics), as Gymnasium's
@@ -22,6 +25,7 @@ Per step, ``infos`` holds ``t_s``, ``phase``, ``deviation_m`` (the true tip's, p
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from types import SimpleNamespace
 from typing import Any
 
@@ -38,11 +42,14 @@ from drillgym.envs.drilling.hole import centre_at
 from drillgym.envs.effects.registry import build_effects
 from drillgym.envs.episode_state import new_params, new_state
 from drillgym.envs.errors import UserError
-from drillgym.envs.kernel_state import NOISE_SIZE, draw_noise, record_channels, tracker_sample_is_new
+from drillgym.envs.kernel_state import NOISE_SIZE, is_noisy, record_channels
 from drillgym.envs.metrics import episode_metrics
 from drillgym.envs.observation import observation_of, observation_space
 from drillgym.envs.reward import checked_action
 from drillgym.envs.task import Phase
+
+NOISE_BLOCK = 64 * NOISE_SIZE
+"""Standard normals drawn at once into an episode's noise buffer (64 steps' worth at most)."""
 
 
 class BatchedDrillEnv(VectorEnv):
@@ -111,7 +118,8 @@ class BatchedDrillEnv(VectorEnv):
         )
         self.state, self.params = self.arrays.state, self.arrays.params
         self.command = np.zeros((n, 4))
-        self.noise = np.zeros((n, NOISE_SIZE))
+        self.noise = np.zeros((n, NOISE_BLOCK))
+        self._noise_from: list[Mapping[str, Any] | None] = [None] * n
         self.record = np.zeros((n, steps * SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
         self.recorded = np.zeros(n, dtype=np.int64)
         self.prev_action = np.zeros((n, ACTION_DIM))
@@ -144,6 +152,36 @@ class BatchedDrillEnv(VectorEnv):
         self.prev_action[i] = 0.0
         self.peak_lateral_n[i] = 0.0
         self.active[i] = True
+        self._noise_from[i] = None  # the generator was (re)seeded or is in step: nothing drawn ahead
+        self.state["noise_at"][i] = self.noise.shape[1]  # empty: the first step fills it
+
+    def _fill_noise(self, i: int) -> None:
+        """Refill episode ``i``'s noise buffer from its generator (if it reads any), continuing its stream.
+
+        The generator is drawn ahead by a block; its state before the block is kept so that
+        :meth:`_sync_generator` can put it where the normals read so far leave it.
+        """
+        if not is_noisy(self.params[i]):
+            return
+        rng = self.envs[i].np_random
+        self._sync_generator(i)
+        self._noise_from[i] = rng.bit_generator.state
+        rng.standard_normal(out=self.noise[i])
+        self.state["noise_at"][i] = 0
+
+    def _sync_generator(self, i: int) -> None:
+        """Put episode ``i``'s generator where the single env's would be: past the normals the episode has read.
+
+        NumPy's normals are the same however a stream is cut into draws, so redrawing the read ones from the state
+        before the block lands on the state the single env's step-by-step draws reach.
+        """
+        start = self._noise_from[i]
+        if start is None:
+            return
+        rng = self.envs[i].np_random
+        rng.bit_generator.state = start
+        rng.standard_normal(int(self.state["noise_at"][i]))
+        self._noise_from[i] = None
 
     def _fit(self, name: str, shape: tuple[int, ...]) -> None:
         """Grow array ``name`` (zero-padded, contents kept) so that each episode's row holds ``shape``."""
@@ -186,9 +224,8 @@ class BatchedDrillEnv(VectorEnv):
         a = checked_action(actions, "state unchanged", self.num_envs)
         self.command[:] = scaled_rows(a)  # the single env's feed scale, bit for bit
         st, running = self.state, self.active.copy()
-        new_tracker = tracker_sample_is_new(st["t_s"], st["tracker_stamp_s"])
-        for i in np.flatnonzero(running).tolist():
-            draw_noise(self.envs[i].np_random, self.noise[i], self.params[i], new_tracker[i])
+        for i in np.flatnonzero(running & (st["noise_at"] > self.noise.shape[1] - NOISE_SIZE)).tolist():
+            self._fill_noise(i)
         sk.advance_batch(*self.arrays, self.command, self.noise, self.record, self.recorded, running)
         if st["singular"].any():
             i = int(np.argmax(st["singular"]))
@@ -219,6 +256,8 @@ class BatchedDrillEnv(VectorEnv):
             infos["_final_obs"] = terminated | truncated
             infos["final_info"] = final_info
             infos["_final_info"] = terminated | truncated
+            for i in ended.tolist():
+                self._sync_generator(i)
             if not self.autoreset:
                 self.active[ended] = False
                 return obs, reward, terminated, truncated, infos

@@ -110,6 +110,11 @@ STATE_FIELDS: tuple[Field, ...] = (
     _b("singular", "The inverse kinematics met a singular Jacobian (the caller raises)."),
     _b("tracker_new", "This step's tracker sample is new (its noise was drawn)."),
     _i("delay_count", "Samples held in the delay line ``delay`` (extra latency)."),
+    _i(
+        "noise_at",
+        "Next unread standard normal of the episode's noise buffer: a step reads the F/T's 30 there if it is noisy, "
+        "then the tracker's 3 if it is noisy and its sample is new, and moves on past them.",
+    ),
 )
 """What a step changes, per episode."""
 

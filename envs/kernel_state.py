@@ -7,7 +7,7 @@ parameters go into the episode's ``params``, :data:`STEP_EFFECTS` for those with
 :func:`~drillgym.envs.step_kernel.advance_batch` on one episode's named state (:mod:`drillgym.envs.episode_state`):
 :class:`KernelState` copies the state in (:meth:`~KernelState.load`), the kernel advances it, and
 :meth:`~KernelState.store` copies it back, so every reader sees what the Python step would have left. The batched env builds the same arrays for N
-episodes (:mod:`drillgym.envs.batched`) from each episode's :class:`KernelState`, and shares :func:`draw_noise`
+episodes (:mod:`drillgym.envs.batched`) from each episode's :class:`KernelState`, and shares :func:`is_noisy`
 and :func:`record_channels` with it.
 """
 
@@ -154,14 +154,21 @@ def tracker_sample_is_new(t_s: Any, stamp_s: Any) -> Any:
 def draw_noise(rng: np.random.Generator, noise: np.ndarray, p: np.void, tracker_new: bool) -> None:
     """The step's standard normals into ``noise`` from the episode's generator, in the Python step's order.
 
-    The F/T's (5x6) if it is noisy, then the tracker's (3) if it is noisy and its sample is new (``p``: the
-    episode's parameters).
+    The F/T's (5x6) if it is noisy, then the tracker's (3) if it is noisy and its sample is new, one after the
+    other from ``noise[0]`` on, as the compiled step reads them from ``noise_at`` = 0 (``p``: the episode's
+    parameters).
     """
-    nf = 6 * SUBSTEPS_PER_STEP
+    at = 0
     if p["ft_std"][0] > 0:
-        rng.standard_normal(out=noise[:nf])
+        at = 6 * SUBSTEPS_PER_STEP
+        rng.standard_normal(out=noise[:at])
     if p["tracker_noise_m"] > 0 and tracker_new:
-        rng.standard_normal(out=noise[nf:])
+        rng.standard_normal(out=noise[at : at + 3])
+
+
+def is_noisy(p: np.void) -> bool:
+    """Whether an episode's step reads normals (its F/T or its tracker is noisy), as :func:`draw_noise` decides."""
+    return bool(p["ft_std"][0] > 0 or p["tracker_noise_m"] > 0)
 
 
 def record_channels(rows: np.ndarray) -> dict[str, np.ndarray]:
@@ -248,6 +255,7 @@ class KernelState:
         cmd[0, :3] = correction_base_m
         cmd[0, 3] = feed_scale
         draw_noise(env.np_random, self.noise[0], self.p, tracker_sample_is_new(env.t_s, env.tracker_stamp))
+        self.s["noise_at"] = 0
         out = np.empty((1, SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
         self.recorded[0] = 0
         sk.advance_batch(*self.arrays, cmd, self.noise, out, self.recorded, self.active)

@@ -350,8 +350,9 @@ def advance(  # noqa: C901 (one step, in the env's order)
 ) -> None:  # pragma: no cover (compiled)
     """One agent step of one episode (its state record ``s``, parameters ``p`` and buffers) for ``command``.
 
-    ``command``: the correction (3, m, base frame) and the feed scale; ``noise``: standard normals, the F/T's
-    (5x6, row-major) then the tracker's (3, read when its sample is new). Sets ``s.terminated``,
+    ``command``: the correction (3, m, base frame) and the feed scale; ``noise``: the episode's buffer of standard
+    normals, read from ``s.noise_at`` on in the order the episode's generator drew them: the F/T's (5x6, row-major)
+    if it is noisy, then the tracker's (3) if it is noisy and its sample is new; ``s.noise_at`` moves past them. Sets ``s.terminated``,
     ``s.truncated`` and, on a singular Jacobian, ``s.singular`` (the state is then not advanced further).
     """
     # queue the command; it applies after the latency
@@ -417,6 +418,7 @@ def advance(  # noqa: C901 (one step, in the env's order)
     # F/T readings: the true wrench at the sensor, noise, quantisation
     arm = p.sensor_arm_m
     ft_std = p.ft_std
+    at = s.noise_at
     dev_sum = 0.0
     lat_sum = 0.0
     mean = np.zeros(6)
@@ -425,7 +427,7 @@ def advance(  # noqa: C901 (one step, in the env's order)
         f0, f1, f2 = smp[k, 6], smp[k, 7], smp[k, 8]
         w = (f0, f1, f2, -arm * f1, arm * f0, smp[k, 9])
         for c in range(6):
-            v = w[c] + ft_std[c] * noise[6 * k + c] if ft_std[0] > 0.0 else w[c]
+            v = w[c] + ft_std[c] * noise[at + 6 * k + c] if ft_std[0] > 0.0 else w[c]
             v = np.rint(v / FT_RESOLUTION[c]) * FT_RESOLUTION[c]
             out[k, OUT_FORCE + c] = v  # the force, then the torque (OUT_TORQUE)
             mean[c] = v if k == 0 else mean[c] + v
@@ -439,6 +441,9 @@ def advance(  # noqa: C901 (one step, in the env's order)
         out[k, OUT_CUTTING] = smp[k, 12]
         dev_sum += dev
         lat_sum += math.hypot(f0, f1)
+    if ft_std[0] > 0.0:
+        at += 6 * n
+    s.noise_at = at
     if over:
         s.failure = True
     if rtde_time >= s.t_s - 1e-12:
@@ -471,7 +476,9 @@ def advance(  # noqa: C901 (one step, in the env's order)
             marker = marker + s.marker_offset_base_m
         noise_m = p.tracker_noise_m
         for i in range(3):
-            s.tracker_reading_base_m[i] = marker[i] + noise_m * noise[6 * n + i] if noise_m > 0.0 else marker[i]
+            s.tracker_reading_base_m[i] = marker[i] + noise_m * noise[at + i] if noise_m > 0.0 else marker[i]
+        if noise_m > 0.0:
+            s.noise_at = at + 3
     along = s.path_m - p.s_start_m
     err = s.tracker_error_base_m
     for i in range(3):
@@ -511,8 +518,8 @@ def advance_batch(
 ) -> None:  # pragma: no cover (compiled)
     """:func:`advance` for every active episode of N episodes' arrays (:class:`KernelArrays`, in order).
 
-    ``command`` (N, 4) and ``noise`` (N, :data:`~drillgym.envs.kernel_state.NOISE_SIZE`) hold each episode's
-    command and standard normals; ``active`` (N, bool) which episodes step (the others are left as they are).
+    ``command`` (N, 4) holds each episode's command and ``noise`` (N, M) its buffer of standard normals, read from
+    its ``noise_at`` on (:func:`advance`); ``active`` (N, bool) which episodes step (the others are left as they are).
     The step's rows go to ``record[i]`` from row ``recorded[i]`` on, which advances by five (the caller sizes
     ``record`` for the longest episode). The single env is N = 1.
     """

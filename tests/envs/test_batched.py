@@ -177,3 +177,38 @@ def test_effects_the_compiled_step_does_not_run_are_refused():
         BatchedDrillEnv(1, effects="servo_deadband:band_m=1e-4").reset(seed=0)
     with pytest.raises(ValueError):
         BatchedDrillEnv(1, effects="no_such_effect:x=1")
+
+
+def test_each_episode_reads_its_generators_stream_and_leaves_the_generator_where_the_single_env_does():
+    """The batched env draws each episode's normals ahead, in blocks; at the episode's end its generator is put back
+    where the single env's step-by-step draws leave it (so a reset without a seed continues the same stream)."""
+    batch = BatchedDrillEnv(2, autoreset=False)
+    single = UR5BoneDrillEnv(pybullet_world=False)
+    try:
+        batch.reset(seed=[11, 12])
+        single.reset(seed=12)
+        assert batch.state["noise_at"].tolist() == [batch.noise.shape[1]] * 2  # nothing drawn before a step
+        actions = _actions(4, 2000, 2)
+        for step in range(2000):
+            *_, terminated, truncated, _ = batch.step(actions[step])
+            *_, term_s, trunc_s, _ = single.step(actions[step, 1])
+            if term_s or trunc_s:
+                break
+        assert terminated[1] or truncated[1]
+        assert batch.envs[1].np_random.bit_generator.state == single.np_random.bit_generator.state
+        assert batch.envs[1].np_random.random() == single.np_random.random()
+    finally:
+        batch.close()
+        single.close()
+
+
+def test_noiseless_sensors_draw_nothing():
+    batch = BatchedDrillEnv(1, ft_noise_n=0.0, tracker_noise_mm=0.0)
+    try:
+        batch.reset(seed=0)
+        before = batch.envs[0].np_random.bit_generator.state
+        for _ in range(30):
+            batch.step(np.zeros((1, 4)))
+        assert batch.envs[0].np_random.bit_generator.state == before
+    finally:
+        batch.close()
