@@ -17,35 +17,18 @@ from __future__ import annotations
 
 import math
 from collections import namedtuple
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from drillgym.envs.drilling.contact_kernel import ROW_SIZE, STATE_SIZE
+from drillgym.envs.effects.registry import EFFECTS
+from drillgym.envs.record_fields import Field, flag_field, float_field, int_field
+
+_f, _i, _b = float_field, int_field, flag_field
 
 
-class Field(NamedTuple):
-    """One named field: its name, NumPy type, shape (``()`` for a scalar) and what it holds (unit, frame)."""
-
-    name: str
-    dtype: str
-    shape: tuple[int, ...]
-    doc: str
-
-
-def _f(name: str, doc: str, *shape: int) -> Field:
-    return Field(name, "f8", shape, doc)
-
-
-def _i(name: str, doc: str) -> Field:
-    return Field(name, "i8", (), doc)
-
-
-def _b(name: str, doc: str) -> Field:
-    return Field(name, "?", (), doc)
-
-
-STATE_FIELDS: tuple[Field, ...] = (
+CORE_STATE_FIELDS: tuple[Field, ...] = (
     _f("t_s", "Simulated time (s)."),
     _f("path_m", "Nominal depth along the planned axis (m)."),
     _f("feed_scale", "Feed override in effect (-)."),
@@ -86,7 +69,6 @@ STATE_FIELDS: tuple[Field, ...] = (
         "its servo lag (used where ``params.target_offset_on``).",
         3,
     ),
-    _f("work_j", "Cutting work done so far (J; thermal softening)."),
     _f("force_scale_now", "The force scale in effect: the specimen's, after thermal softening if on (-)."),
     _f("spindle_share", "The spindle's speed as a share of the scenario's (1 without spindle sag)."),
     _f(
@@ -96,9 +78,6 @@ STATE_FIELDS: tuple[Field, ...] = (
         3,
     ),
     _f("marker_offset_base_m", "The same for the tracker marker (m, base frame; used where ``params.marker_on``).", 3),
-    _f("link_q_rad", "Joint backlash: the link angles of the first three joints (rad).", 3),
-    _f("link_tip_task_m", "Joint backlash: its share of the geometry offset (m, task frame).", 3),
-    _f("link_marker_base_m", "Joint backlash: its share of the marker offset (m, base frame).", 3),
     _i("phase", "Path phase (:class:`~drillgym.envs.task.Phase`)."),
     _b("touching", "Whether the tip touched bone at the latest sample."),
     _i("bracket", "The depth grid's bracket of the latest root (warm start)."),
@@ -109,16 +88,15 @@ STATE_FIELDS: tuple[Field, ...] = (
     _b("truncated", "The episode hit its time or step limit."),
     _b("singular", "The inverse kinematics met a singular Jacobian (the caller raises)."),
     _b("tracker_new", "This step's tracker sample is new (its noise was drawn)."),
-    _i("delay_count", "Samples held in the delay line ``delay`` (extra latency)."),
     _i(
         "noise_at",
         "Next unread standard normal of the episode's noise buffer: a step reads the F/T's 30 there if it is noisy, "
         "then the tracker's 3 if it is noisy and its sample is new, and moves on past them.",
     ),
 )
-"""What a step changes, per episode."""
+"""What a step changes, per episode, whatever effects the cell has."""
 
-PARAM_FIELDS: tuple[Field, ...] = (
+CORE_PARAM_FIELDS: tuple[Field, ...] = (
     _f("latency_s", "Command latency (s)."),
     _f("servo_gain", "Servo tracking gain per physics update (-)."),
     _f("tan_beta", "Tangent of the surface's slope at the entry (-)."),
@@ -147,32 +125,20 @@ PARAM_FIELDS: tuple[Field, ...] = (
     _i("n_grid", "Rows of the force table in use."),
     _i("n_bins", "Bins of the hole in use."),
     _f("bin_m", "Axial size of a hole bin (m)."),
-    _f(
-        "backlash_half_rad",
-        "Joint backlash: half the play of each of the first three joints (rad; 0: off; "
-        ":class:`~drillgym.envs.effects.backlash.JointBacklash`).",
-    ),
     _b("geometry_on", "The cell has a geometry offset."),
     _b("marker_on", "The cell has a marker offset."),
     _b("target_offset_on", "The servo target is shifted (a geometry offset or joint friction)."),
     _f("entry_guidance", "Extra side guidance while the lips enter (share of full guidance at first touch)."),
-    _f("softening", "Thermal softening: asymptotic fractional loss of hardness (0: off)."),
-    _f("softening_work_j", "Thermal softening: cutting work for 63 % of the loss (J)."),
     _f("omega_rad_s", "Spindle speed (rad/s)."),
-    _f("friction_coulomb_rad", "Joint friction: Coulomb position error per moving joint (rad)."),
-    _f("friction_viscous_s", "Joint friction: viscous position error per joint speed (s)."),
-    _b("friction_on", "Joint friction is on."),
-    _f(
-        "extra_latency_s",
-        "Extra delay of the whole servo target (s; 0: off; :class:`~drillgym.envs.effects.timing.Latency`).",
-    ),
-    _f(
-        "spindle_sag_per_nm",
-        "Spindle speed loss per N·m of cutting torque (1/(N·m); 0: off; "
-        ":class:`~drillgym.envs.effects.spindle.SpindleSag`).",
-    ),
 )
-"""What is fixed for an episode (set at reset from the cell, the scenario and the compiled effects)."""
+"""What is fixed for an episode, whatever effects the cell has (set at reset from the cell and the scenario)."""
+
+_COMPILED = [cls for cls in EFFECTS.values() if cls.__dict__.get("compiled", False)]
+STATE_FIELDS: tuple[Field, ...] = CORE_STATE_FIELDS + tuple(f for cls in _COMPILED for f in cls.kernel_state)
+"""What a step changes, per episode: the core's fields, then those the compiled effects declare (their state)."""
+PARAM_FIELDS: tuple[Field, ...] = CORE_PARAM_FIELDS + tuple(f for cls in _COMPILED for f in cls.kernel_params)
+"""What is fixed for an episode: the core's fields, then those the compiled effects declare (their parameters,
+zero when the effect is off)."""
 
 
 def _dtype(fields: tuple[Field, ...]) -> np.dtype:

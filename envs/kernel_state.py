@@ -3,7 +3,7 @@
 The single env keeps its state in Python objects (the cell, the path, the tip balance, the queue of
 commands), which unmodelled effects and the rest of the project read and change. Without effects, or
 with only compiled ones (:attr:`Effect.compiled <drillgym.envs.effects.base.Effect.compiled>`; their
-parameters go into the episode's ``params``, :data:`STEP_EFFECTS` for those with a step hook), its step runs
+each writes its parameters into the episode's ``params``: :meth:`Effect.set_kernel_params`), its step runs
 :func:`~drillgym.envs.step_kernel.advance_batch` on one episode's named state (:mod:`drillgym.envs.episode_state`):
 :class:`KernelState` copies the state in (:meth:`~KernelState.load`), the kernel advances it, and
 :meth:`~KernelState.store` copies it back, so every reader sees what the Python step would have left. The batched env builds the same arrays for N
@@ -14,7 +14,6 @@ and :func:`record_channels` with it.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -24,12 +23,6 @@ from drillgym.envs.cell import SimCell, chains_of
 from drillgym.envs.constants import PHYSICS_DT_S, SUBSTEPS_PER_STEP, TRACKER_RATE_HZ
 from drillgym.envs.drilling.contact import ContactSample
 from drillgym.envs.drilling.force_model import EngagementTable
-from drillgym.envs.effects.backlash import JointBacklash
-from drillgym.envs.effects.base import Effect
-from drillgym.envs.effects.bone import ThermalSoftening
-from drillgym.envs.effects.joints import JointFriction
-from drillgym.envs.effects.spindle import SpindleSag
-from drillgym.envs.effects.timing import Latency
 from drillgym.envs.episode_state import STATE_SCALARS, StateScalars, new_params, new_state
 from drillgym.envs.task import Phase
 
@@ -100,45 +93,6 @@ def episode_params(
     if cell.marker_offset_base_m is not None:
         p["marker_on"] = True
     p["entry_guidance"] = solver.entry_guidance
-
-
-def _thermal_softening(effect: Effect, p: np.void) -> None:
-    p["softening"] = effect.values["softening"]
-    p["softening_work_j"] = effect.values["work_j"]
-
-
-def _joint_friction(effect: Effect, p: np.void) -> None:
-    c, tv = effect.values["coulomb_rad"], effect.values["viscous_s"]
-    p["friction_coulomb_rad"], p["friction_viscous_s"] = c, tv
-    if c != 0.0 or tv != 0.0:
-        p["friction_on"] = p["target_offset_on"] = True
-
-
-def _joint_backlash(effect: Effect, p: np.void) -> None:
-    half = 0.5 * effect.values["play_rad"]
-    p["backlash_half_rad"] = half
-    if half > 0.0:  # the links move the tool and the marker from the first step on
-        p["geometry_on"] = p["marker_on"] = p["target_offset_on"] = True
-
-
-def _latency(effect: Effect, p: np.void) -> None:
-    p["extra_latency_s"] = effect.values["extra_latency_s"]
-
-
-def _spindle_sag(effect: Effect, p: np.void) -> None:
-    p["spindle_sag_per_nm"] = effect.values["sag_per_nm"]
-
-
-STEP_EFFECTS: dict[str, Callable[[Effect, np.void], None]] = {
-    ThermalSoftening.name: _thermal_softening,
-    JointFriction.name: _joint_friction,
-    JointBacklash.name: _joint_backlash,
-    Latency.name: _latency,
-    SpindleSag.name: _spindle_sag,
-}
-"""The effects with a step hook the compiled step runs, by name: each writes its parameters into the episode's
-``params`` record (the kernel's counterparts: ``step_kernel._soften``, ``step_kernel._friction_lag``,
-``step_kernel._backlash``, ``step_kernel._delayed``, the spindle share in ``step_kernel.advance``)."""
 
 
 def tracker_sample_is_new(t_s: Any, stamp_s: Any) -> Any:
@@ -234,12 +188,9 @@ class KernelState:
         if env.effects is not None and not env.effects.compiled:
             raise ValueError(f"the compiled step does not run all of {effects!r}; step this env in Python")
         for e in effects:
-            hook = STEP_EFFECTS.get(type(e).name)
-            if hook is not None:
-                hook(e, self.p)
-        self._thermal = next((e for e in effects if isinstance(e, ThermalSoftening)), None)
-        backlash = next((e for e in effects if isinstance(e, JointBacklash)), None)
-        self._backlash = backlash if self.p["backlash_half_rad"] > 0.0 else None
+            e.set_kernel_params(self.p)
+        self.effects = effects
+        self._moves_links = self.p["backlash_half_rad"] > 0.0  # joint backlash moves the tool and the marker
         self.noise = np.zeros((1, NOISE_SIZE))
         self.command = np.zeros((1, 4))
         self.recorded = np.zeros(1, dtype=np.int64)
@@ -328,9 +279,8 @@ class KernelState:
         if cell.marker_offset_base_m is not None:
             s["marker_offset_base_m"] = cell.marker_offset_base_m
         s["target_offset_task_m"] = s["geometry_offset_task_m"]
-        if self._backlash is not None:
-            s["link_q_rad"] = self._backlash.q_link[:3]
-            s["link_tip_task_m"], s["link_marker_base_m"] = self._backlash.share
+        for e in self.effects:
+            e.load_kernel_state(s)
         smp = cell.sample
         s["sample"] = [
             *smp.tip,
@@ -341,8 +291,6 @@ class KernelState:
             smp.stage,
             1.0 if smp.cutting else 0.0,
         ]
-        if self._thermal is not None:
-            s["work_j"] = self._thermal.work_j
         s["phase"] = int(env.path.phase)
         s["touching"] = solver.touching
         s["bracket"] = solver._j
@@ -397,11 +345,9 @@ class KernelState:
         cell.C_total = cell.C_robot + cell.C_tool
         solver.force_scale = v.force_scale_now
         cell.spindle_rpm = cell.scenario.spindle_rpm * v.spindle_share
-        if self._thermal is not None:
-            self._thermal.work_j = v.work_j
-        if self._backlash is not None:  # the links moved the tool and the marker
-            self._backlash.q_link[:3] = s["link_q_rad"]
-            self._backlash.share = (s["link_tip_task_m"].copy(), s["link_marker_base_m"].copy())
+        for e in self.effects:
+            e.store_kernel_state(s)
+        if self._moves_links:  # the links moved the tool and the marker
             cell.geometry_offset_task_m = s["geometry_offset_task_m"].copy()
             cell.marker_offset_base_m = s["marker_offset_base_m"].copy()
         if v.failure and env.failure is None:

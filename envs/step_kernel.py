@@ -43,9 +43,11 @@ from drillgym.envs.constants import (
     TRACKER_RATE_HZ,
 )
 from drillgym.envs.drilling.contact_kernel import run_samples
-from drillgym.envs.effects.bone import MIN_HARDNESS
-from drillgym.envs.effects.joints import SIGN_SMOOTHING_RAD_S
-from drillgym.envs.effects.spindle import MIN_SPEED_SHARE
+from drillgym.envs.effects.backlash import move_links_kernel
+from drillgym.envs.effects.bone import soften
+from drillgym.envs.effects.joints import friction_lag
+from drillgym.envs.effects.spindle import sag
+from drillgym.envs.effects.timing import delayed
 from drillgym.envs.robot.ur5_kernel import frame_pose, ik_step, jacobian_and_compliance, joint_deflection
 
 PENDING_ROWS = 16
@@ -177,74 +179,6 @@ def _servo_xyz(s, p) -> tuple[float, float, float]:  # pragma: no cover (compile
 
 
 @numba.njit(cache=True)
-def _soften(s, p) -> None:  # pragma: no cover (compiled)
-    """Thermal softening's step start: the last step's cutting work added, the force scale it leaves.
-
-    :class:`~drillgym.envs.effects.bone.ThermalSoftening`'s ``begin_step``.
-    """
-    speed = _speed_m_s(s.phase, p.feed_m_s, s.feed_scale)
-    power_w = abs(s.sample[9]) * p.omega_rad_s + abs(s.sample[8]) * max(speed, 0.0)
-    s.work_j += power_w * CONTROL_DT_S
-    factor = 1.0 - p.softening * (1.0 - math.exp(-s.work_j / p.softening_work_j))
-    s.force_scale_now = p.force_scale * max(factor, MIN_HARDNESS)
-
-
-@numba.njit(cache=True)
-def _backlash(s, p, chains: np.ndarray) -> None:  # pragma: no cover (compiled)
-    """The links of the first three joints kept within half the play of their motors; the tool and marker with them.
-
-    :class:`~drillgym.envs.effects.backlash.JointBacklash`'s ``begin_step``: the links' offsets of the tool tip
-    (task frame) and the marker (base frame) replace the effect's earlier share of the geometry offsets, and the
-    servo-held point moves with the tip.
-    """
-    half = p.backlash_half_rad
-    q_m = s.q_motor_rad  # read only here
-    q_link = q_m.copy()
-    for j in range(3):
-        q_link[j] = min(max(s.link_q_rad[j], q_m[j] - half), q_m[j] + half)
-        s.link_q_rad[j] = q_link[j]
-    tip = p.R_base_task.T @ (frame_pose(q_link, chains[0])[1] - frame_pose(q_m, chains[0])[1])
-    marker = frame_pose(q_link, chains[1])[1] - frame_pose(q_m, chains[1])[1]
-    geo, mark, link_tip, link_marker = (
-        s.geometry_offset_task_m,
-        s.marker_offset_base_m,
-        s.link_tip_task_m,
-        s.link_marker_base_m,
-    )
-    for i in range(3):
-        geo[i] = geo[i] - link_tip[i] + tip[i]
-        mark[i] = mark[i] - link_marker[i] + marker[i]
-        s.tip_balance[i] = s.tip_balance[i] + (tip[i] - link_tip[i])
-        link_tip[i], link_marker[i] = tip[i], marker[i]
-        s.target_offset_task_m[i] = geo[i]
-
-
-@numba.njit(cache=True)
-def _friction_lag(s, pend: np.ndarray, p) -> None:  # pragma: no cover (compiled)
-    """The step's servo-target shift (task frame, m): the geometry offset plus the joint friction's lag.
-
-    The lag is :class:`~drillgym.envs.effects.joints.JointFriction`'s ``begin_step``, from the commanded tip
-    velocity (the newest command is queued).
-    """
-    r = p.R_base_task
-    v = np.zeros(3)
-    v[2] = _speed_m_s(s.phase, p.feed_m_s, s.feed_scale)
-    last = s.pending - 1
-    d = np.empty(3)
-    for i in range(3):
-        d[i] = pend[last, 1 + i] - s.correction_base_m[i]
-    v += (r.T @ d) / CONTROL_DT_S
-    twist = np.zeros(6)
-    twist[:3] = r @ v
-    jac = s.jacobian
-    qd = np.linalg.solve(jac, twist)
-    dq = -(p.friction_coulomb_rad * np.tanh(qd / SIGN_SMOOTHING_RAD_S) + p.friction_viscous_s * qd)
-    lag = r.T @ (jac[:3] @ dq)
-    for i in range(3):
-        s.target_offset_task_m[i] = s.geometry_offset_task_m[i] + lag[i] if p.geometry_on else lag[i]
-
-
-@numba.njit(cache=True)
 def _solve(
     s,
     p,
@@ -280,34 +214,6 @@ def _solve(
     s.touching = touching
     s.bracket = j
     return out
-
-
-@numba.njit(cache=True)
-def _delayed(
-    s, delay: np.ndarray, t_s: float, x: float, y: float, z: float, delay_s: float
-) -> tuple[float, float, float]:  # pragma: no cover (compiled)
-    """The servo target (m, task frame) as it was ``delay_s`` before ``t_s``, after recording ``(x, y, z)`` at ``t_s``.
-
-    :class:`~drillgym.envs.effects.timing.DelayLine`'s ``push`` and ``read``: linear interpolation between
-    samples, the first sample before it.
-    """
-    n = s.delay_count
-    if n == delay.shape[0]:  # full: keep the newest half
-        keep = n // 2
-        delay[:keep] = delay[n - keep : n].copy()
-        n = keep
-    delay[n, 0], delay[n, 1], delay[n, 2], delay[n, 3] = t_s, x, y, z
-    n += 1
-    s.delay_count = n
-    t_read = t_s - delay_s
-    if t_read <= delay[0, 0]:
-        return delay[0, 1], delay[0, 2], delay[0, 3]
-    j = np.searchsorted(delay[:n, 0], t_read, side="right")
-    if j >= n:
-        return delay[n - 1, 1], delay[n - 1, 2], delay[n - 1, 3]
-    w = (t_read - delay[j - 1, 0]) / (delay[j, 0] - delay[j - 1, 0])
-    a, b = delay[j - 1], delay[j]
-    return a[1] + w * (b[1] - a[1]), a[2] + w * (b[2] - a[2]), a[3] + w * (b[3] - a[3])
 
 
 @numba.njit(cache=True)
@@ -361,14 +267,15 @@ def advance(  # noqa: C901 (one step, in the env's order)
     pend[npend, 1:4] = command[:3]
     pend[npend, 4] = command[3]
     s.pending = npend + 1
+    # the compiled effects' step hooks, beside their Python hooks in envs/effects, in the Python step's order
     if p.softening > 0.0:
-        _soften(s, p)
+        soften(s, p, _speed_m_s(s.phase, p.feed_m_s, s.feed_scale))
     if p.backlash_half_rad > 0.0:
-        _backlash(s, p, chains)
+        move_links_kernel(s, p, chains)
     if p.friction_on:
-        _friction_lag(s, pend, p)
-    if p.spindle_sag_per_nm > 0.0:  # SpindleSag.begin_step: the speed from the last sample's cutting torque
-        s.spindle_share = max(1.0 - p.spindle_sag_per_nm * abs(s.sample[9]), MIN_SPEED_SHARE)
+        friction_lag(s, p, pend, _speed_m_s(s.phase, p.feed_m_s, s.feed_scale))
+    if p.spindle_sag_per_nm > 0.0:
+        sag(s, p)
     rtde_time = math.floor((s.t_s + CONTROL_DT_S) * RTDE_RATE_HZ + 1e-9) / RTDE_RATE_HZ
     c_total = _c_total(s, p)
     nb = p.n_bins
@@ -402,7 +309,7 @@ def advance(  # noqa: C901 (one step, in the env's order)
         if t_s <= rtde_time < t_next:
             rtde_k = k
         if p.extra_latency_s > 0.0:
-            targets[k, 0], targets[k, 1], targets[k, 2] = _delayed(s, delay, t_next, cx, cy, cz + d, p.extra_latency_s)
+            targets[k, 0], targets[k, 1], targets[k, 2] = delayed(s, delay, t_next, cx, cy, cz + d, p.extra_latency_s)
         else:
             targets[k, 0], targets[k, 1], targets[k, 2] = cx, cy, cz + d
         out[k, OUT_T_S] = t_next

@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 import numpy as np
 
 from drillgym.envs.errors import UserError
+from drillgym.envs.record_fields import Field
 
 if TYPE_CHECKING:
     from drillgym.envs.cell import SimCell
@@ -137,9 +138,14 @@ class Effect:
     compiled: ClassVar[bool] = False
     """True if the compiled step (:mod:`drillgym.envs.step_kernel`) runs this effect: it changes only what the
     kernel reads at ``reset`` (the tool's compliance and sensor arm, the geometry and marker offsets, the
-    force table's depth profile, the entry guidance), or its step hook has a kernel counterpart
-    (:data:`drillgym.envs.kernel_state.STEP_EFFECTS`). An env with only such effects steps compiled. Declared
-    by the class itself: a subclass that does not declare it again is stepped in Python."""
+    force table's depth profile, the entry guidance), or its step hook has a kernel counterpart, beside it in its
+    module, with the fields below. An env with only such effects steps compiled. Declared by the class itself: a
+    subclass that does not declare it again is stepped in Python."""
+    kernel_params: ClassVar[tuple[Field, ...]] = ()
+    """The parameters a compiled effect's kernel hook reads (fields of the episode's ``params`` record,
+    :mod:`drillgym.envs.episode_state`; zero while the effect is off), written by :meth:`set_kernel_params`."""
+    kernel_state: ClassVar[tuple[Field, ...]] = ()
+    """The state a compiled effect's kernel hook keeps (fields of the episode's ``state`` record)."""
     servo_offset_task_m: np.ndarray | None = None
     series_position: float = 0.0
     """This episode's place in its series of holes, 0 (first) to 1 (last); read by :attr:`in_series` forms."""
@@ -184,6 +190,16 @@ class Effect:
     def tracker_marker_base_m(self, env: EffectHost, marker_base_m: np.ndarray, stamp_s: float) -> np.ndarray:
         """The marker position (m, base frame) the tracker reports for its sample stamped ``stamp_s`` (s), before noise."""
         return marker_base_m
+
+    # ------------------------------------------------------------------ the compiled step (no-ops)
+    def set_kernel_params(self, p: np.void) -> None:
+        """Write this effect's :attr:`kernel_params` into an episode's ``params`` record (at reset)."""
+
+    def load_kernel_state(self, s: np.void) -> None:
+        """Copy this effect's Python state into the episode's ``state`` record (at the first compiled step)."""
+
+    def store_kernel_state(self, s: np.void) -> None:
+        """Copy the record's :attr:`kernel_state` back into this effect's Python state (after each compiled step)."""
 
     def apply_to_trace(self, trace: TraceView) -> None:
         """Sensor-only effects: the same change on a recorded trace (in place)."""

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
+import numba
 import numpy as np
 
 from drillgym.envs.constants import CONTROL_DT_S
 from drillgym.envs.effects.base import Effect, EffectHost, Param
+from drillgym.envs.record_fields import float_field
 
 MIN_HARDNESS = 0.05
 """Floor of any hardness factor (the bone never vanishes)."""
@@ -60,10 +63,28 @@ class ThermalSoftening(Effect):
     )
     channels = frozenset({"force", "torque", "tracker"})
     compiled = True
+    kernel_params = (
+        float_field("softening", "Thermal softening: asymptotic fractional loss of hardness (0: off)."),
+        float_field("softening_work_j", "Thermal softening: cutting work for 63 % of the loss (J)."),
+    )
+    kernel_state = (float_field("work_j", "Thermal softening: cutting work done so far (J)."),)
 
     def attach(self, env: EffectHost) -> None:
         """Cold bone."""
         self.work_j = 0.0
+
+    def set_kernel_params(self, p: np.void) -> None:
+        """The loss and its heat scale."""
+        p["softening"] = self.values["softening"]
+        p["softening_work_j"] = self.values["work_j"]
+
+    def load_kernel_state(self, s: np.void) -> None:
+        """The work done so far."""
+        s["work_j"] = self.work_j
+
+    def store_kernel_state(self, s: np.void) -> None:
+        """The work done so far."""
+        self.work_j = float(s["work_j"])
 
     def begin_step(self, env: EffectHost) -> None:
         """Add the last step's cutting work and scale the specimen's forces by the softening reached."""
@@ -95,3 +116,16 @@ class SkidFriction(Effect):
     def attach(self, env: EffectHost) -> None:
         """Add the entry guidance (:attr:`TipContactSolver.entry_guidance <drillgym.envs.drilling.contact.TipContactSolver.entry_guidance>`)."""
         env.cell.solver.entry_guidance += self.values["mu"]
+
+
+@numba.njit(cache=True)
+def soften(s: Any, p: Any, speed_m_s: float) -> None:  # pragma: no cover (compiled)
+    """:class:`ThermalSoftening`'s ``begin_step`` on an episode's records (``speed_m_s``: the path's axial speed).
+
+    The last step's cutting work added (the spindle's ``|M_z| ω`` and the feed's ``|F_z| v`` of the latest sample),
+    the force scale it leaves.
+    """
+    power_w = abs(s.sample[9]) * p.omega_rad_s + abs(s.sample[8]) * max(speed_m_s, 0.0)
+    s.work_j += power_w * CONTROL_DT_S
+    factor = 1.0 - p.softening * (1.0 - math.exp(-s.work_j / p.softening_work_j))
+    s.force_scale_now = p.force_scale * max(factor, MIN_HARDNESS)

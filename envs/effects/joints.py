@@ -5,10 +5,12 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, ClassVar
 
+import numba
 import numpy as np
 
 from drillgym.envs.constants import CONTROL_DT_S
 from drillgym.envs.effects.base import Effect, EffectHost, Param
+from drillgym.envs.record_fields import flag_field, float_field
 from drillgym.envs.robot import ur5_kernel
 
 SIGN_SMOOTHING_RAD_S = 1e-5
@@ -104,6 +106,18 @@ class JointFriction(Effect):
     channels = frozenset({"force", "torque", "tracker", "q", "tcp"})
     channels_before_contact = frozenset({"tracker", "q", "tcp"})
     compiled = True
+    kernel_params = (
+        float_field("friction_coulomb_rad", "Joint friction: Coulomb position error per moving joint (rad)."),
+        float_field("friction_viscous_s", "Joint friction: viscous position error per joint speed (s)."),
+        flag_field("friction_on", "Joint friction is on."),
+    )
+
+    def set_kernel_params(self, p: np.void) -> None:
+        """The two errors; on, and the servo target shifted, if either is not zero."""
+        c, tv = self.values["coulomb_rad"], self.values["viscous_s"]
+        p["friction_coulomb_rad"], p["friction_viscous_s"] = c, tv
+        if c != 0.0 or tv != 0.0:
+            p["friction_on"] = p["target_offset_on"] = True
 
     def begin_step(self, env: EffectHost) -> None:
         """Set the servo offset from the joint speeds of the commanded motion."""
@@ -150,3 +164,28 @@ class KinematicOffset(Effect):
         d = np.array([self.values["dx_base_m"], self.values["dy_base_m"], self.values["dz_base_m"]])
         if np.any(d != 0.0):
             add_geometry_offset(env.cell, env.cell.R_base_task.T @ d, d)
+
+
+@numba.njit(cache=True)
+def friction_lag(s: Any, p: Any, pend: np.ndarray, speed_m_s: float) -> None:  # pragma: no cover (compiled)
+    """:class:`JointFriction`'s ``begin_step`` on an episode's records: the step's servo-target shift (m, task frame).
+
+    The geometry offset plus the friction's lag, from the commanded tip velocity: the path's axial speed
+    ``speed_m_s`` and the newest queued correction's change (``pend``: the command queue) over a control step.
+    """
+    r = p.R_base_task
+    v = np.zeros(3)
+    v[2] = speed_m_s
+    last = s.pending - 1
+    d = np.empty(3)
+    for i in range(3):
+        d[i] = pend[last, 1 + i] - s.correction_base_m[i]
+    v += (r.T @ d) / CONTROL_DT_S
+    twist = np.zeros(6)
+    twist[:3] = r @ v
+    jac = s.jacobian
+    qd = np.linalg.solve(jac, twist)
+    dq = -(p.friction_coulomb_rad * np.tanh(qd / SIGN_SMOOTHING_RAD_S) + p.friction_viscous_s * qd)
+    lag = r.T @ (jac[:3] @ dq)
+    for i in range(3):
+        s.target_offset_task_m[i] = s.geometry_offset_task_m[i] + lag[i] if p.geometry_on else lag[i]

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Any
+
+import numba
+import numpy as np
+
 from drillgym.envs.effects.base import Effect, EffectHost, Param
+from drillgym.envs.record_fields import float_field
 
 MIN_SPEED_SHARE = 0.1
 """Floor of the spindle speed as a share of its no-load speed (a drill near stall still turns)."""
@@ -36,6 +42,13 @@ class SpindleSag(Effect):
     params = (Param("sag_per_nm", 0.0, 500.0, 0.0, "speed loss per N·m of cutting torque, 1 / stall torque (1/(N·m))"),)
     channels = frozenset({"force", "torque", "tracker"})
     compiled = True
+    kernel_params = (
+        float_field("spindle_sag_per_nm", "Spindle speed loss per N·m of cutting torque (1/(N·m); 0: off)."),
+    )
+
+    def set_kernel_params(self, p: np.void) -> None:
+        """The speed loss per N·m."""
+        p["spindle_sag_per_nm"] = self.values["sag_per_nm"]
 
     def begin_step(self, env: EffectHost) -> None:
         """Set the spindle speed from the last sample's cutting torque."""
@@ -44,3 +57,9 @@ class SpindleSag(Effect):
             return
         cell = env.cell
         cell.spindle_rpm = sagged_rpm(env.scenario.spindle_rpm, k, cell.sample.torque_axis)
+
+
+@numba.njit(cache=True)
+def sag(s: Any, p: Any) -> None:  # pragma: no cover (compiled)
+    """:class:`SpindleSag`'s ``begin_step`` on an episode's records: the speed share from the last sample's torque."""
+    s.spindle_share = max(1.0 - p.spindle_sag_per_nm * abs(s.sample[9]), MIN_SPEED_SHARE)

@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import bisect
+from typing import Any
+
+import numba
+import numpy as np
 
 from drillgym.envs.effects.base import Effect, EffectHost, Param
+from drillgym.envs.record_fields import float_field, int_field
 
 
 class DelayLine:
@@ -56,10 +61,16 @@ class Latency(Effect):
     channels = frozenset({"force", "torque", "tracker", "q", "tcp"})
     channels_before_contact = frozenset({"tracker", "q", "tcp"})
     compiled = True
+    kernel_params = (float_field("extra_latency_s", "Extra delay of the whole servo target (s; 0: off)."),)
+    kernel_state = (int_field("delay_count", "Samples held in the delay line ``delay`` (extra latency)."),)
 
     def attach(self, env: EffectHost) -> None:
         """Start an empty delay line."""
         self.line = DelayLine()
+
+    def set_kernel_params(self, p: np.void) -> None:
+        """The delay."""
+        p["extra_latency_s"] = self.values["extra_latency_s"]
 
     def delay_target(self, t_s: float, target: tuple[float, float, float]) -> tuple[float, float, float]:
         """The target as it was ``extra_latency_s`` ago."""
@@ -69,3 +80,32 @@ class Latency(Effect):
         self.line.push(t_s, target)
         self.line.trim(t_s - delay - 0.05)
         return self.line.read(t_s - delay)
+
+
+@numba.njit(cache=True)
+def delayed(
+    s: Any, delay: np.ndarray, t_s: float, x: float, y: float, z: float, delay_s: float
+) -> tuple[float, float, float]:  # pragma: no cover (compiled)
+    """The servo target (m, task frame) as it was ``delay_s`` before ``t_s``, after recording ``(x, y, z)`` at ``t_s``.
+
+    :class:`DelayLine`'s ``push`` and ``read`` on an episode's delay line ``delay`` (rows ``t_s, x, y, z``; its
+    ``s.delay_count`` rows in use): linear interpolation between samples, the first sample before it. When full,
+    its newest half is kept.
+    """
+    n = s.delay_count
+    if n == delay.shape[0]:  # full: keep the newest half
+        keep = n // 2
+        delay[:keep] = delay[n - keep : n].copy()
+        n = keep
+    delay[n, 0], delay[n, 1], delay[n, 2], delay[n, 3] = t_s, x, y, z
+    n += 1
+    s.delay_count = n
+    t_read = t_s - delay_s
+    if t_read <= delay[0, 0]:
+        return delay[0, 1], delay[0, 2], delay[0, 3]
+    j = np.searchsorted(delay[:n, 0], t_read, side="right")
+    if j >= n:
+        return delay[n - 1, 1], delay[n - 1, 2], delay[n - 1, 3]
+    w = (t_read - delay[j - 1, 0]) / (delay[j, 0] - delay[j - 1, 0])
+    a, b = delay[j - 1], delay[j]
+    return a[1] + w * (b[1] - a[1]), a[2] + w * (b[2] - a[2]), a[3] + w * (b[3] - a[3])
