@@ -23,7 +23,7 @@ from drillgym.envs.cell import SimCell, chains_of
 from drillgym.envs.constants import PHYSICS_DT_S, SUBSTEPS_PER_STEP, TRACKER_RATE_HZ
 from drillgym.envs.drilling.contact import ContactSample
 from drillgym.envs.drilling.force_model import EngagementTable
-from drillgym.envs.episode_state import STATE_SCALARS, StateScalars, new_params, new_state
+from drillgym.envs.episode_state import STATE_FIELDS, STATE_SCALARS, StateScalars, new_params, new_state
 from drillgym.envs.task import Phase
 
 UR5BoneDrillEnv = Any
@@ -105,24 +105,30 @@ def tracker_sample_is_new(t_s: Any, stamp_s: Any) -> Any:
     return np.floor(t_s * TRACKER_RATE_HZ + 1e-9) / TRACKER_RATE_HZ != stamp_s  # sensors.latest_sample_time_s
 
 
-def draw_noise(rng: np.random.Generator, noise: np.ndarray, p: np.void, tracker_new: bool) -> None:
+def draw_noise(
+    rng: np.random.Generator, noise: np.ndarray, ft_noisy: bool, tracker_noisy: bool, tracker_new: bool
+) -> None:
     """The step's standard normals into ``noise`` from the episode's generator, in the Python step's order.
 
     The F/T's (5x6) if it is noisy, then the tracker's (3) if it is noisy and its sample is new, one after the
-    other from ``noise[0]`` on, as the compiled step reads them from ``noise_at`` = 0 (``p``: the episode's
-    parameters).
+    other from ``noise[0]`` on, as the compiled step reads them from ``noise_at`` = 0.
     """
     at = 0
-    if p["ft_std"][0] > 0:
+    if ft_noisy:
         at = 6 * SUBSTEPS_PER_STEP
         rng.standard_normal(out=noise[:at])
-    if p["tracker_noise_m"] > 0 and tracker_new:
+    if tracker_noisy and tracker_new:
         rng.standard_normal(out=noise[at : at + 3])
 
 
+def noisy_sensors(p: np.void) -> tuple[bool, bool]:
+    """Whether an episode's F/T and its tracker are noisy (its step reads normals for them: :func:`draw_noise`)."""
+    return bool(p["ft_std"][0] > 0), bool(p["tracker_noise_m"] > 0)
+
+
 def is_noisy(p: np.void) -> bool:
-    """Whether an episode's step reads normals (its F/T or its tracker is noisy), as :func:`draw_noise` decides."""
-    return bool(p["ft_std"][0] > 0 or p["tracker_noise_m"] > 0)
+    """Whether an episode's step reads any normals."""
+    return any(noisy_sensors(p))
 
 
 def record_channels(rows: np.ndarray) -> dict[str, np.ndarray]:
@@ -196,6 +202,10 @@ class KernelState:
         self.recorded = np.zeros(1, dtype=np.int64)
         self.active = np.ones(1, dtype=bool)
         self.loaded = False
+        self._noisy = noisy_sensors(self.p)
+        self._noise_at, self._singular = self.state["noise_at"], self.state["singular"]
+        self._arr = {f.name: self.state[f.name][0] for f in STATE_FIELDS if f.shape}
+        """Episode 0's array fields as plain array views (faster to read than the record's fields)."""
 
     def step(self, env: UR5BoneDrillEnv, correction_base_m: np.ndarray, feed_scale: float) -> np.ndarray:
         """Advance ``env`` by one agent step of ``command``; the step's sample rows (5, ``OUT_COLUMNS``)."""
@@ -205,12 +215,12 @@ class KernelState:
         cmd = self.command
         cmd[0, :3] = correction_base_m
         cmd[0, 3] = feed_scale
-        draw_noise(env.np_random, self.noise[0], self.p, tracker_sample_is_new(env.t_s, env.tracker_stamp))
-        self.s["noise_at"] = 0
+        draw_noise(env.np_random, self.noise[0], *self._noisy, tracker_sample_is_new(env.t_s, env.tracker_stamp))
+        self._noise_at[0] = 0
         out = np.empty((1, SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
         self.recorded[0] = 0
         sk.advance_batch(*self.arrays, cmd, self.noise, out, self.recorded, self.active)
-        if self.s["singular"]:
+        if self._singular[0]:
             raise np.linalg.LinAlgError(f"singular TCP Jacobian at q = {env.cell.q_motor_rad.tolist()} rad")
         env.pending.append((t_apply, correction_base_m, feed_scale))
         self.store(env)
@@ -307,7 +317,7 @@ class KernelState:
         """Copy the arrays back into the env's state (its queue has the step's command appended already)."""
         cell, solver = env.cell, env.cell.solver
         v = StateScalars._make(self._scalars[0].item())  # Python numbers
-        s = self.s
+        a = self._arr
         env.t_s = v.t_s
         env.path.s_m = v.path_m
         env.path.phase = PHASES[v.phase]
@@ -315,11 +325,11 @@ class KernelState:
         pending = env.pending
         for _ in range(len(pending) - v.pending):  # the commands applied: the last one is in effect
             env.correction_base_m = pending.popleft()[1]
-        tb = s["tip_balance"].tolist()
+        tb = a["tip_balance"].tolist()
         solver.rigid, solver.tip = tb[0:3], tb[3:6]
         solver.bottom_z, solver.depth_local = tb[6], tb[7]
         solver.touching, solver._j = v.touching, v.bracket
-        smp = s["sample"].tolist()
+        smp = a["sample"].tolist()
         solver.force, solver.torque = smp[6:9], smp[9]
         cell.sample = ContactSample(
             (smp[0], smp[1], smp[2]),
@@ -330,26 +340,26 @@ class KernelState:
             int(smp[11]),
             smp[12] == 1.0,
         )
-        env.rtde_tcp_base = s["rtde_tcp_base_m"].copy()
-        env.ft_last = s["ft_last"].copy()
-        env.ft_mean = s["ft_mean"].copy()
+        env.rtde_tcp_base = a["rtde_tcp_base_m"].copy()
+        env.ft_last = a["ft_last"].copy()
+        env.ft_mean = a["ft_mean"].copy()
         env.tracker_stamp = v.tracker_stamp_s
-        env.tracker_reading = s["tracker_reading_base_m"].copy()
-        env.tracker_error_base = s["tracker_error_base_m"].copy()
+        env.tracker_reading = a["tracker_reading_base_m"].copy()
+        env.tracker_error_base = a["tracker_error_base_m"].copy()
         env.tracker_lateral_m = v.tracker_lateral_m
         env.step_deviation_m = v.step_deviation_m
         env.step_lateral_n = v.step_lateral_n
-        cell.q_motor_rad = s["q_motor_rad"].copy()
-        cell.J_tcp = s["jacobian"].copy()
-        cell.C_robot = s["c_robot_m_n"].copy()
+        cell.q_motor_rad = a["q_motor_rad"].copy()
+        cell.J_tcp = a["jacobian"].copy()
+        cell.C_robot = a["c_robot_m_n"].copy()
         cell.C_total = cell.C_robot + cell.C_tool
         solver.force_scale = v.force_scale_now
         cell.spindle_rpm = cell.scenario.spindle_rpm * v.spindle_share
         for e in self.effects:
-            e.store_kernel_state(s)
+            e.store_kernel_state(self.s)
         if self._moves_links:  # the links moved the tool and the marker
-            cell.geometry_offset_task_m = s["geometry_offset_task_m"].copy()
-            cell.marker_offset_base_m = s["marker_offset_base_m"].copy()
+            cell.geometry_offset_task_m = a["geometry_offset_task_m"].copy()
+            cell.marker_offset_base_m = a["marker_offset_base_m"].copy()
         if v.failure and env.failure is None:
             env.failure = "force_limit"
         env.steps = v.steps
