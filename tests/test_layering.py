@@ -1,6 +1,8 @@
 """One import direction: envs <- controllers <- training <- eval, counting imports inside functions too."""
 
 import ast
+import re
+from importlib.metadata import distribution
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -9,14 +11,32 @@ LAYERS = ("envs", "controllers", "training", "eval")
 
 
 def imports_of(path: Path) -> list[tuple[int, str]]:
-    """Every absolute import in a module, with its line (module level, functions and classes alike)."""
+    """Every absolute import in a module, with its line (module level, functions and classes alike).
+
+    Imports by name at run time count too: ``importlib.import_module("...")`` with a literal name, and a
+    ``"module:function"`` loader target written as a literal (a registry imports it when a spec asks for it).
+    """
     found = []
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
             found += [(node.lineno, a.name) for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
             found.append((node.lineno, node.module))
+        elif isinstance(node, ast.Call) and _called_name(node.func) == "import_module" and node.args:
+            arg = node.args[0]
+            if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
+                found.append((node.lineno, arg.value))
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and LOADER_TARGET.fullmatch(node.value):
+            found.append((node.lineno, node.value.partition(":")[0]))
     return found
+
+
+LOADER_TARGET = re.compile(r"drillgym(\.\w+)+:\w+")
+"""A ``"module:function"`` target of the project's own code."""
+
+
+def _called_name(func: ast.expr) -> str:
+    return func.attr if isinstance(func, ast.Attribute) else func.id if isinstance(func, ast.Name) else ""
 
 
 def upward_imports() -> list[str]:
@@ -93,6 +113,53 @@ def test_the_circle_finder_finds_a_circle():
 
 def test_no_package_imports_a_later_layer():
     assert upward_imports() == []
+
+
+ENTRY_POINT_CONSUMERS = {"drillgym.controllers": "controllers"}
+"""Entry-point groups of this project and the layer that imports their targets at run time."""
+
+
+def upward_entry_points(entry_points: list[tuple[str, str, str]]) -> list[str]:
+    """``group name = target`` of every ``(group, name, target)`` entry point whose target lies in a later layer
+    than the one that loads it (scripts, which a user starts, are not loaded by a layer)."""
+    out = []
+    for group, name, target in entry_points:
+        if group in ("console_scripts", "gui_scripts"):
+            continue
+        consumer = ENTRY_POINT_CONSUMERS.get(group)
+        assert consumer is not None, f"entry-point group {group!r}: add the layer that loads it"
+        parts = target.partition(":")[0].split(".")
+        if parts[0] == "drillgym" and parts[1] in LAYERS[LAYERS.index(consumer) + 1 :]:
+            out.append(f"{group} {name} = {target}")
+    return out
+
+
+def test_no_entry_point_makes_a_layer_load_a_later_one_at_run_time():
+    installed = [(ep.group, ep.name, ep.value) for ep in distribution("drillgym").entry_points]
+    assert any(group == "console_scripts" for group, _, _ in installed)  # the metadata is there to check
+    assert upward_entry_points(installed) == []
+
+
+def test_the_check_sees_runtime_imports_by_name(tmp_path):
+    module = tmp_path / "m.py"
+    module.write_text(
+        "import importlib\n"
+        "LOADERS = {'residual': 'drillgym.training.residual_policy:load_residual_controller'}\n"
+        "def f():\n    return importlib.import_module('drillgym.eval.bench.suites')\n"
+    )
+    assert imports_of(module) == [
+        (1, "importlib"),
+        (2, "drillgym.training.residual_policy"),
+        (4, "drillgym.eval.bench.suites"),
+    ]
+    entry_points = [
+        ("drillgym.controllers", "residual", "drillgym.training.residual_policy:load_residual_controller"),
+        ("drillgym.controllers", "table", "drillgym.controllers.schedule_table:load_table_controller"),
+        ("console_scripts", "drillgym", "drillgym.eval.cli:main"),
+    ]
+    assert upward_entry_points(entry_points) == [
+        "drillgym.controllers residual = drillgym.training.residual_policy:load_residual_controller"
+    ]
 
 
 def test_the_check_sees_an_upward_import_inside_a_function(tmp_path):
