@@ -131,6 +131,20 @@ def previous_run(
     return found
 
 
+def refuse_previous_record(out: Path, files: Sequence[str], overwrite: bool, what: str) -> None:
+    """Refuse an ``--out`` that is a file, or that holds a previous ``what``'s ``files`` unless ``overwrite``.
+
+    A command's record is never overwritten by accident: the message names the files found and the ways out.
+    """
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} exists and is not a folder")
+    found = previous_run(out, files, ())
+    if found and not overwrite:
+        raise UserError(
+            f"--out {out} holds a previous {what} ({', '.join(found)}); pass --overwrite to replace it, or another --out"
+        )
+
+
 def clear_previous_run(out: Path) -> None:
     """Remove a previous run's files, plots and Parquet logs from ``out`` (nothing else)."""
     for name in RUN_FILES:

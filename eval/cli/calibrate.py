@@ -16,6 +16,7 @@ from drillgym.eval.calibration.calibrate import (
     EntryStructure,
 )
 from drillgym.eval.calibration.screen import evaluate_all
+from drillgym.eval.cli.bench import refuse_previous_record
 from drillgym.eval.reproduce.paper import LI2023_UNCOMPENSATED
 
 
@@ -34,6 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options."""
     d = CellParams()
     parser.add_argument("--out", type=Path, required=True, help="output directory")
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace a previous record in --out (without it, one is refused)"
+    )
     parser.add_argument(
         "--skid-relief", type=comma_floats, default=[d.skid_relief], help="comma list (default: shipped)"
     )
@@ -97,6 +101,9 @@ def run(args: argparse.Namespace) -> int:
         from drillgym.envs.effects import build_effects
 
         build_effects(args.effects)  # a bad spec is an error before any work
+    refuse_previous_record(
+        args.out, ("calibration.csv", "calibration.md", "calibration.png"), args.overwrite, "calibration"
+    )
     grid = [
         EntryStructure(r, k, g, f, w * 1e-3)
         for r, k, g, f, w in product(

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from drillgym.envs.errors import UserError
+from drillgym.eval.cli.bench import refuse_previous_record
 from drillgym.eval.explain.candidates import CANDIDATES, QUICK, candidate
 from drillgym.eval.explain.observations import FOLDS, RUNS
 from drillgym.eval.explain.pipeline import FULL, QUICK_SETTINGS, explain_folds
@@ -15,6 +16,9 @@ from drillgym.eval.explain.pipeline import FULL, QUICK_SETTINGS, explain_folds
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI arguments."""
     parser.add_argument("--out", type=Path, required=True, help="output folder (explanation.json, explanation.md)")
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace a previous record in --out (without it, one is refused)"
+    )
     parser.add_argument(
         "--quick",
         action="store_true",
@@ -66,8 +70,7 @@ def run(args: argparse.Namespace) -> int:
     if len(set(names)) != len(names):
         raise UserError(f"--candidates lists a name twice: {names}")
     folds = parse_folds(args.folds)
-    if args.out.exists() and not args.out.is_dir():
-        raise UserError(f"--out {args.out} exists and is not a folder")
+    refuse_previous_record(args.out, ("explanation.json", "explanation.md"), args.overwrite, "explain-paper record")
     settings = QUICK_SETTINGS if args.quick else FULL
     result = explain_folds(names, settings, args.workers, folds)
     args.out.mkdir(parents=True, exist_ok=True)

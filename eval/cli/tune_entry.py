@@ -12,6 +12,7 @@ import pandas as pd
 from drillgym.envs.errors import UserError
 from drillgym.eval.bench.suites import JUDGE_ONLY_SUITES, SUITES
 from drillgym.eval.bench.tune_entry import TUNING_SUITES, best_candidate, candidate_specs, gain_settings, grid_table
+from drillgym.eval.cli.bench import refuse_previous_record
 from drillgym.eval.cli.calibrate import comma_floats
 
 
@@ -55,6 +56,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--workers", type=int, default=1, help="parallel worker processes (default 1)")
     parser.add_argument("--out", type=Path, default=Path("results/tune_entry"), help="output folder")
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace a previous record in --out (without it, one is refused)"
+    )
+
+
+RECORD_FILES = ("episodes.csv", "grid.csv", "best.json", "tune_entry.md", "tune_entry.png")
+"""What a tune-entry run writes into its --out."""
 
 
 def check_arguments(args: argparse.Namespace) -> tuple[list[str], list[str]]:
@@ -79,6 +87,7 @@ def check_arguments(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     specs = candidate_specs(args.base, args.scales, args.depths_mm, args.kps, args.y_gains)
     for spec in specs:
         make_controller(spec)
+    refuse_previous_record(args.out, RECORD_FILES, args.overwrite, "tune-entry record")
     return suites, specs
 
 

@@ -139,3 +139,24 @@ def test_emulate_names_a_scenario_that_is_not_json():
 
     with pytest.raises(UserError, match="not valid JSON"):
         parse_scenario('{"beta_deg": ')
+
+
+@pytest.mark.parametrize(
+    ("command", "record", "argv"),
+    [
+        ("explain-paper", "explanation.json", ["--quick", "--folds", "kp4"]),
+        ("calibrate", "calibration.md", ["--seeds", "1"]),
+        ("tune-entry", "best.json", ["--seeds", "1", "--scales", "0.5", "--depths-mm", "1"]),
+    ],
+)
+def test_a_previous_record_in_out_is_refused_before_any_work_unless_overwrite(
+    tmp_path, capsys, monkeypatch, command, record, argv
+):
+    (tmp_path / record).write_text("a previous run's\n")
+    assert main([command, *argv, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "holds a previous" in err and record in err and "--overwrite" in err
+    assert (tmp_path / record).read_text() == "a previous run's\n"  # nothing written, nothing run
+    (tmp_path / "file").write_text("")
+    assert main([command, *argv, "--out", str(tmp_path / "file")]) == 2
+    assert "is not a folder" in capsys.readouterr().err
