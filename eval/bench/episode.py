@@ -69,7 +69,7 @@ def grid_jobs(suites: list[str], specs: list[str], seeds: int, purpose: Purpose 
     plain 0..seeds-1, a tuner's never meet them.
     """
     return [
-        EpisodeJob(suite, sc.name, sc.kwargs, spec, episode_seed(purpose, i))
+        EpisodeJob(suite, sc.name, sc.kwargs, spec, episode_seed(purpose, i), effects=sc.effects)
         for suite in suites
         for sc in suite_scenarios(suite)
         for spec in specs

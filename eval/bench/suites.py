@@ -7,6 +7,8 @@
 * ``generalisation``: 24 plans drawn at random strictly inside the training ranges and bones from a fixed
   stream of the judge's seed namespace (see :func:`generalisation`): plans no tuner or learner was given,
   between the anchors a gain-scheduling table is tuned on.
+* ``robustness``: the paper plan in imperfect cells, one unmodelled effect of the diagnosis's library at a
+  plausible size each, and all of them together (see :func:`robustness`): how each compensator degrades.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from drillgym.training.domain_randomization import TRAINING_BONES, TRAINING_RANG
 __all__ = [
     "GENERALISATION_PLANS",
     "JUDGE_ONLY_SUITES",
+    "ROBUSTNESS_CELLS",
     "SUITES",
     "TRAINING_BONES",
     "TRAINING_RANGES",
@@ -32,10 +35,13 @@ __all__ = [
 
 
 class SuiteScenario(NamedTuple):
-    """One scenario of a suite: a name (for files and tables) and the env keyword arguments."""
+    """One scenario of a suite: a name (for files and tables), the env keyword arguments and the cell's effects."""
 
     name: str
     kwargs: dict[str, Any]
+    effects: str = ""
+    """Unmodelled effects switched on in this scenario (:func:`drillgym.envs.effects.build_effects` spec; empty:
+    none). A benchmark's ``--cell`` adds its own."""
 
 
 def paper() -> list[SuiteScenario]:
@@ -105,14 +111,42 @@ def generalisation() -> list[SuiteScenario]:
     return out
 
 
+ROBUSTNESS_CELLS: dict[str, str] = {
+    "lab_friction": "joint_friction:coulomb_rad=0.000417",
+    "latency_60ms": "latency:extra_latency_s=0.06",
+    "backlash": "joint_backlash:play_rad=3e-4",
+    "tool_long": "tool_length:dl_m=2e-3",
+    "tool_short": "tool_length:dl_m=-2e-3",
+    "ft_drift": "ft_drift:fx_rate_n_s=0.01,fy_rate_n_s=-0.01",
+    "all": "joint_friction:coulomb_rad=0.000417+latency:extra_latency_s=0.06+joint_backlash:play_rad=3e-4"
+    "+tool_length:dl_m=2e-3+ft_drift:fx_rate_n_s=0.01,fy_rate_n_s=-0.01",
+}
+"""The robustness suite's cells, each at a size a real cell plausibly has:
+
+* ``lab_friction``: joint friction, Coulomb 0.417 mrad: the cell fitted to Li's runs (``li2023-lab``,
+  docs/explain-paper.md).
+* ``latency_60ms``: 60 ms more delay of the streamed target than the cell's 14 ms (a slower servo interface or
+  network; the effect allows up to 0.3 s).
+* ``backlash``: 0.3 mrad of play in the first three joints (a worn harmonic drive; new ones have 0.03–0.3 mrad).
+* ``tool_long``, ``tool_short``: the drill 2 mm further out of, or into, the chuck than planned (a re-grip).
+* ``ft_drift``: the F/T's lateral forces drifting 0.01 N/s (0.15 N over a hole; a sensor not warmed up).
+* ``all``: every one of them together (the longer tool)."""
+
+
+def robustness() -> list[SuiteScenario]:
+    """The paper plan in each of :data:`ROBUSTNESS_CELLS`, named ``paper_<cell>``."""
+    return [SuiteScenario(f"paper_{cell}", {}, spec) for cell, spec in ROBUSTNESS_CELLS.items()]
+
+
 SUITES: dict[str, Callable[[], list[SuiteScenario]]] = {
     "paper": paper,
     "sweep": sweep,
     "heldout": heldout,
     "generalisation": generalisation,
+    "robustness": robustness,
 }
 """Suite name -> its scenarios."""
-JUDGE_ONLY_SUITES = ("heldout", "generalisation")
+JUDGE_ONLY_SUITES = ("heldout", "generalisation", "robustness")
 """Suites that judge tuned and learnt controllers and that no tuner may use."""
 
 

@@ -1,5 +1,7 @@
+import pandas as pd
 import pytest
 
+from drillgym.envs.effects import build_effects
 from drillgym.envs.scenario import Scenario
 from drillgym.eval.bench.suites import SUITES, TRAINING_BONES, TRAINING_RANGES, outside_training, suite_scenarios
 
@@ -41,6 +43,8 @@ def test_every_suite_scenario_is_a_valid_scenario_with_a_unique_name(suite):
     assert len({s.name for s in scenarios}) == len(scenarios)
     for sc in scenarios:
         Scenario.from_kwargs(**sc.kwargs)
+        if sc.effects:
+            assert build_effects(sc.effects)  # a valid spec that switches something on
 
 
 def test_unknown_suite_lists_the_known_ones():
@@ -66,3 +70,27 @@ def test_no_generalisation_plan_is_a_validation_plan_the_learner_is_selected_on(
     validation = [{k: v for k, v in sc.items() if k in {*TRAINING_RANGES, "bone"}} for sc in validation_scenarios(200)]
     plans = [p.kwargs for p in suite_scenarios("generalisation")]
     assert not [p for p in plans if p in validation]
+
+
+def test_the_robustness_suite_is_the_paper_plan_in_each_cell_and_in_all_of_them():
+    from drillgym.eval.bench.suites import JUDGE_ONLY_SUITES, ROBUSTNESS_CELLS
+
+    scenarios = suite_scenarios("robustness")
+    assert [s.name for s in scenarios] == [f"paper_{c}" for c in ROBUSTNESS_CELLS]
+    assert all(s.kwargs == {} and s.effects for s in scenarios)
+    singles = [s for s in scenarios if s.name != "paper_all"]
+    combined = {type(e).name for e in build_effects(ROBUSTNESS_CELLS["all"])}
+    assert combined == {type(build_effects(s.effects)[0]).name for s in singles}
+    assert "robustness" in JUDGE_ONLY_SUITES  # no tuner may see it
+
+
+def test_a_scenarios_effects_reach_its_episodes_after_the_cells(tmp_path):
+    from drillgym.eval.cli import main
+
+    out = tmp_path / "bench"
+    argv = ["bench", "--suite", "robustness", "--controllers", "none", "--seeds", "1", "--no-logs"]
+    assert main([*argv, "--cell", "li2023-lab", "--out", str(out)]) == 0
+    episodes = pd.read_csv(out / "episodes.csv").set_index("scenario")
+    assert len(episodes) == 7 and episodes["error"].isna().all()
+    ideal = episodes.loc["paper_tool_long", "deviation_mean_mm"]
+    assert episodes.loc["paper_tool_short", "deviation_mean_mm"] != ideal  # each scenario its own cell
