@@ -16,6 +16,7 @@ alternatives (``docs/physics.md`` §6).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import asdict, dataclass, replace
 from typing import Any
@@ -26,11 +27,12 @@ from scipy.optimize import least_squares
 
 from drillgym.controllers.models import fit_model_peak_n
 from drillgym.controllers.registry import make_controller
-from drillgym.controllers.rollout import run_episode
+from drillgym.controllers.rollout import run_episode, run_episodes
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.drilling.bone import BUFFALO_CORTICAL, CANCELLOUS_RATIO, BonePreset
 from drillgym.envs.effects import build_effects
+from drillgym.envs.effects.base import EffectStack
 from drillgym.envs.errors import UserError
 from drillgym.envs.metrics import FORCE_FILTER_SAMPLES, moving_average
 from drillgym.envs.scenario import Scenario
@@ -106,14 +108,18 @@ def bone_with_lateral_scale(scale: float) -> BonePreset:
     return BonePreset("buffalo_femur", cortical, cortical.scaled(CANCELLOUS_RATIO), "calibration candidate")
 
 
+def env_kwargs(structure: EntryStructure, lateral_scale: float, stickout_mm: float) -> dict[str, Any]:
+    """The env's arguments for the paper scenario with this structure and these scales."""
+    return {
+        "cell_params": CellParams(**asdict(structure)),
+        "bone_material": bone_with_lateral_scale(lateral_scale),
+        "stickout_mm": stickout_mm,
+    }
+
+
 def make_env(structure: EntryStructure, lateral_scale: float, stickout_mm: float, effects: str = "") -> Any:
     """The paper scenario with this structure and these scales (and the unmodelled effects of spec ``effects``)."""
-    env = gym.make(
-        SIM_ENV_ID,
-        cell_params=CellParams(**asdict(structure)),
-        bone_material=bone_with_lateral_scale(lateral_scale),
-        stickout_mm=stickout_mm,
-    )
+    env = gym.make(SIM_ENV_ID, **env_kwargs(structure, lateral_scale, stickout_mm))
     if effects:
         env.unwrapped.set_effects(build_effects(effects))  # type: ignore[attr-defined]
     return env
@@ -184,16 +190,23 @@ PAIRED = (("kp4", "none"), ("kp1", "kp4"))
 def predict_li2023(cal: EntryCalibration, seeds: range | list[int], effects: str = "") -> dict[str, float]:
     """Mean metrics over ``seeds`` of none and the :data:`PREDICTED` li2023 variants, plus the fitted model peak.
 
-    li2023's model is fitted to the uncompensated run of the first seed.
+    li2023's model is fitted to the uncompensated run of the first seed. The li2023 variants run their seeds
+    together on the batched engine where the effects are compiled (the same rows, bit for bit).
     """
     env = make_env(cal.structure, cal.lateral_scale, cal.stickout_mm, effects)
+    kwargs = env_kwargs(cal.structure, cal.lateral_scale, cal.stickout_mm)
+    batched = not effects or EffectStack(build_effects(effects)).compiled
     try:
         none = [_uncompensated(env, s) for s in seeds]
         peak = fit_controller_model_n(env, none[0].trace)
         results: dict[str, list[dict[str, Any]]] = {"none": [r.metrics for r in none]}
         for name, overrides in PREDICTED.items():
             spec = f"li2023:{overrides}model_peak_force_n={peak:.4f}"
-            results[name] = [run_episode(env, make_controller(spec), s, keep_trace=False).row() for s in seeds]
+            if batched:
+                runs = run_episodes(functools.partial(make_controller, spec), list(seeds), kwargs, effects)
+                results[name] = [r.row() for r in runs]
+            else:
+                results[name] = [run_episode(env, make_controller(spec), s, keep_trace=False).row() for s in seeds]
     finally:
         env.close()
     out: dict[str, float] = {"model_peak_n": peak}
