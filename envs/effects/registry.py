@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from drillgym.envs.effects.backlash import JointBacklash
-from drillgym.envs.effects.base import Effect
+from drillgym.envs.effects.base import Effect, EffectStack
 from drillgym.envs.effects.bone import DensityGradient, SkidFriction, ThermalSoftening
 from drillgym.envs.effects.joints import JointFriction, KinematicOffset
 from drillgym.envs.effects.registration import Registration
@@ -104,3 +104,8 @@ def build_effects(spec: str, library: dict[str, type[Effect]] | None = None) -> 
             raise UserError(f"unknown effect {name!r}; choose from {sorted(lib)}")
         effects.append(lib[name](**values))
     return effects
+
+
+def runs_compiled(spec: str) -> bool:
+    """Whether a cell with the effects of ``spec`` steps compiled (none, or compiled ones only): the batched engine runs it."""
+    return not spec or EffectStack(build_effects(spec)).compiled

@@ -27,7 +27,7 @@ from drillgym.controllers.base import Controller
 from drillgym.controllers.rollout import EpisodeResult, run_episode, run_episodes
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.effects import build_effects
-from drillgym.envs.effects.base import EffectStack
+from drillgym.envs.effects.registry import runs_compiled
 from drillgym.envs.metrics import METRIC_NAMES
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.seeds import Purpose, episode_seed
@@ -179,10 +179,8 @@ def batch_key(job: EpisodeJob) -> tuple[str, str, str, str, str]:
 
 def batchable(job: EpisodeJob) -> bool:
     """Whether the job's cell runs on the batched engine (no effects, or compiled ones only)."""
-    if not job.effects:
-        return True
     try:
-        return EffectStack(build_effects(job.effects)).compiled
+        return runs_compiled(job.effects)
     except ValueError:
         return False  # a bad spec: the single env reports it, episode by episode
 

@@ -32,7 +32,7 @@ from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.drilling.bone import BUFFALO_CORTICAL, CANCELLOUS_RATIO, BonePreset
 from drillgym.envs.effects import build_effects
-from drillgym.envs.effects.base import EffectStack
+from drillgym.envs.effects.registry import runs_compiled
 from drillgym.envs.errors import UserError
 from drillgym.envs.metrics import FORCE_FILTER_SAMPLES, moving_average
 from drillgym.envs.scenario import Scenario
@@ -195,7 +195,7 @@ def predict_li2023(cal: EntryCalibration, seeds: range | list[int], effects: str
     """
     env = make_env(cal.structure, cal.lateral_scale, cal.stickout_mm, effects)
     kwargs = env_kwargs(cal.structure, cal.lateral_scale, cal.stickout_mm)
-    batched = not effects or EffectStack(build_effects(effects)).compiled
+    batched = runs_compiled(effects)
     try:
         none = [_uncompensated(env, s) for s in seeds]
         peak = fit_controller_model_n(env, none[0].trace)

@@ -19,7 +19,7 @@ from drillgym.controllers.registry import make_controller
 from drillgym.controllers.rollout import run_episode, run_episodes
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.effects import build_effects
-from drillgym.envs.effects.base import EffectStack
+from drillgym.envs.effects.registry import runs_compiled
 from drillgym.envs.errors import UserError
 from drillgym.eval.calibration.calibrate import fit_controller_model_n
 from drillgym.eval.explain.candidates import Candidate
@@ -60,7 +60,7 @@ def simulate(candidate: Candidate | None, value: float, runs: tuple[str, ...], s
         first = run_episode(env, None, seed=seeds[0])
         peak = fit_controller_model_n(env, first.trace)
         out: dict[str, Any] = {"model_peak_n": peak}
-        batched = not spec or EffectStack(build_effects(spec)).compiled
+        batched = runs_compiled(spec)
         for run in runs:
             if run == "none":
                 rest = _rows(env, "none", seeds[1:], spec, batched)

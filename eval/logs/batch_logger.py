@@ -20,6 +20,7 @@ from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.constants import SUBSTEPS_PER_STEP, scaled_rows
 from drillgym.envs.kernel_state import record_channels
 from drillgym.eval.logs.header import build_header
+from drillgym.eval.logs.logger import FT_COLUMNS
 from drillgym.eval.logs.writer import FLUSH_ROWS, EpisodeLogWriter
 
 HELD = (
@@ -116,10 +117,7 @@ class BatchLogger:
             "step": np.repeat(np.arange(s0, done), n),
             "phase": ch["phase"],
             "depth_cmd_m": ch["depth_cmd_m"],
-            **{
-                name: ft[:, k]
-                for k, name in enumerate(("ft_fx_n", "ft_fy_n", "ft_fz_n", "ft_tx_nm", "ft_ty_nm", "ft_tz_nm"))
-            },
+            **{name: ft[:, k] for k, name in enumerate(FT_COLUMNS)},
             **{name: held[:, k] for k, name in enumerate(HELD)},
             "tracker_valid": np.repeat(self.valid[i, s0:done], n),
             **{f"sim_tip_{a}_task_m": ch["tip_task_m"][:, k] for k, a in enumerate("xyz")},

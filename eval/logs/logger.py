@@ -99,6 +99,8 @@ SAMPLE_CHANNELS = (
     "deviation_m",
 )
 """The recorder's channels (:class:`drillgym.envs.metrics.EpisodeRecorder`) a log's rows take, one per F/T sample."""
+FT_COLUMNS = ("ft_fx_n", "ft_fy_n", "ft_fz_n", "ft_tx_nm", "ft_ty_nm", "ft_tz_nm")
+"""The log's F/T columns, in the wrench's order (force, then torque; sensor frame)."""
 
 
 def step_rows(
@@ -139,10 +141,7 @@ def step_rows(
         "step": [step] * n,
         "phase": channels["phase"],
         "depth_cmd_m": channels["depth_cmd_m"],
-        **{
-            name: ft[:, i]
-            for i, name in enumerate(("ft_fx_n", "ft_fy_n", "ft_fz_n", "ft_tx_nm", "ft_ty_nm", "ft_tz_nm"))
-        },
+        **{name: ft[:, i] for i, name in enumerate(FT_COLUMNS)},
         **{k: [v] * n for k, v in held.items()},
         **{f"sim_tip_{a}_task_m": tip[:, i] for i, a in enumerate("xyz")},
         "sim_stage": channels["stage"],
