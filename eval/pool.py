@@ -14,6 +14,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
 from drillgym.envs.errors import UserError
@@ -45,31 +46,85 @@ def run_unordered(
 
     A ``KeyboardInterrupt`` cancels the jobs that have not started and is raised again. A worker whose parent is
     gone (killed, say, by a scheduler's ``SIGTERM``, which skips the pool's shutdown) exits within a second
-    instead of finishing its job for nobody.
+    instead of finishing its job for nobody. For several rounds of jobs, :class:`WorkerPool` starts the workers once.
     """
-    if workers < 1:
-        raise UserError(f"workers={workers} must be >= 1")
-    if workers == 1 or len(jobs) <= 1:
-        if initializer is not None:
-            initializer(*initargs)
-        for i, job in enumerate(jobs):
-            yield i, _guarded(functools.partial(fn, job), job, on_error)
-        return
-    ctx = mp.get_context("spawn")
-    with ProcessPoolExecutor(
-        max_workers=min(workers, len(jobs)),
-        mp_context=ctx,
-        initializer=_worker_start,
-        initargs=(os.getpid(), initializer, initargs),
-    ) as pool:
+    with WorkerPool(min(workers, max(len(jobs), 1)), initializer=initializer, initargs=initargs) as pool:
+        yield from pool.map_unordered(fn, jobs, on_error=on_error)
+
+
+class WorkerPool:
+    """Worker processes kept over several rounds of jobs (:meth:`map_unordered`), started at the first round.
+
+    A spawned worker imports the simulator (numba, PyBullet, SciPy) before its first job, seconds of start-up:
+    a job runner with several phases (the diagnosis: replays, then single fits, pair fits and refits) pays it
+    once instead of once per phase. With one worker, or while no worker has started and a round has one job,
+    the jobs run in this process (the initializer runs here once, before the first of them).
+
+    Use it as a context manager (or call :meth:`close`): leaving stops the workers.
+    """
+
+    def __init__(
+        self, workers: int, *, initializer: Callable[..., None] | None = None, initargs: tuple[Any, ...] = ()
+    ) -> None:
+        """``workers`` processes at most; ``initializer(*initargs)`` runs once in each before its first job."""
+        if workers < 1:
+            raise UserError(f"workers={workers} must be >= 1")
+        self.workers = workers
+        self._initializer, self._initargs = initializer, initargs
+        self._executor: ProcessPoolExecutor | None = None
+        self._initialized_here = False
+
+    def map_unordered(
+        self,
+        fn: Callable[[Job], Result],
+        jobs: Sequence[Job],
+        *,
+        on_error: Callable[[Job, Exception], Result] | None = None,
+    ) -> Iterator[tuple[int, Result]]:
+        """Yield ``(index in jobs, fn(job))`` as each job finishes (see :func:`run_unordered` for the arguments)."""
+        if self.workers == 1 or (self._executor is None and len(jobs) <= 1):
+            if not self._initialized_here:
+                self._initialized_here = True
+                if self._initializer is not None:
+                    self._initializer(*self._initargs)
+            for i, job in enumerate(jobs):
+                yield i, _guarded(functools.partial(fn, job), job, on_error)
+            return
+        pool = self._start()
         futures: dict[Future, int] = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
+        broken = False
         try:
             for fut in as_completed(futures):
                 i = futures[fut]
+                broken = broken or isinstance(fut.exception(), BrokenProcessPool)
                 yield i, _guarded(fut.result, jobs[i], on_error)
         except BaseException:
-            pool.shutdown(cancel_futures=True)
+            self.close(cancel=True)
             raise
+        if broken:  # a worker died: the next round starts fresh workers
+            self.close()
+
+    def _start(self) -> ProcessPoolExecutor:
+        if self._executor is None:
+            self._executor = ProcessPoolExecutor(
+                max_workers=self.workers,
+                mp_context=mp.get_context("spawn"),
+                initializer=_worker_start,
+                initargs=(os.getpid(), self._initializer, self._initargs),
+            )
+        return self._executor
+
+    def close(self, cancel: bool = False) -> None:
+        """Stop the workers (after their running jobs; ``cancel``: dropping the jobs not started)."""
+        if self._executor is not None:
+            self._executor.shutdown(wait=True, cancel_futures=cancel)
+            self._executor = None
+
+    def __enter__(self) -> WorkerPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close(cancel=exc[0] is not None)
 
 
 PARENT_POLL_S = 1.0

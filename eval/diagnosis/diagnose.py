@@ -88,61 +88,61 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
     t0 = time.perf_counter()
     cal, ho = split_episodes(episodes, opt.seed)
     data = DiagnosisData.from_episodes(episodes, cal, ho)
-    runner = Runner(opt.workers)
-    bar = tqdm(
-        total=len(episodes) + len(opt.candidates),
-        desc="diagnose",
-        file=sys.stderr,
-        disable=None if opt.progress else True,
-        **bar_size(sys.stderr),
-    )
-    timings: dict[str, float] = {}
-    bar.set_postfix_str("replaying (nominal + null)")
-    results: list[Any] = [None] * len(episodes)
-    for i, r in runner.baselines(data):
-        results[i] = r
-        bar.update()
-    data.add_baseline(results)
-    timings["baseline_s"] = time.perf_counter() - t0
-    significance = gap_significance(data.baseline_terms, data.null_terms, opt.seed)
-    before = [data.baseline_terms[i] for i in ho]
-    null = [data.null_terms[i] for i in ho]
+    with Runner(opt.workers) as runner:  # the workers start once and serve every phase
+        bar = tqdm(
+            total=len(episodes) + len(opt.candidates),
+            desc="diagnose",
+            file=sys.stderr,
+            disable=None if opt.progress else True,
+            **bar_size(sys.stderr),
+        )
+        timings: dict[str, float] = {}
+        bar.set_postfix_str("replaying (nominal + null)")
+        results: list[Any] = [None] * len(episodes)
+        for i, r in runner.baselines(data):
+            results[i] = r
+            bar.update()
+        data.add_baseline(results)
+        timings["baseline_s"] = time.perf_counter() - t0
+        significance = gap_significance(data.baseline_terms, data.null_terms, opt.seed)
+        before = [data.baseline_terms[i] for i in ho]
+        null = [data.null_terms[i] for i in ho]
 
-    bar.set_postfix_str("fitting single effects")
-    singles = _run_fits(runner, data, [((n,), None) for n in opt.candidates], bar)
-    scores = score_models(singles, before, null, opt.seed)
-    timings["singles_s"] = time.perf_counter() - t0 - timings["baseline_s"]
-    pairs: list[FitResult] = []
-    g_null = pooled(null)
-    if significance["significant"] and scores and scores[0].after >= PAIR_TRY_RESIDUAL * g_null:
-        # Forward selection from the best singles: every other candidate is fitted on top of each.
-        s0 = baseline_score(before)
-        # A random effect (fitted per episode) takes no part in pairs: it is fitted alone only.
-        shared = [n for n in opt.candidates if not EFFECTS[n].per_episode]
-        by_score = [s for s in scores if s.fit.names[0] in shared]
-        seeds = [s for s in by_score if s.score < s0][: opt.pair_seeds] or by_score[:1]
-        jobs = pair_jobs(seeds, shared)
-        if jobs:
-            bar.total += len(jobs)
-            bar.set_postfix_str("fitting pairs")
-            pairs = _run_fits(runner, data, jobs, bar)
-            scores = score_models(singles + pairs, before, null, opt.seed)
-            refits = _refit_jobs(scores, pairs, s0, opt.refit_pairs)
-            if refits:
-                bar.total += len(refits)
-                bar.set_postfix_str("refitting the best pairs jointly")
-                models = [(names, starts) for names, starts, _ in refits]
-                out = _collect(runner.refits(data, models), len(refits), bar)
-                for (_, _, i), r in zip(refits, out, strict=True):
-                    if not r.error and r.cal_objective <= pairs[i].cal_objective:
-                        r.samples = _merged_samples(pairs[i], r)
-                        pairs[i] = r
-            singles = [_best_anywhere(f, pairs) for f in singles]
-            scores = score_models(singles + pairs, before, null, opt.seed)
-    timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
-    verdict, chosen, location, guard, off_point, scores = _name(
-        runner, data, significance, singles + pairs, scores, before, null, opt.seed, bar
-    )
+        bar.set_postfix_str("fitting single effects")
+        singles = _run_fits(runner, data, [((n,), None) for n in opt.candidates], bar)
+        scores = score_models(singles, before, null, opt.seed)
+        timings["singles_s"] = time.perf_counter() - t0 - timings["baseline_s"]
+        pairs: list[FitResult] = []
+        g_null = pooled(null)
+        if significance["significant"] and scores and scores[0].after >= PAIR_TRY_RESIDUAL * g_null:
+            # Forward selection from the best singles: every other candidate is fitted on top of each.
+            s0 = baseline_score(before)
+            # A random effect (fitted per episode) takes no part in pairs: it is fitted alone only.
+            shared = [n for n in opt.candidates if not EFFECTS[n].per_episode]
+            by_score = [s for s in scores if s.fit.names[0] in shared]
+            seeds = [s for s in by_score if s.score < s0][: opt.pair_seeds] or by_score[:1]
+            jobs = pair_jobs(seeds, shared)
+            if jobs:
+                bar.total += len(jobs)
+                bar.set_postfix_str("fitting pairs")
+                pairs = _run_fits(runner, data, jobs, bar)
+                scores = score_models(singles + pairs, before, null, opt.seed)
+                refits = _refit_jobs(scores, pairs, s0, opt.refit_pairs)
+                if refits:
+                    bar.total += len(refits)
+                    bar.set_postfix_str("refitting the best pairs jointly")
+                    models = [(names, starts) for names, starts, _ in refits]
+                    out = _collect(runner.refits(data, models), len(refits), bar)
+                    for (_, _, i), r in zip(refits, out, strict=True):
+                        if not r.error and r.cal_objective <= pairs[i].cal_objective:
+                            r.samples = _merged_samples(pairs[i], r)
+                            pairs[i] = r
+                singles = [_best_anywhere(f, pairs) for f in singles]
+                scores = score_models(singles + pairs, before, null, opt.seed)
+        timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
+        verdict, chosen, location, guard, off_point, scores = _name(
+            runner, data, significance, singles + pairs, scores, before, null, opt.seed, bar
+        )
     timings["polish_s"] = time.perf_counter() - t0 - sum(timings.values())
     bar.close()
     named = [] if chosen is None else list(chosen.fit.names)

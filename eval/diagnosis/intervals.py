@@ -26,7 +26,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from drillgym.envs.effects.registry import EFFECTS
 from drillgym.eval.diagnosis.context import Spec
@@ -44,6 +43,8 @@ def expanded_tail(n: int, level: float = LEVEL) -> float:
     """
     if n < 2:
         return (1.0 - level) / 2.0
+    from scipy import stats  # ~0.6 s to import: not in every diagnosis worker, which never needs it
+
     t = float(stats.t.ppf(0.5 + level / 2.0, n - 1))
     return float(stats.norm.cdf(-math.sqrt(n / (n - 1.0)) * t))
 

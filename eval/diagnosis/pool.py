@@ -1,12 +1,19 @@
 """Run diagnosis jobs on every core (:mod:`drillgym.eval.pool`), each worker with its own simulator.
 
-Workers receive the shared :class:`~drillgym.eval.diagnosis.context.DiagnosisData` once (pool initializer) and
-keep one env (:class:`~drillgym.eval.diagnosis.replay.Replayer`). With one worker everything runs in this process.
+The workers start once per diagnosis (:class:`~drillgym.eval.pool.WorkerPool`) and serve every phase. Each round
+of jobs hands the shared :class:`~drillgym.eval.diagnosis.context.DiagnosisData` over once, as a pickle file the
+jobs name: a worker loads it before its first job of a round that names a new one, and keeps one env
+(:class:`~drillgym.eval.diagnosis.replay.Replayer`) throughout. With one worker everything runs in this process.
 """
 
 from __future__ import annotations
 
+import hashlib
+import pickle
+import shutil
+import tempfile
 from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
 from typing import Any
 
 from drillgym.envs.effects.registry import EFFECTS
@@ -14,7 +21,7 @@ from drillgym.eval.diagnosis.context import DiagnosisData, Evaluator, baseline_j
 from drillgym.eval.diagnosis.fit import FitResult, fit_model, refit_jointly
 from drillgym.eval.diagnosis.random_effects import fit_per_episode
 from drillgym.eval.diagnosis.replay import Replayer
-from drillgym.eval.pool import run_unordered
+from drillgym.eval.pool import WorkerPool
 
 _WORKER: dict[str, Any] = {}
 
@@ -24,32 +31,69 @@ def _init(data: DiagnosisData) -> None:
     _WORKER.update(data=data, replayer=replayer, evaluator=Evaluator(data, replayer) if data.nulls else None)
 
 
-def _baseline(i: int) -> tuple[int, Any]:
+def _with_data(data_file: str | None) -> None:
+    """Load the round's data in this worker unless it already holds it (``None``: in process, set by the runner)."""
+    if data_file is not None and _WORKER.get("data_file") != data_file:
+        _init(pickle.loads(Path(data_file).read_bytes()))
+        _WORKER["data_file"] = data_file
+
+
+def _baseline(job: tuple[str | None, int]) -> tuple[int, Any]:
+    data_file, i = job
+    _with_data(data_file)
     return i, baseline_job(_WORKER["replayer"], _WORKER["data"].episodes[i])
 
 
-def _fit(job: tuple[int, tuple[str, ...], list[dict[str, float]] | None]) -> tuple[int, FitResult]:
-    k, names, start = job
+def _fit(job: tuple[str | None, int, tuple[str, ...], list[dict[str, float]] | None]) -> tuple[int, FitResult]:
+    data_file, k, names, start = job
+    _with_data(data_file)
     if len(names) == 1 and start is None and EFFECTS[names[0]].per_episode:
         return k, fit_per_episode(_WORKER["evaluator"], names[0])
     return k, fit_model(_WORKER["evaluator"], names, start)
 
 
-def _refit(job: tuple[int, tuple[str, ...], list[list[dict[str, float]]]]) -> tuple[int, FitResult]:
-    k, names, starts = job
+def _refit(job: tuple[str | None, int, tuple[str, ...], list[list[dict[str, float]]]]) -> tuple[int, FitResult]:
+    data_file, k, names, starts = job
+    _with_data(data_file)
     return k, refit_jointly(_WORKER["evaluator"], names, starts)
 
 
 class Runner:
-    """Maps jobs over a pool (or in process), yielding ``(index, result)`` as they finish."""
+    """Maps jobs over one pool of workers (or in process), yielding ``(index, result)`` as they finish.
+
+    Use it as a context manager (or call :meth:`close`): leaving stops the workers and removes the data files.
+    """
 
     def __init__(self, workers: int) -> None:
         self.workers = max(1, int(workers))
+        self._pool = WorkerPool(self.workers)
+        self._dir: Path | None = None
+        self._files: dict[str, str] = {}
+
+    def _data_file(self, data: DiagnosisData) -> str:
+        """The file holding ``data`` as it is now (written once per distinct content)."""
+        blob = pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL)
+        key = hashlib.sha1(blob).hexdigest()
+        if key not in self._files:
+            if self._dir is None:
+                self._dir = Path(tempfile.mkdtemp(prefix="drillgym-diagnosis-"))
+            path = self._dir / f"data-{len(self._files)}.pickle"
+            path.write_bytes(blob)
+            self._files[key] = str(path)
+        return self._files[key]
 
     def _map(
         self, data: DiagnosisData, fn: Callable[[Any], tuple[int, Any]], jobs: list[Any]
     ) -> Iterator[tuple[int, Any]]:
-        for _, result in run_unordered(fn, jobs, self.workers, initializer=_init, initargs=(data,)):
+        if self.workers == 1:  # in this process: the data as it is now, no copy
+            _init(data)
+            _WORKER["data_file"] = None
+            for job in jobs:
+                yield fn((None, *job) if isinstance(job, tuple) else (None, job))
+            return
+        name = self._data_file(data)
+        full = [(name, *job) if isinstance(job, tuple) else (name, job) for job in jobs]
+        for _, result in self._pool.map_unordered(fn, full):
             yield result
 
     def baselines(self, data: DiagnosisData) -> Iterable[tuple[int, Any]]:
@@ -67,3 +111,16 @@ class Runner:
     ) -> Iterable[tuple[int, FitResult]]:
         """Refit each ``(names, starts)`` with every parameter free (:func:`~drillgym.eval.diagnosis.fit.refit_jointly`)."""
         return self._map(data, _refit, [(k, names, starts) for k, (names, starts) in enumerate(models)])
+
+    def close(self) -> None:
+        """Stop the workers and remove the data files."""
+        self._pool.close()
+        if self._dir is not None:
+            shutil.rmtree(self._dir, ignore_errors=True)
+            self._dir = None
+
+    def __enter__(self) -> Runner:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -11,7 +11,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy import signal
 
 from drillgym.envs.constants import FT_RATE_HZ
 from drillgym.eval.diagnosis.channels import FORCE_CHANNELS
@@ -30,7 +29,7 @@ def band_powers(residual: np.ndarray) -> np.ndarray:
         x = x[np.isfinite(x)]
         if x.size < SEGMENT:
             continue
-        f, p = signal.welch(x, fs=FT_RATE_HZ, nperseg=SEGMENT)
+        f, p = _welch()(x, fs=FT_RATE_HZ, nperseg=SEGMENT)
         df = f[1] - f[0]
         for b, (lo, hi) in enumerate(BANDS_HZ):
             sel = (f >= lo) & (f < hi) if hi < FT_RATE_HZ / 2 else (f >= lo)
@@ -86,7 +85,7 @@ def _mean_psd(residuals: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray] | No
     for x in residuals:
         x = x[np.all(np.isfinite(x), axis=1)]
         if x.shape[0] >= SEGMENT:
-            f, p = signal.welch(x, fs=FT_RATE_HZ, nperseg=SEGMENT, axis=0)
+            f, p = _welch()(x, fs=FT_RATE_HZ, nperseg=SEGMENT, axis=0)
             spectra.append(p)
     return (f, np.mean(spectra, axis=0)) if spectra else None
 
@@ -97,3 +96,14 @@ def _peak(f: np.ndarray, real_psd: np.ndarray, null_psd: np.ndarray) -> float | 
     band = (f >= PEAK_BAND_HZ[0]) & (f <= PEAK_BAND_HZ[1])
     excess = np.where(band & (pr > 2.0 * pn), pr - pn, 0.0)
     return float(f[int(np.argmax(excess))]) if excess.max() > 0.0 else None
+
+
+def _welch() -> Any:
+    """SciPy's Welch estimate, imported on first use.
+
+    ``scipy.signal`` takes ~1.3 s to import, and the diagnosis's workers, which import this package, never
+    compute a spectrum.
+    """
+    from scipy.signal import welch
+
+    return welch

@@ -79,3 +79,47 @@ def test_workers_exit_when_the_parent_is_killed_instead_of_running_on():
         for p in workers:
             if _running(p):
                 os.kill(p, signal.SIGKILL)
+
+
+def _pid(_: object) -> int:
+    import os
+
+    return os.getpid()
+
+
+def test_a_worker_pool_keeps_its_workers_from_one_round_of_jobs_to_the_next():
+    from drillgym.eval.pool import WorkerPool
+
+    with WorkerPool(2) as pool:
+        first = {pid for _, pid in pool.map_unordered(_pid, list(range(6)))}
+        second = {pid for _, pid in pool.map_unordered(_pid, list(range(6)))}
+    import os
+
+    assert os.getpid() not in first
+    assert second <= first and 1 <= len(first) <= 2
+
+
+def test_a_worker_pool_runs_a_lone_job_in_process_until_its_workers_have_started():
+    import os
+
+    from drillgym.eval.pool import WorkerPool
+
+    with WorkerPool(2) as pool:
+        assert dict(pool.map_unordered(_pid, [0])) == {0: os.getpid()}
+        assert os.getpid() not in {pid for _, pid in pool.map_unordered(_pid, [0, 1])}
+        assert dict(pool.map_unordered(_pid, [0]))[0] != os.getpid()  # started: even one job goes to a worker
+
+
+def _die(_: object) -> int:
+    import os
+
+    os._exit(3)
+
+
+def test_a_worker_pool_starts_fresh_workers_after_one_died():
+    from drillgym.eval.pool import WorkerPool
+
+    with WorkerPool(2) as pool:
+        out = dict(pool.map_unordered(_die, [0, 1], on_error=lambda job, e: type(e).__name__))
+        assert out == {0: "BrokenProcessPool", 1: "BrokenProcessPool"}
+        assert sorted(r for _, r in pool.map_unordered(math.sqrt, [4.0, 9.0])) == [2.0, 3.0]
