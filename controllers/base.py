@@ -23,14 +23,27 @@ class Controller(ABC):
     """Base class: ``set_plan`` then ``predict`` (SB3 protocol) or ``act`` step by step."""
 
     name: ClassVar[str] = "controller"
+    batchable: bool = False
+    """Whether :meth:`act_batch` steps several episodes of one plan at once (``set_plan(plan, num_episodes=N)``):
+    what the batched rollout (:func:`drillgym.controllers.rollout.run_episodes`) uses instead of one copy per episode."""
     config: Any
 
     def __init__(self) -> None:
         self.plan: DrillPlan | None = None
+        self.num_episodes = 1
 
-    def set_plan(self, plan: DrillPlan) -> None:
-        """Tell the controller the planned hole and tool; resets its state."""
+    def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
+        """Tell the controller the planned hole and tool; resets its state.
+
+        ``num_episodes`` > 1 (a :attr:`batchable` controller only): that many episodes of the plan, stepped
+        together by :meth:`act_batch`.
+        """
+        if num_episodes != 1 and not self.batchable:
+            raise UserError(f"{self.name} steps one episode at a time; got num_episodes={num_episodes}")
+        if num_episodes < 1:
+            raise UserError(f"num_episodes={num_episodes} must be >= 1")
         self.plan = plan
+        self.num_episodes = num_episodes
         self.reset()
 
     @abstractmethod
@@ -40,6 +53,10 @@ class Controller(ABC):
     @abstractmethod
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """One action (float32, shape (4,), in [-1, 1]) for one observation."""
+
+    def act_batch(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """:meth:`act` of every episode of a batch (observations (N, k), actions (N, 4)): batchable controllers."""
+        raise NotImplementedError(f"{self.name} is not batchable")
 
     def predict(
         self,

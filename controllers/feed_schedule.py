@@ -72,11 +72,12 @@ class SlowEntry(Controller):
         self.base = base
         self.schedule = schedule
         self.config = base.config
+        self.batchable = base.batchable
 
-    def set_plan(self, plan: DrillPlan) -> None:
+    def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
         """The base controller gets the plan too."""
-        self.base.set_plan(plan)
-        super().set_plan(plan)
+        self.base.set_plan(plan, num_episodes)
+        super().set_plan(plan, num_episodes)
 
     def reset(self) -> None:
         """Reset the base controller."""
@@ -87,6 +88,15 @@ class SlowEntry(Controller):
         action = np.array(self.base.act(obs), dtype=np.float32)
         action[3] = np.clip(action[3] + self.schedule.feed_action_offset(float(obs["path_depth_m"][0])), -1.0, 1.0)
         return action
+
+    def act_batch(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """:meth:`act` of every episode (the base's :meth:`act_batch`; the same numbers as one episode's)."""
+        actions = np.array(self.base.act_batch(obs), dtype=np.float32)
+        depth = obs["path_depth_m"][:, 0].astype(float)
+        offset = np.where(depth < self.schedule.entry_depth_mm * 1e-3, self.schedule.feed_action_offset(-math.inf), 0.0)
+        # float32 + a float32 offset: the rounding of float32 + a Python float (one episode's)
+        actions[:, 3] = np.clip(actions[:, 3] + offset.astype(np.float32), -1.0, 1.0)
+        return actions
 
     def describe(self) -> dict[str, Any]:
         """The base's description with the schedule's fields added to its configuration."""

@@ -26,13 +26,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from drillgym.controllers.base import Controller
+from drillgym.controllers.batch import matvec, unscale_actions
 from drillgym.controllers.models import (
     LI2023_MODEL_PEAK_N,
     OfflineForceModel,
     RobotComplianceModel,
     tool_compliance_m_n,
 )
-from drillgym.envs.constants import CONTROL_DT_S, MAX_CORRECTION_M, SUBSTEPS_PER_STEP, unscale_action
+from drillgym.envs.constants import CONTROL_DT_S, MAX_CORRECTION_M, SUBSTEPS_PER_STEP
 from drillgym.envs.errors import UserError
 from drillgym.envs.plan import DrillPlan
 
@@ -94,17 +95,24 @@ class Li2023Config:
 
 
 class Li2023Controller(Controller):
-    """Force-position hybrid compensation with path prediction."""
+    """Force-position hybrid compensation with path prediction.
+
+    Batchable: ``set_plan(plan, num_episodes=N)`` then :meth:`act_batch` runs N episodes of one plan in lockstep;
+    :meth:`act` is a batch of one. Every operation is elementwise over the batch (the 3x3 products are written
+    out, no BLAS call whose rounding could depend on the batch size), so an episode's actions are the same bit
+    for bit whatever batch it runs in.
+    """
 
     name = "li2023"
+    batchable = True
 
     def __init__(self, config: Li2023Config | None = None) -> None:
         super().__init__()
         self.config = config or Li2023Config()
         self.steps_per_point = round(self.config.point_period_s / CONTROL_DT_S)
 
-    def set_plan(self, plan: DrillPlan) -> None:
-        """Build the controller's own models for this plan, then reset."""
+    def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
+        """Build the controller's own models for this plan, then reset ``num_episodes`` episodes."""
         self.robot = RobotComplianceModel(plan.tcp_offset_m)
         self.C_tool = tool_compliance_m_n(plan, self.config.tool_effective_diameter_ratio)
         self.offline_model = OfflineForceModel.for_plan(plan, self.config.model_peak_force_n)
@@ -112,67 +120,93 @@ class Li2023Controller(Controller):
         if self.config.axes not in ("x", "xy"):
             raise UserError(f"axes={self.config.axes!r} must be 'x' or 'xy'")
         cols = [0] if self.config.axes == "x" else [0, 1]
-        self.lateral = sum(np.outer(self.R[:, i], self.R[:, i]) for i in cols)  # projector (base frame)
-        super().set_plan(plan)
+        self.lateral: np.ndarray = sum((np.outer(self.R[:, i], self.R[:, i]) for i in cols), np.zeros((3, 3)))
+        """Projector across the drill (base frame)."""
+        super().set_plan(plan, num_episodes)
 
     def reset(self) -> None:
-        """Empty the force filter, the PID memory and the queued corrections."""
-        n_steps = self.config.filter_samples // SUBSTEPS_PER_STEP
-        self.force_window: deque[np.ndarray] = deque(maxlen=n_steps)
-        self.tcp_window: deque[np.ndarray] = deque(maxlen=n_steps)
+        """Empty the force filter, the PID memory and the queued corrections of every episode."""
+        n = self.num_episodes
+        self.window_steps = self.config.filter_samples // SUBSTEPS_PER_STEP
+        self.force_window = np.zeros((self.window_steps, n, 3))
+        self.tcp_window = np.zeros((self.window_steps, n, 3))
         self.step = 0
-        self.prev_dx = np.zeros(3)
-        self.prev_dd = np.zeros(3)
-        self.sum_dd = np.zeros(3)
-        # online correction at the corrected points: (time of the point, correction) pairs
-        self.points: deque[tuple[float, np.ndarray]] = deque([(0.0, np.zeros(3))])
-        self.last_online = np.zeros(3)
+        self.prev_dx = np.zeros((n, 3))
+        self.prev_dd = np.zeros((n, 3))
+        self.sum_dd = np.zeros((n, 3))
+        # online correction at the corrected points: (time of the point, correction of each episode (N, 3)) pairs
+        self.points: deque[tuple[float, np.ndarray]] = deque([(0.0, np.zeros((n, 3)))])
 
     # ------------------------------------------------------------------ models
-    def offline_correction_base_m(self, depth_m: float) -> np.ndarray:
-        """ΔP = -k_D⁻¹ F_model at the planned depth, lateral, base frame (m)."""
-        f_task = np.zeros(3)
-        f_task[:2] = self.offline_model.lateral_at(depth_m)
-        return -(self.lateral @ (self.R @ (self.C_tool @ f_task)))
+    def offline_correction_base_m(self, depth_m: float | np.ndarray) -> np.ndarray:
+        """ΔP = -k_D⁻¹ F_model at the planned depth, lateral, base frame (m): (3,) for a depth, (N, 3) for N."""
+        depth = np.asarray(depth_m, dtype=float)
+        f_task = np.zeros((depth.size, 3))
+        f_task[:, :2] = self.offline_model.lateral_at(depth.ravel())
+        out = -matvec(self.lateral, matvec(self.R, matvec(self.C_tool, f_task)))
+        return out[0] if depth.ndim == 0 else out
 
     def deviation_estimate_base_m(
         self, q_rad: np.ndarray, tcp_error_base_m: np.ndarray, force_sensor_n: np.ndarray
     ) -> np.ndarray:
         """Δx: executed correction (RTDE) + robot deflection C_D T₁ F + drill bending T₂ K_FD⁻¹ F; lateral.
 
-        ``tcp_error_base_m`` and ``force_sensor_n`` are averaged over the same filter window.
+        ``tcp_error_base_m`` and ``force_sensor_n`` are averaged over the same filter window. One episode's
+        arguments ((6,), (3,), (3,)) give (3,); N episodes' ((N, 6), (N, 3), (N, 3)) give (N, 3).
         """
-        f_base = self.R @ force_sensor_n
-        robot = self.robot.translational_compliance_m_n(q_rad) @ f_base
-        tool = self.R @ (self.C_tool @ force_sensor_n)
-        executed = tcp_error_base_m if self.config.count_executed_correction else np.zeros(3)
-        return self.lateral @ (executed + robot + tool)
+        one = np.ndim(force_sensor_n) == 1
+        q = np.atleast_2d(np.asarray(q_rad, dtype=float))
+        tcp = np.atleast_2d(np.asarray(tcp_error_base_m, dtype=float))
+        force = np.atleast_2d(np.asarray(force_sensor_n, dtype=float))
+        f_base = matvec(self.R, force)
+        c_robot = np.stack([self.robot.translational_compliance_m_n(qi) for qi in q])
+        robot = matvec(c_robot, f_base)
+        tool = matvec(self.R, matvec(self.C_tool, force))
+        executed = tcp if self.config.count_executed_correction else np.zeros_like(tcp)
+        out = matvec(self.lateral, executed + robot + tool)
+        return out[0] if one else out
 
     # ------------------------------------------------------------------ control
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Correction = offline profile + online PID correction (interpolated between points)."""
+        return self.act_batch({k: np.asarray(v)[None] for k, v in obs.items()})[0]
+
+    def act_batch(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """:meth:`act` of every episode: observations (N, k) in, actions (N, 4) float32 out."""
         cfg = self.config
+        n = self.num_episodes
         t = self.step * CONTROL_DT_S
-        self.force_window.append(np.asarray(obs["ft_wrench_mean"][:3], dtype=float))
-        self.tcp_window.append(np.asarray(obs["tcp_error_base_m"], dtype=float))
+        slot = self.step % self.window_steps
+        self.force_window[slot] = obs["ft_wrench_mean"][:, :3]
+        self.tcp_window[slot] = obs["tcp_error_base_m"]
         if cfg.online and self.step % self.steps_per_point == 0:
             self._compensation_point(obs, t)
-        online = self._online_at(t + CONTROL_DT_S) if cfg.online else np.zeros(3)
-        offline = self.offline_correction_base_m(float(obs["path_depth_m"][0])) if cfg.offline else np.zeros(3)
+        online = self._online_at(t + CONTROL_DT_S) if cfg.online else np.zeros((n, 3))
+        offline = self.offline_correction_base_m(obs["path_depth_m"][:, 0]) if cfg.offline else np.zeros((n, 3))
         self.step += 1
         total = offline + online
         if cfg.y_gain != 1.0:
             y_base = self.R[:, 1]
-            total = total + (cfg.y_gain - 1.0) * float(y_base @ total) * y_base
+            along = total[:, 0] * y_base[0] + total[:, 1] * y_base[1] + total[:, 2] * y_base[2]
+            total = total + ((cfg.y_gain - 1.0) * along)[:, None] * y_base
         total = np.clip(total, -cfg.max_correction_m, cfg.max_correction_m)
-        return unscale_action(total, 1.0)
+        return unscale_actions(total)
+
+    def _window_mean(self, window: np.ndarray) -> np.ndarray:
+        """Mean of the filter window's samples so far (oldest first), (N, 3)."""
+        filled = min(self.step + 1, self.window_steps)
+        first = self.step + 1 - filled
+        total = window[first % self.window_steps].copy()
+        for k in range(first + 1, self.step + 1):
+            total += window[k % self.window_steps]
+        return total / filled
 
     def _compensation_point(self, obs: dict[str, np.ndarray], t: float) -> None:
         cfg = self.config
-        force = np.mean(self.force_window, axis=0)
-        dx = self.deviation_estimate_base_m(obs["q_rad"], np.mean(self.tcp_window, axis=0), force)
+        force = self._window_mean(self.force_window)
+        dx = self.deviation_estimate_base_m(obs["q_rad"], self._window_mean(self.tcp_window), force)
         dd = dx - self.prev_dx
-        self.sum_dd += dd
+        self.sum_dd = self.sum_dd + dd
         u = cfg.kp * dd + cfg.ki * self.sum_dd + cfg.kd * (dd - self.prev_dd)
         self.prev_dx, self.prev_dd = dx, dd
         t_apply = t + cfg.prediction_points * cfg.point_period_s
@@ -180,7 +214,7 @@ class Li2023Controller(Controller):
         self.points.append((t_apply, target))
 
     def _online_at(self, t: float) -> np.ndarray:
-        """Correction the robot has reached at time t, moving linearly between corrected points."""
+        """Correction the robot has reached at time t, moving linearly between corrected points, (N, 3)."""
         while len(self.points) >= 2 and self.points[1][0] <= t:
             self.points.popleft()
         t0, c0 = self.points[0]

@@ -69,11 +69,11 @@ class Li2023CmrrController(Controller):
         self.lateral = Li2023Controller(self.config.li2023())
         self.feed = Zhang2005Controller(self.config.cmrr())
 
-    def set_plan(self, plan: DrillPlan) -> None:
+    def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
         """Both parts get the plan."""
         self.lateral.set_plan(plan)
         self.feed.set_plan(plan)
-        super().set_plan(plan)
+        super().set_plan(plan, num_episodes)
 
     def reset(self) -> None:
         """Reset both parts."""

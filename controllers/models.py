@@ -85,11 +85,13 @@ class OfflineForceModel:
         rows = table.edge + chip * table.per_chip
         return cls(depth_m=table.depth_m, lateral_task_n=rows[:, :2].copy())
 
-    def lateral_at(self, depth_m: float) -> np.ndarray:
-        """Predicted unbalanced force (task x, y; N) with the tip at ``depth_m`` on the planned axis."""
-        return np.array(
-            [np.interp(depth_m, self.depth_m, self.lateral_task_n[:, i], left=0.0, right=0.0) for i in range(2)]
-        )
+    def lateral_at(self, depth_m: float | np.ndarray) -> np.ndarray:
+        """Predicted unbalanced force (task x, y; N) with the tip at ``depth_m`` on the planned axis.
+
+        One depth gives (2,); N depths (an array) give (N, 2), each row the same numbers as its depth alone.
+        """
+        cols = [np.interp(depth_m, self.depth_m, self.lateral_task_n[:, i], left=0.0, right=0.0) for i in range(2)]
+        return np.array(cols) if np.ndim(depth_m) == 0 else np.stack(cols, axis=-1)
 
 
 @functools.lru_cache(maxsize=8)

@@ -167,15 +167,16 @@ class PlanScheduledController(Controller):
         """The schedule action of the current hole."""
         self.inner: Controller = make_controller(spec.controller_spec(self.action))
         """The base controller with this hole's tuning."""
+        self.batchable = self.inner.batchable  # a batch shares one plan, so one tuning
 
-    def set_plan(self, plan: DrillPlan) -> None:
+    def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
         """Choose this hole's tuning from the plan and build the tuned base controller."""
         obs = normalized_plan(plan, self.spec.plan_support)
         action = np.zeros(self.spec.dims) if self.policy is None else self.policy(obs)
         self.action = np.clip(np.asarray(action, dtype=np.float32).reshape(-1), -1.0, 1.0)
         self.inner = make_controller(self.spec.controller_spec(self.action))
-        self.inner.set_plan(plan)
-        super().set_plan(plan)
+        self.inner.set_plan(plan, num_episodes)
+        super().set_plan(plan, num_episodes)
 
     def reset(self) -> None:
         """Reset the tuned base controller."""
@@ -184,6 +185,10 @@ class PlanScheduledController(Controller):
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """The tuned base controller's action."""
         return self.inner.act(obs)
+
+    def act_batch(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """The tuned base controller's actions (every episode of the batch drills the same plan)."""
+        return self.inner.act_batch(obs)
 
     def describe(self) -> dict[str, Any]:
         """Name and configuration: the spec, and this hole's tuned fields."""

@@ -222,12 +222,12 @@ class ResidualController(Controller):
         self._R: np.ndarray | None = None
         self.reset()
 
-    def set_plan(self, plan: DrillPlan) -> None:
+    def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
         """Hand the plan to the base controller too; resets both."""
         self.base.set_plan(plan)
         self._plan_features = plan_features(plan, self.spec.plan_support)
         self._R = plan.R_base_task if self.spec.axes == "lateral" else None
-        super().set_plan(plan)
+        super().set_plan(plan, num_episodes)
 
     def reset(self) -> None:
         """Mark an episode start: the base controller resets on its next call, the previous residual is 0."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, Protocol
 
 import gymnasium as gym
@@ -19,6 +19,7 @@ import numpy as np
 from drillgym import envs  # noqa: F401  (registers the ids)
 from drillgym.envs.batched import BatchedDrillEnv
 from drillgym.envs.constants import ACTION_DIM
+from drillgym.envs.plan import DrillPlan
 
 
 class PolicyPredictor(Protocol):
@@ -116,6 +117,16 @@ the episodes in ``running`` (slot indices), with the actions sent (N, 4), the ob
 last) and which episodes ended at it (N, bool)."""
 
 
+def same_plan(a: DrillPlan, b: DrillPlan) -> bool:
+    """Whether two plans are the same hole and tool (every field equal)."""
+    return all(
+        np.array_equal(getattr(a, f.name), getattr(b, f.name))
+        if f.name == "T_base_task"
+        else getattr(a, f.name) == getattr(b, f.name)
+        for f in fields(a)
+    )
+
+
 def run_episodes(
     make_policy: Callable[[], PolicyPredictor],
     seeds: Sequence[int],
@@ -127,7 +138,9 @@ def run_episodes(
 
     Args:
         make_policy: builds one policy (a :class:`drillgym.controllers.Controller`, a trained model...); each
-            episode gets its own copy, handed its episode's plan (``set_plan``) as :func:`run_episode` does.
+            episode gets its own copy, handed its episode's plan (``set_plan``) as :func:`run_episode` does, except
+            a :attr:`~drillgym.controllers.Controller.batchable` controller: one copy steps every episode
+            (:meth:`~drillgym.controllers.Controller.act_batch`), with the same actions.
         seeds: the episodes' reset seeds, one batch slot each.
         env_kwargs: the single env's arguments (scenario, cell parameters).
         effects: an effect spec of compiled effects (:class:`~drillgym.envs.batched.BatchedDrillEnv`).
@@ -141,10 +154,17 @@ def run_episodes(
     batch = BatchedDrillEnv(n, autoreset=False, effects=effects, **(env_kwargs or {}))
     try:
         obs, _ = batch.reset(seed=[int(s) for s in seeds])
-        policies = [make_policy() for _ in range(n)]
-        for policy, env in zip(policies, batch.envs, strict=True):
-            if hasattr(policy, "set_plan"):
-                policy.set_plan(env.plan)
+        first = make_policy()
+        plans = [env.plan for env in batch.envs]
+        together = n > 1 and getattr(first, "batchable", False) and all(same_plan(p, plans[0]) for p in plans)
+        if together:  # one controller steps every episode (Controller.act_batch)
+            first.set_plan(plans[0], n)  # type: ignore[attr-defined]
+            policies = [first]
+        else:
+            policies = [first] + [make_policy() for _ in range(n - 1)]
+            for policy, plan in zip(policies, plans, strict=True):
+                if hasattr(policy, "set_plan"):
+                    policy.set_plan(plan)
         states: list[Any] = [None] * n
         start = np.ones(n, dtype=bool)
         rewards: list[list[float]] = [[] for _ in range(n)]
@@ -153,7 +173,9 @@ def run_episodes(
         step = 0
         while batch.active.any():
             running = np.flatnonzero(batch.active).tolist()
-            for i in running:
+            if together:  # the ended episodes' rows too (their last observation): not sent, not stepped
+                actions[:] = first.act_batch(obs)  # type: ignore[attr-defined]
+            for i in [] if together else running:
                 one = {k: v[i] for k, v in obs.items()}
                 actions[i], states[i] = policies[i].predict(
                     one, state=states[i], episode_start=np.array([start[i]]), deterministic=True

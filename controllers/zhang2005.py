@@ -87,7 +87,7 @@ class Zhang2005Controller(Controller):
         super().__init__()
         self.config = config or Zhang2005Config()
 
-    def set_plan(self, plan: DrillPlan) -> None:
+    def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
         """Build the stiffness model for the plan's tool, then reset."""
         self.robot = RobotComplianceModel(plan.tcp_offset_m, np.asarray(self.config.joint_stiffness_nm_rad))
         self.R = plan.R_base_task
@@ -95,7 +95,7 @@ class Zhang2005Controller(Controller):
         entry = plan.drill_diameter_m / 2 * (1 / math.tan(math.radians(59.0)) + math.tan(abs(plan.beta_rad)))
         self.cmrr_start_depth_m = entry + self.config.cmrr_start_margin_mm * 1e-3
         self.feed_nominal_mm_s = plan.feed_m_s * 1e3
-        super().set_plan(plan)
+        super().set_plan(plan, num_episodes)
 
     def reset(self) -> None:
         """Empty the filter and the feed integrator."""

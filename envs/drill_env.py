@@ -41,6 +41,9 @@ from drillgym.envs.sensors import ForceTorqueSensor, PositionTracker, latest_sam
 from drillgym.envs.task import DrillPath, Phase
 
 RESET_OPTIONS = frozenset({"scenario", "effects", "specimen_seed"})
+CELLS_KEPT = 8
+"""Cells (:class:`~drillgym.envs.cell.SimCell`) an env keeps for the scenarios it ran last: a reset that returns to
+one of them (a log replay's per-specimen hardness) reuses it instead of building it again (~1 ms)."""
 """Keys ``reset(options=...)`` accepts."""
 
 
@@ -249,13 +252,23 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         )
         self.effects: EffectStack | None = None
         self._effects_attached = False
+        self._cells: dict[Scenario, SimCell] = {}
         self._build(self.scenario)
         self._reset_state()
 
     def _build(self, scenario: Scenario) -> None:
         """(Re)build the cell, the path and the bone for ``scenario`` (the PyBullet client is kept)."""
         self.scenario = scenario
-        self.cell = SimCell(scenario, self.cell_params, self.bone_material)
+        cell = self._cells.pop(scenario, None)
+        if cell is None:
+            cell = SimCell(scenario, self.cell_params, self.bone_material)
+        else:  # built for an earlier episode: as new once its effects are undone (reset does the rest)
+            cell.clear_effects()
+        self._effects_attached = False
+        self._cells[scenario] = cell  # the most recently used last
+        while len(self._cells) > CELLS_KEPT:
+            del self._cells[next(iter(self._cells))]
+        self.cell = cell
         self.path = DrillPath(scenario.depth_m, scenario.feed_m_s)
         self.max_time_s = 3.0 * self.path.nominal_duration_s()
         if self.world is not None:

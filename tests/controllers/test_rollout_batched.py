@@ -71,3 +71,15 @@ def test_the_step_hook_sees_every_running_episode_once_per_step_and_each_end_onc
 def test_a_cell_the_compiled_step_does_not_run_is_refused_with_a_clear_error():
     with pytest.raises(UserError, match="compiled step"):
         run_episodes(lambda: make_controller("none"), [0], {}, "servo_deadband:band_m=1e-4")
+
+
+@pytest.mark.parametrize(("spec", "copies"), [("li2023_tuned", 1), ("li2023", 1), ("zhang2005", 3)])
+def test_a_batchable_controller_steps_every_episode_as_one_copy(spec, copies):
+    made = []
+
+    def make():
+        made.append(make_controller(spec))
+        return made[-1]
+
+    run_episodes(make, [0, 1, 2])
+    assert len(made) == copies

@@ -1,0 +1,38 @@
+"""Arithmetic of batchable controllers: the same numbers for an episode whatever batch it runs in.
+
+A batchable controller (:attr:`drillgym.controllers.base.Controller.batchable`) steps N episodes at once, one row
+each. Its 3x3 matrix-vector products are written out as elementwise sums (:func:`matvec`): a BLAS product's rounding
+may depend on the shapes it is given, an elementwise sum's never does, so an episode run alone and the same
+episode run in a batch of 64 command identical actions. Units: those of the arguments.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drillgym.envs.constants import ACTION_DIM, FEED_OVERRIDE_LOG2_MAX, MAX_CORRECTION_M
+
+
+def matvec(m: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``m @ x`` of every row: ``m`` (3, 3) shared or (N, 3, 3) per row, ``x`` (N, 3); (N, 3).
+
+    Each entry is ``(m[i, 0] x[0] + m[i, 1] x[1]) + m[i, 2] x[2]``, in that order.
+    """
+    out = np.empty(x.shape)
+    x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
+    for i in range(3):
+        row = m[..., i, :]
+        out[:, i] = row[..., 0] * x0 + row[..., 1] * x1 + row[..., 2] * x2
+    return out
+
+
+def unscale_actions(correction_base_m: np.ndarray, feed_scale: np.ndarray | float = 1.0) -> np.ndarray:
+    """:func:`drillgym.envs.constants.unscale_action` of every row: corrections (N, 3) m, feed scales (N,) or one.
+
+    Returns the actions (N, 4), clipped to the action box, float32.
+    """
+    n = len(correction_base_m)
+    a = np.empty((n, ACTION_DIM))
+    a[:, :3] = correction_base_m / MAX_CORRECTION_M
+    a[:, 3] = np.log2(np.maximum(feed_scale, 1e-9)) / FEED_OVERRIDE_LOG2_MAX
+    return np.clip(a, -1.0, 1.0).astype(np.float32)

@@ -1,0 +1,53 @@
+"""Batchable controllers: N episodes stepped at once command what each would alone, bit for bit."""
+
+import numpy as np
+import pytest
+from cell_plan import plan_at_entry, q_at_entry
+
+from drillgym.controllers import make_controller
+from drillgym.controllers.batch import matvec
+from drillgym.envs.errors import UserError
+from drillgym.envs.observation import OBS_BOUNDS
+
+
+def _observations(rng: np.random.Generator, n: int, steps: int) -> list[dict[str, np.ndarray]]:
+    """Random but plausible observations of ``n`` episodes (forces of a few N, depths across the entry)."""
+    out = []
+    for k in range(steps):
+        obs = {key: np.zeros((n, size), np.float32) for key, (size, _) in OBS_BOUNDS.items()}
+        obs["ft_wrench_mean"][:] = rng.normal(0.0, 2.0, (n, 6))
+        obs["tcp_error_base_m"][:] = rng.normal(0.0, 1e-4, (n, 3))
+        obs["q_rad"][:] = q_at_entry() + rng.normal(0.0, 1e-3, (n, 6))
+        obs["path_depth_m"][:, 0] = k * 2.5e-5 + rng.uniform(0.0, 1e-4, n)
+        obs["phase"][:, 1] = 1.0
+        obs["feed_scale"][:] = 1.0
+        out.append(obs)
+    return out
+
+
+@pytest.mark.parametrize("spec", ["li2023", "li2023_tuned", "li2023:axes=x,kd=0.2,y_gain=1.4", "li2023:offline=false"])
+def test_a_batch_of_episodes_commands_what_each_episode_alone_commands_bit_for_bit(spec):
+    n, steps = 5, 40  # 40 steps: three compensation points (every 12 steps)
+    observations = _observations(np.random.default_rng(3), n, steps)
+    batch = make_controller(spec)
+    batch.set_plan(plan_at_entry(), n)
+    together = np.stack([batch.act_batch(obs) for obs in observations])  # (steps, n, 4)
+    for i in range(n):
+        alone = make_controller(spec)
+        alone.set_plan(plan_at_entry())
+        actions = np.stack([alone.act({k: v[i] for k, v in obs.items()}) for obs in observations])
+        assert actions.dtype == np.float32
+        np.testing.assert_array_equal(actions, together[:, i])
+    assert np.ptp(together[:, :, :3]) > 0.01  # the corrections move: the comparison is not of zeros
+
+
+def test_a_controller_that_steps_one_episode_refuses_a_batch():
+    with pytest.raises(UserError, match="one episode at a time"):
+        make_controller("zhang2005").set_plan(plan_at_entry(), 4)
+
+
+def test_matvec_is_the_matrix_product_row_by_row():
+    rng = np.random.default_rng(0)
+    m, per_row, x = rng.normal(size=(3, 3)), rng.normal(size=(4, 3, 3)), rng.normal(size=(4, 3))
+    np.testing.assert_allclose(matvec(m, x), x @ m.T, rtol=1e-14)
+    np.testing.assert_allclose(matvec(per_row, x), np.einsum("nij,nj->ni", per_row, x), rtol=1e-14)
