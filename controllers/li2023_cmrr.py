@@ -62,6 +62,7 @@ class Li2023CmrrController(Controller):
     """Lateral correction from li2023, feed from Zhang's thrust-regulating PI."""
 
     name = "li2023_cmrr"
+    batchable = True
 
     def __init__(self, config: Li2023CmrrConfig | None = None) -> None:
         super().__init__()
@@ -71,8 +72,8 @@ class Li2023CmrrController(Controller):
 
     def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
         """Both parts get the plan."""
-        self.lateral.set_plan(plan)
-        self.feed.set_plan(plan)
+        self.lateral.set_plan(plan, num_episodes)
+        self.feed.set_plan(plan, num_episodes)
         super().set_plan(plan, num_episodes)
 
     def reset(self) -> None:
@@ -85,3 +86,9 @@ class Li2023CmrrController(Controller):
         action = np.array(self.lateral.act(obs), dtype=np.float32)
         action[3] = self.feed.act(obs)[3]
         return action
+
+    def act_batch(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """:meth:`act` of every episode (both parts batched)."""
+        actions = np.array(self.lateral.act_batch(obs), dtype=np.float32)
+        actions[:, 3] = self.feed.act_batch(obs)[:, 3]
+        return actions

@@ -19,6 +19,7 @@ class NoCompensation(Controller):
     """Zero correction and nominal feed, every step."""
 
     name = "none"
+    batchable = True
 
     def __init__(self, config: NoCompensationConfig | None = None) -> None:
         super().__init__()
@@ -30,3 +31,7 @@ class NoCompensation(Controller):
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Zero action."""
         return np.zeros(ACTION_DIM, dtype=np.float32)
+
+    def act_batch(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """Zero actions, one row per episode."""
+        return np.zeros((self.num_episodes, ACTION_DIM), dtype=np.float32)

@@ -15,20 +15,14 @@ The two parts are usable separately (``deformation``, ``cmrr``). Units: SI; fram
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from drillgym.controllers.base import Controller
+from drillgym.controllers.batch import unscale_actions
 from drillgym.controllers.models import RobotComplianceModel
-from drillgym.envs.constants import (
-    CONTROL_DT_S,
-    FEED_OVERRIDE_LOG2_MAX,
-    MAX_CORRECTION_M,
-    SUBSTEPS_PER_STEP,
-    unscale_action,
-)
+from drillgym.envs.constants import CONTROL_DT_S, FEED_OVERRIDE_LOG2_MAX, MAX_CORRECTION_M, SUBSTEPS_PER_STEP
 from drillgym.envs.errors import UserError
 from drillgym.envs.plan import DrillPlan
 from drillgym.envs.robot.compliance import KTHETA_LI2023_NM_RAD
@@ -79,16 +73,22 @@ class Zhang2005Config:
 
 
 class Zhang2005Controller(Controller):
-    """Real-time deformation compensation + controlled material removal rate."""
+    """Real-time deformation compensation + controlled material removal rate.
+
+    Batchable (:attr:`~drillgym.controllers.base.Controller.batchable`): the stiffness model's products run per
+    episode, with the shapes one episode gives them, and everything else elementwise, so an episode's actions are
+    the same bit for bit in any batch.
+    """
 
     name = "zhang2005"
+    batchable = True
 
     def __init__(self, config: Zhang2005Config | None = None) -> None:
         super().__init__()
         self.config = config or Zhang2005Config()
 
     def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
-        """Build the stiffness model for the plan's tool, then reset."""
+        """Build the stiffness model for the plan's tool, then reset ``num_episodes`` episodes."""
         self.robot = RobotComplianceModel(plan.tcp_offset_m, np.asarray(self.config.joint_stiffness_nm_rad))
         self.R = plan.R_base_task
         self.tip_in_sensor_m = np.array([0.0, 0.0, plan.tcp_offset_m])
@@ -98,10 +98,11 @@ class Zhang2005Controller(Controller):
         super().set_plan(plan, num_episodes)
 
     def reset(self) -> None:
-        """Empty the filter and the feed integrator."""
-        n_steps = max(1, math.ceil(self.config.filter_samples / SUBSTEPS_PER_STEP))
-        self.window: deque[np.ndarray] = deque(maxlen=n_steps)
-        self.integral_mm_s = 0.0
+        """Empty the filter and the feed integrator of every episode."""
+        self.window_steps = max(1, math.ceil(self.config.filter_samples / SUBSTEPS_PER_STEP))
+        self.window = np.zeros((self.window_steps, self.num_episodes, 6))
+        self.step = 0
+        self.integral_mm_s = np.zeros(self.num_episodes)
 
     # ------------------------------------------------------------------ models
     def gravity_wrench_sensor(self) -> np.ndarray:
@@ -123,31 +124,52 @@ class Zhang2005Controller(Controller):
     # ------------------------------------------------------------------ control
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Correction -J Δq and a PI-regulated feed scale."""
-        cfg = self.config
-        self.window.append(np.asarray(obs["ft_wrench_mean"], dtype=float))
-        wrench = np.mean(self.window, axis=0) - self.gravity_wrench_sensor()
-        correction = np.zeros(3)
-        if cfg.deformation:
-            correction = np.clip(
-                -self.deflection_base_m(obs["q_rad"], wrench), -cfg.max_correction_m, cfg.max_correction_m
-            )
-        scale = 1.0
-        feeding = bool(obs["phase"][1] > 0.5)
-        if cfg.cmrr and feeding and float(obs["path_depth_m"][0]) >= self.cmrr_start_depth_m:
-            scale = self._feed_scale(thrust_n=-wrench[2])
-        return unscale_action(correction, scale)
+        return self.act_batch({k: np.asarray(v)[None] for k, v in obs.items()})[0]
 
-    def _feed_scale(self, thrust_n: float) -> float:
-        """PI on the feed (mm/s) holding the thrust at the reference; clamped, with anti-windup."""
+    def act_batch(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """:meth:`act` of every episode: observations (N, k) in, actions (N, 4) float32 out."""
+        cfg = self.config
+        n = self.num_episodes
+        self.window[self.step % self.window_steps] = obs["ft_wrench_mean"]
+        wrench = self._window_mean() - self.gravity_wrench_sensor()
+        self.step += 1
+        correction = np.zeros((n, 3))
+        if cfg.deformation:
+            q = obs["q_rad"]
+            for i in range(n):
+                correction[i] = np.clip(
+                    -self.deflection_base_m(q[i], wrench[i]), -cfg.max_correction_m, cfg.max_correction_m
+                )
+        scale = np.ones(n)
+        if cfg.cmrr:
+            feeding = (obs["phase"][:, 1] > 0.5) & (obs["path_depth_m"][:, 0].astype(float) >= self.cmrr_start_depth_m)
+            scale = np.where(feeding, self._feed_scale(thrust_n=-wrench[:, 2], update=feeding), 1.0)
+        return unscale_actions(correction, scale)
+
+    def _window_mean(self) -> np.ndarray:
+        """Mean of the filter window's wrenches so far (oldest first), (N, 6)."""
+        filled = min(self.step + 1, self.window_steps)
+        first = self.step + 1 - filled
+        total = self.window[first % self.window_steps].copy()
+        for k in range(first + 1, self.step + 1):
+            total += self.window[k % self.window_steps]
+        return total / filled
+
+    def _feed_scale(self, thrust_n: np.ndarray, update: np.ndarray) -> np.ndarray:
+        """PI on the feed (mm/s) holding the thrust at the reference; clamped, with anti-windup.
+
+        The integrators of the episodes in ``update`` move; the others keep theirs.
+        """
         cfg = self.config
         error = cfg.thrust_ref_n - thrust_n
         lo = self.feed_nominal_mm_s * 2.0**-FEED_OVERRIDE_LOG2_MAX
         hi = self.feed_nominal_mm_s * cfg.feed_scale_max
         proportional = self.feed_nominal_mm_s + cfg.kp_feed_mm_s_per_n * error
         # anti-windup: the integrator never pushes the feed past its limits
-        self.integral_mm_s = min(
-            max(self.integral_mm_s + cfg.ki_feed_mm_s_per_ns * error * CONTROL_DT_S, lo - proportional),
+        moved = np.minimum(
+            np.maximum(self.integral_mm_s + cfg.ki_feed_mm_s_per_ns * error * CONTROL_DT_S, lo - proportional),
             hi - proportional,
         )
-        feed = min(max(proportional + self.integral_mm_s, lo), hi)
+        self.integral_mm_s = np.where(update, moved, self.integral_mm_s)
+        feed = np.minimum(np.maximum(proportional + self.integral_mm_s, lo), hi)
         return feed / self.feed_nominal_mm_s

@@ -6,6 +6,7 @@ from cell_plan import plan_at_entry, q_at_entry
 
 from drillgym.controllers import make_controller
 from drillgym.controllers.batch import matvec
+from drillgym.controllers.none import NoCompensation
 from drillgym.envs.errors import UserError
 from drillgym.envs.observation import OBS_BOUNDS
 
@@ -18,14 +19,25 @@ def _observations(rng: np.random.Generator, n: int, steps: int) -> list[dict[str
         obs["ft_wrench_mean"][:] = rng.normal(0.0, 2.0, (n, 6))
         obs["tcp_error_base_m"][:] = rng.normal(0.0, 1e-4, (n, 3))
         obs["q_rad"][:] = q_at_entry() + rng.normal(0.0, 1e-3, (n, 6))
-        obs["path_depth_m"][:, 0] = k * 2.5e-5 + rng.uniform(0.0, 1e-4, n)
+        obs["path_depth_m"][:, 0] = k * 5e-5 + rng.uniform(0.0, 1e-4, n)  # 0 to 2 mm: past the CMRR's start
         obs["phase"][:, 1] = 1.0
         obs["feed_scale"][:] = 1.0
         out.append(obs)
     return out
 
 
-@pytest.mark.parametrize("spec", ["li2023", "li2023_tuned", "li2023:axes=x,kd=0.2,y_gain=1.4", "li2023:offline=false"])
+@pytest.mark.parametrize(
+    "spec",
+    [
+        "li2023",
+        "li2023_tuned",
+        "li2023:axes=x,kd=0.2,y_gain=1.4",
+        "li2023:offline=false",
+        "zhang2005",
+        "zhang2005:thrust_ref_n=1,filter_samples=20",
+        "li2023_cmrr:thrust_ref_n=1",
+    ],
+)
 def test_a_batch_of_episodes_commands_what_each_episode_alone_commands_bit_for_bit(spec):
     n, steps = 5, 40  # 40 steps: three compensation points (every 12 steps)
     observations = _observations(np.random.default_rng(3), n, steps)
@@ -39,11 +51,16 @@ def test_a_batch_of_episodes_commands_what_each_episode_alone_commands_bit_for_b
         assert actions.dtype == np.float32
         np.testing.assert_array_equal(actions, together[:, i])
     assert np.ptp(together[:, :, :3]) > 0.01  # the corrections move: the comparison is not of zeros
+    if "thrust_ref_n" in spec:
+        assert np.ptp(together[:, :, 3]) > 0.01  # so does the CMRR's feed
 
 
 def test_a_controller_that_steps_one_episode_refuses_a_batch():
+    class OneAtATime(NoCompensation):
+        batchable = False
+
     with pytest.raises(UserError, match="one episode at a time"):
-        make_controller("zhang2005").set_plan(plan_at_entry(), 4)
+        OneAtATime().set_plan(plan_at_entry(), 4)
 
 
 def test_matvec_is_the_matrix_product_row_by_row():

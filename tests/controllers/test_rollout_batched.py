@@ -9,6 +9,7 @@ import gymnasium as gym
 import pytest
 
 from drillgym.controllers import make_controller
+from drillgym.controllers.none import NoCompensation
 from drillgym.controllers.rollout import run_episode, run_episodes
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.effects import build_effects
@@ -73,13 +74,19 @@ def test_a_cell_the_compiled_step_does_not_run_is_refused_with_a_clear_error():
         run_episodes(lambda: make_controller("none"), [0], {}, "servo_deadband:band_m=1e-4")
 
 
-@pytest.mark.parametrize(("spec", "copies"), [("li2023_tuned", 1), ("li2023", 1), ("zhang2005", 3)])
+@pytest.mark.parametrize(("spec", "copies"), [("li2023_tuned", 1), ("none", 1), ("zhang2005", 1), ("residual_free", 3)])
 def test_a_batchable_controller_steps_every_episode_as_one_copy(spec, copies):
     made = []
 
     def make():
-        made.append(make_controller(spec))
+        made.append(_OneAtATime() if spec == "residual_free" else make_controller(spec))
         return made[-1]
 
     run_episodes(make, [0, 1, 2])
     assert len(made) == copies
+
+
+class _OneAtATime(NoCompensation):
+    """A controller that does not declare a batch form: one copy per episode."""
+
+    batchable = False
