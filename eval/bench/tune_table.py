@@ -24,19 +24,18 @@ Outputs in ``--out``: ``table.json`` (the table), ``evaluations.csv`` (every can
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from scipy.optimize import minimize
 
 from drillgym.controllers import make_controller
 from drillgym.controllers.plan_schedule import PlanScheduledController, ScheduleSpec, normalized_plan
-from drillgym.controllers.rollout import run_episode
+from drillgym.controllers.rollout import run_episodes
 from drillgym.controllers.schedule_table import Anchor, ScheduleTable
-from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.errors import UserError
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.seeds import Purpose, episode_seed
@@ -84,48 +83,44 @@ def tune_anchor(job: AnchorJob) -> dict[str, Any]:
         "force_n", "time_s"}, ...], "base": {deviation_mm, force_n, time_s}}``; ``chosen`` is the kept candidate's
         evaluation (the base's, ``a = 0``, when none beat it).
     """
-    env = gym.make(SIM_ENV_ID, **job.scenario)
-    try:
-        base_ctrl = make_controller(job.spec.base)
-        base = [run_episode(env, base_ctrl, s, keep_trace=False).metrics for s in job.seeds]
-        evaluations: list[dict[str, Any]] = []
-        cache: dict[tuple[float, ...], float] = {}
+    seeds = list(job.seeds)  # every evaluation drills them together on the batched engine (run_episodes)
+    base = [r.metrics for r in run_episodes(lambda: make_controller(job.spec.base), seeds, job.scenario)]
+    evaluations: list[dict[str, Any]] = []
+    cache: dict[tuple[float, ...], float] = {}
 
-        def objective(x: np.ndarray) -> float:
-            a = np.clip(np.asarray(x, dtype=np.float64), -1.0, 1.0)
-            key = tuple(np.round(a, 12))
-            if key in cache:
-                return cache[key]
-            ctrl = PlanScheduledController(job.spec, policy=lambda _obs: a)
-            rows = [run_episode(env, ctrl, s, keep_trace=False).metrics for s in job.seeds]
-            rewards = [paired_schedule_reward(r, b, job.reward) for r, b in zip(rows, base, strict=True)]
-            value = float(np.mean(rewards))
-            evaluations.append(
-                {
-                    "eval": len(evaluations),
-                    "action": [float(v) for v in a],
-                    "reward": value,
-                    "deviation_mm": float(np.mean([r["deviation_mean_mm"] for r in rows])),
-                    "force_n": float(np.mean([r["lateral_force_max_n"] for r in rows])),
-                    "time_s": float(np.mean([r["drill_time_s"] for r in rows])),
-                }
-            )
-            cache[key] = -value
-            return -value
-
-        dims = job.spec.dims
-        x0 = np.zeros(dims)
-        simplex = np.vstack([x0, *(x0 + job.step * np.eye(dims)[i] for i in range(dims))])
-        objective(x0)  # the base itself (reward 0 by construction) is the first candidate
-        minimize(
-            objective,
-            x0,
-            method="Nelder-Mead",
-            bounds=[(-1.0, 1.0)] * dims,
-            options={"maxfev": job.evals, "initial_simplex": simplex, "xatol": 0.01, "fatol": 1e-5},
+    def objective(x: np.ndarray) -> float:
+        a = np.clip(np.asarray(x, dtype=np.float64), -1.0, 1.0)
+        key = tuple(np.round(a, 12))
+        if key in cache:
+            return cache[key]
+        make = functools.partial(PlanScheduledController, job.spec, policy=lambda _obs: a)
+        rows = [r.metrics for r in run_episodes(make, seeds, job.scenario)]
+        rewards = [paired_schedule_reward(r, b, job.reward) for r, b in zip(rows, base, strict=True)]
+        value = float(np.mean(rewards))
+        evaluations.append(
+            {
+                "eval": len(evaluations),
+                "action": [float(v) for v in a],
+                "reward": value,
+                "deviation_mm": float(np.mean([r["deviation_mean_mm"] for r in rows])),
+                "force_n": float(np.mean([r["lateral_force_max_n"] for r in rows])),
+                "time_s": float(np.mean([r["drill_time_s"] for r in rows])),
+            }
         )
-    finally:
-        env.close()
+        cache[key] = -value
+        return -value
+
+    dims = job.spec.dims
+    x0 = np.zeros(dims)
+    simplex = np.vstack([x0, *(x0 + job.step * np.eye(dims)[i] for i in range(dims))])
+    objective(x0)  # the base itself (reward 0 by construction) is the first candidate
+    minimize(
+        objective,
+        x0,
+        method="Nelder-Mead",
+        bounds=[(-1.0, 1.0)] * dims,
+        options={"maxfev": job.evals, "initial_simplex": simplex, "xatol": 0.01, "fatol": 1e-5},
+    )
     best = max(evaluations, key=lambda e: e["reward"])
     chosen = best if best["reward"] > 0.0 else evaluations[0]  # evaluations[0] is the base, a = 0
     return {

@@ -71,3 +71,38 @@ def test_different_seeds_give_different_sensor_readings():
         for ra, rb in zip(run_a[1:], run_b[1:], strict=False)
     ]
     assert any(differs), "ft_wrench identical at every step for seeds 1 and 2"
+
+
+def _rollout_with(env: gym.Env, seed: int, actions: np.ndarray, options: dict) -> list[dict]:
+    obs, info = env.reset(seed=seed, options=options)
+    records = [{"obs": obs, "info": info}]
+    for a in actions:
+        obs, reward, terminated, truncated, info = env.step(a)
+        records.append({"obs": obs, "reward": reward, "info": info})
+        if terminated or truncated:
+            return records
+    raise AssertionError("episode did not end")
+
+
+def test_returning_to_an_earlier_scenario_reuses_its_cell_and_replays_the_fresh_envs_episode():
+    from drillgym.envs.effects import build_effects
+
+    actions = random_actions(8)
+    hard, soft = {"scenario": {"density_scale": 1.2}}, {"scenario": {"density_scale": 0.8}}
+    fresh = gym.make(ENV_ID, density_scale=1.2)
+    env = gym.make(ENV_ID)
+    try:
+        expected = _rollout_with(fresh, 3, actions, {})
+        _rollout_with(env, 3, actions, hard)
+        cell = env.unwrapped.cell
+        # the same cell, left with effects attached by another episode, then a different scenario in between
+        _rollout_with(
+            env, 5, actions, {**hard, "effects": build_effects("tool_length:dl_m=0.004+latency:extra_latency_s=0.03")}
+        )
+        _rollout_with(env, 6, actions, {**soft, "effects": []})
+        again = _rollout_with(env, 3, actions, hard)
+        assert env.unwrapped.cell is cell  # kept, not built again
+    finally:
+        env.close()
+        fresh.close()
+    assert_identical(expected, again)
