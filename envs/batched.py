@@ -44,9 +44,10 @@ from drillgym.envs.episode_state import new_params, new_state
 from drillgym.envs.errors import UserError
 from drillgym.envs.kernel_state import NOISE_SIZE, is_noisy, record_channels
 from drillgym.envs.metrics import episode_metrics
-from drillgym.envs.observation import observation_of, observation_space
+from drillgym.envs.observation import observation_space
 from drillgym.envs.reward import checked_action
 from drillgym.envs.task import Phase
+from drillgym.envs.views import observation_from_state, privileged_info
 
 NOISE_BLOCK = 64 * NOISE_SIZE
 """Standard normals drawn at once into an episode's noise buffer (64 steps' worth at most)."""
@@ -276,41 +277,15 @@ class BatchedDrillEnv(VectorEnv):
     # ------------------------------------------------------------------ helpers
     def _observation(self) -> dict[str, np.ndarray]:
         """The single env's observation (:meth:`UR5BoneDrillEnv._observation`) of every episode, batched."""
-        st, par = self.state, self.params
-        s = st["path_m"]
-        nominal = par["entry_base_m"] + par["R_base_task"][:, :, 2] * s[:, None]  # entry + R_base_task · (0, 0, s)
-        tracking = (self.recorded > 0) & self.scenario.tracker
-        return observation_of(
-            st["ft_last"],
-            st["ft_mean"],
-            st["q_motor_rad"],
-            st["rtde_tcp_base_m"] - nominal,
-            np.where(tracking[:, None], st["tracker_error_base_m"], 0.0),
-            1.0 if self.scenario.tracker else 0.0,
-            s,
-            st["phase"],
-            st["correction_base_m"],
-            st["feed_scale"],
-            self.num_envs,
-        )
+        return observation_from_state(self.state, self.params, self.recorded > 0, self.scenario.tracker)
 
     def final_info(self, i: int) -> dict[str, Any]:
         """Episode ``i``'s last info: the single env's privileged entries and its metrics."""
-        s = self.state[i]
-        sample = s["sample"]
-        failure = "force_limit" if s["failure"] else None
         return {
-            "t_s": float(s["t_s"]),
-            "phase": int(s["phase"]),
-            "stage": int(sample[11]),
-            "depth_cmd_m": float(s["path_m"]),
-            "tip_pos_task_m": sample[0:3].copy(),
-            "deviation_m": math.hypot(sample[0], sample[1]),
-            "force_true_n": sample[6:9].copy(),
-            "failure": failure,
+            **privileged_info(self.state, i),
             "specimen_hardness": float(self.params[i]["force_scale"]),
             "metrics": self.episode_metrics(i),
-            "metrics_truncated": bool(s["truncated"]),
+            "metrics_truncated": bool(self.state[i]["truncated"]),
         }
 
     def last_step_channels(self, i: int) -> dict[str, np.ndarray]:

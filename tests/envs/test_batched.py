@@ -24,7 +24,10 @@ def _actions(seed: int, n: int, num_envs: int) -> np.ndarray:
     return a
 
 
-@pytest.mark.parametrize("kwargs", [{}, {"beta_deg": -15.0, "feed_mm_s": 1.0, "latency_s": 0.1}])
+@pytest.mark.parametrize(
+    "kwargs",
+    [{}, {"beta_deg": -15.0, "feed_mm_s": 1.0, "latency_s": 0.1}, {"tracker": False, "cortical_thickness_mm": 1.5}],
+)
 def test_each_batched_episode_is_the_single_envs_episode_of_its_seed(kwargs):
     num_envs, seed = 3, 20
     batch = BatchedDrillEnv(num_envs, **kwargs)
