@@ -10,6 +10,7 @@ from typing import Any
 from drillgym.controllers.plan_schedule import SCHEDULE_SPANS, ScheduleSpec
 from drillgym.controllers.residual import check_mode
 from drillgym.envs.errors import UserError, read_yaml
+from drillgym.training.cell import TrainingCell
 from drillgym.training.domain_randomization import check_ranges, training_plan_support
 from drillgym.training.schedule_env import ScheduleReward
 
@@ -68,6 +69,13 @@ class TrainConfig:
     """Reward each training step relative to the base controller's own episode on the same seed and scenario
     (:class:`drillgym.training.paired_reward.PairedReward`): the same optimum, without the episode-to-episode
     swing of the specimen and scenario. Evaluation and selection are unchanged."""
+    cell: str = ""
+    """Unmodelled effects of the cell trained for (:class:`drillgym.training.cell.TrainingCell`): an effect spec
+    (``"joint_friction:coulomb_rad=4.2e-4"``) or a named cell (``li2023-lab``); '' : the ideal cell. Training,
+    evaluation and model selection all run in it."""
+    cell_ranges: dict[str, list[float]] = field(default_factory=dict)
+    """``{"effect.param": [low, high]}``: each training episode draws that parameter of ``cell`` uniformly in the
+    range (evaluation and selection keep ``cell``'s values). ``drillgym train --cell-from-diagnosis`` fills both."""
     dr_ranges: dict[str, list[float]] = field(default_factory=dict)
     """Extra or replaced domain-randomisation ranges, ``{scenario argument: [low, high]}`` on top of
     :data:`drillgym.training.domain_randomization.DR_RANGES` (training and validation draws alike)."""
@@ -136,6 +144,7 @@ class TrainConfig:
         else:
             check_mode(self.residual_mode, self.residual_feed_ceiling)
         check_ranges(self.dr_ranges)
+        self.training_cell()
         if not 0.0 <= self.paper_share <= 1.0:
             raise UserError(f"paper_share={self.paper_share!r} must be in [0, 1]")
         if self.total_timesteps < 1 or self.n_envs < 1:
@@ -161,6 +170,15 @@ class TrainConfig:
         if unknown:
             raise UserError(f"schedule_reward: unknown weight(s) {unknown}; known: {sorted(known)}")
         return ScheduleReward(**{k: float(v) for k, v in self.schedule_reward.items()})
+
+    def training_cell(self) -> TrainingCell:
+        """The cell trained for (``cell`` and ``cell_ranges``; checked)."""
+        ranges = {}
+        for key, bounds in self.cell_ranges.items():
+            if not isinstance(bounds, list | tuple) or len(bounds) != 2:
+                raise UserError(f"cell_ranges[{key!r}] = {bounds!r}: expected [low, high]")
+            ranges[key] = (float(bounds[0]), float(bounds[1]))
+        return TrainingCell(self.cell, ranges)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict (YAML/JSON-ready)."""

@@ -13,6 +13,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.seeds import Purpose, episode_seed
+from drillgym.training.cell import CellDraws, with_cell
 from drillgym.training.config import TrainConfig
 from drillgym.training.domain_randomization import (
     VALIDATION_SEED,
@@ -54,12 +55,17 @@ def residual_env(cfg: TrainConfig, randomize: bool, scenario: dict[str, Any] | N
 
     A randomised env draws from the training stream of ``(cfg.seed, rank)`` (:mod:`drillgym.envs.seeds`).
     """
-    env: gym.Env = gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})})
+    cell = cfg.training_cell()
+    env: gym.Env = with_cell(gym.make(ENV_ID, **{**cfg.env_kwargs, **(scenario or {})}), cell)
     if randomize:
         keys = (cfg.seed, rank)
         env = DomainRandomization(env, merged_ranges(cfg.dr_ranges), cfg.paper_share, stream_keys=keys)
+        if cell.ranges:
+            env = CellDraws(env, cell, stream_keys=keys)
         if cfg.paired_reward:
-            env = PairedReward(env, cfg.base, lambda: gym.make(ENV_ID, **cfg.env_kwargs), stream_keys=keys)
+            env = PairedReward(
+                env, cfg.base, lambda: with_cell(gym.make(ENV_ID, **cfg.env_kwargs), cell), stream_keys=keys
+            )
     return wrap_residual(env, cfg)
 
 
@@ -79,6 +85,7 @@ def schedule_env(
         cfg.schedule_weights(),
         episodes=episodes,
         stream_keys=(cfg.seed, rank),
+        cell=cfg.training_cell(),
     )
 
 
@@ -128,7 +135,7 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
         if cfg.schedule:  # the same holes at every evaluation: fixed scenarios, each with its own seed
             return schedule_env(cfg, _schedule_eval_episodes(cfg, scenario))
         if cfg.eval_scenarios == "validation" and scenario is None:
-            env: gym.Env = gym.make(ENV_ID, **cfg.env_kwargs)
+            env: gym.Env = with_cell(gym.make(ENV_ID, **cfg.env_kwargs), cfg.training_cell())
             scenarios = validation_scenarios(cfg.eval_episodes, ranges=merged_ranges(cfg.dr_ranges))
             seeds = [episode_seed(Purpose.SELECT, VALIDATION_SEED + i) for i in range(len(scenarios))]
             env = ScenarioCycle(env, scenarios, seeds=seeds)

@@ -24,12 +24,20 @@ import numpy as np
 
 from drillgym.controllers import make_controller
 from drillgym.controllers.rollout import run_episode
+from drillgym.envs.effects.registry import build_effects
 from drillgym.envs.seeds import Purpose, draw_seed, training_stream
 
 
-def base_step_rewards(twin: gym.Env, base: str, seed: int, scenario: dict[str, Any]) -> np.ndarray:
-    """The base controller's step rewards on ``scenario`` reset with ``seed`` (one per agent step)."""
-    options = {"scenario": scenario}
+def base_step_rewards(
+    twin: gym.Env, base: str, seed: int, scenario: dict[str, Any], cell: str | None = None
+) -> np.ndarray:
+    """The base controller's step rewards on ``scenario`` reset with ``seed`` (one per agent step).
+
+    ``cell``: the episode's effect spec (drawn by :class:`drillgym.training.cell.CellDraws`); None keeps the twin's own.
+    """
+    options: dict[str, Any] = {"scenario": scenario}
+    if cell is not None:
+        options["effects"] = build_effects(cell) if cell else []
     return run_episode(twin, make_controller(base), seed, keep_trace=False, options=options).rewards
 
 
@@ -68,7 +76,7 @@ class PairedReward(gym.Wrapper):
         self.last_seed = draw_seed(self._rng, Purpose.TRAIN)
         obs, info = self.env.reset(seed=self.last_seed, options=options)
         scenario = self.env.unwrapped.scenario.to_dict()  # type: ignore[attr-defined]
-        self.last_base_rewards = base_step_rewards(self.twin, self.base, self.last_seed, scenario)
+        self.last_base_rewards = base_step_rewards(self.twin, self.base, self.last_seed, scenario, info.get("cell"))
         self._t = 0
         return obs, {**info, "episode_seed": self.last_seed}
 

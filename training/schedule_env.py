@@ -26,8 +26,10 @@ from drillgym.controllers.plan_schedule import PlanScheduledController, Schedule
 from drillgym.controllers.residual import PLAN_HIGH
 from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
+from drillgym.envs.effects.registry import build_effects
 from drillgym.envs.errors import UserError
 from drillgym.envs.seeds import Purpose, draw_seed, training_stream
+from drillgym.training.cell import CELL_STREAM, TrainingCell, with_cell
 from drillgym.training.domain_randomization import DR_RANGES, sample_scenario
 
 
@@ -98,11 +100,16 @@ class ScheduleEnv(gym.Env):
         reward: ScheduleReward | None = None,
         episodes: list[tuple[dict[str, Any], int]] | None = None,
         stream_keys: tuple[int, ...] = (),
+        cell: TrainingCell | None = None,
     ) -> None:
         if not 0.0 <= paper_share <= 1.0:
             raise UserError(f"paper_share={paper_share!r} must be in [0, 1]")
         self.schedule = spec
-        self.sim = gym.make(SIM_ENV_ID, **(env_kwargs or {}))
+        self.cell = cell or TrainingCell()
+        self.sim = with_cell(gym.make(SIM_ENV_ID, **(env_kwargs or {})), self.cell)
+        self.cell_spec = self.cell.nominal_spec()
+        """The effects of the current hole (drawn at reset with the cell's ranges, in training; else the cell's own)."""
+        self._cell_rng: np.random.Generator | None = None
         self.ranges = dict(DR_RANGES if ranges is None else ranges)
         self.paper_share = float(paper_share)
         self.weights = reward or ScheduleReward()
@@ -130,6 +137,10 @@ class ScheduleEnv(gym.Env):
         super().reset(seed=seed)
         if seed is not None or self._rng is None:
             self._rng = training_stream(self.stream_keys, seed)
+            self._cell_rng = training_stream((*self.stream_keys, CELL_STREAM), seed)
+        if self.episodes is None and self.cell.ranges:  # training holes: the cell's parameters drawn too
+            assert self._cell_rng is not None
+            self.cell_spec = self.cell.draw_spec(self._cell_rng)
         if self.episodes is not None:
             scenario, episode_seed = self.episodes[self._visits % len(self.episodes)]
             self._visits += 1
@@ -151,12 +162,11 @@ class ScheduleEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         tuned = PlanScheduledController(self.schedule, policy=lambda _obs: a)
-        opts = {"scenario": self.scenario}
-        agent = run_episode(self.sim, tuned, self.episode_seed, keep_trace=False, options=opts)
+        agent = run_episode(self.sim, tuned, self.episode_seed, keep_trace=False, options=self._options())
         if np.all(np.clip(a, -1.0, 1.0) == 0.0):
             base = agent
         else:
-            base = run_episode(self.sim, self.base, self.episode_seed, keep_trace=False, options=opts)
+            base = run_episode(self.sim, self.base, self.episode_seed, keep_trace=False, options=self._options())
         reward = paired_schedule_reward(agent.metrics, base.metrics, self.weights)
         info = {
             "scenario": dict(self.scenario),
@@ -164,9 +174,16 @@ class ScheduleEnv(gym.Env):
             "metrics": agent.metrics,
             "base": base.metrics,
             "tuned_spec": self.schedule.controller_spec(a),
+            **({"cell": self.cell_spec} if self.cell_spec else {}),
         }
         obs = normalized_plan(self.sim.unwrapped.plan, self.schedule.plan_support)  # type: ignore[attr-defined]
         return obs, reward, True, False, info
+
+    def _options(self) -> dict[str, Any]:
+        """The hole's reset options: its scenario, and its drawn effects (each run gets its own effect objects)."""
+        if not self.cell.ranges:  # the cell's own effects stay switched on in the env (with_cell)
+            return {"scenario": self.scenario}
+        return {"scenario": self.scenario, "effects": build_effects(self.cell_spec) if self.cell_spec else []}
 
     def close(self) -> None:
         """Close the simulated env."""

@@ -40,6 +40,7 @@ from drillgym.controllers import Controller, make_controller
 from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.seeds import Purpose, episode_seed
+from drillgym.training.cell import with_cell
 from drillgym.training.config import TrainConfig
 from drillgym.training.domain_randomization import VALIDATION_SEED, ScenarioCycle, merged_ranges, validation_scenarios
 
@@ -94,7 +95,7 @@ def score(controller: Controller, cfg: TrainConfig, episodes: list[tuple[dict[st
     """Deviation (mm), peak lateral force (N) and drill time (s) of each validation episode."""
     out: dict[str, list] = {"deviation_mean_mm": [], "lateral_force_max_n": [], "drill_time_s": []}
     scenarios, seeds = [sc for sc, _ in episodes], [seed for _, seed in episodes]
-    env = ScenarioCycle(gym.make(ENV_ID, **cfg.env_kwargs), scenarios, seeds)
+    env = ScenarioCycle(with_cell(gym.make(ENV_ID, **cfg.env_kwargs), cfg.training_cell()), scenarios, seeds)
     try:
         for _ in episodes:
             metrics = run_episode(env, controller, seed=None, keep_trace=False).metrics  # the cycle seeds it

@@ -19,7 +19,18 @@ CELLS: dict[str, str] = {
 
 
 def cell_effects_spec(name: str) -> str:
-    """The effect spec of cell ``name`` (raises ``ValueError`` listing the cells)."""
-    if name not in CELLS:
-        raise UserError(f"unknown cell {name!r}; choose from {', '.join(CELLS)}")
-    return CELLS[name]
+    """The effect spec of cell ``name``: a named cell's, or ``name`` itself when it is an effect spec.
+
+    Raises ``UserError`` listing the cells when ``name`` is neither (an effect spec names an effect of the library,
+    :data:`drillgym.envs.effects.registry.EFFECTS`, e.g. ``joint_friction:coulomb_rad=4e-4``, the ``cell`` of a
+    run trained for a diagnosed cell).
+    """
+    if name in CELLS:
+        return CELLS[name]
+    from drillgym.envs.effects.registry import build_effects  # it imports every effect; this module, none
+
+    try:
+        build_effects(name)
+    except UserError as e:
+        raise UserError(f"unknown cell {name!r}; choose from {', '.join(CELLS)}, or give an effect spec ({e})") from e
+    return name

@@ -54,8 +54,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--cell",
         default="ideal",
-        help="cell: ideal (no unmodelled effect) or li2023-lab (the effect fitted to Li's runs, docs/explain-paper.md); "
-        "default ideal",
+        help="cell: ideal (no unmodelled effect), li2023-lab (the effect fitted to Li's runs, docs/explain-paper.md) "
+        "or an effect spec (joint_friction:coulomb_rad=4e-4, a diagnosed cell); default ideal",
     )
     parser.add_argument(
         "--seeds",

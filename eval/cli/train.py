@@ -59,6 +59,14 @@ def _single_run_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
     parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
     parser.add_argument("--seed", type=int, default=None, help="override seed")
+    parser.add_argument(
+        "--cell-from-diagnosis",
+        type=Path,
+        default=None,
+        metavar="DIAGNOSIS_JSON",
+        help="train for the cell a diagnosis found: its named effects at their fitted values (evaluation and "
+        "selection), each parameter drawn per training episode within its 95 %% interval (sets cell, cell_ranges)",
+    )
     parser.add_argument("--export", type=Path, default=None, help="also copy the best policy bundle here (NAME.zip)")
     parser.add_argument(
         "--torch-threads",
@@ -123,9 +131,14 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _overrides(args: argparse.Namespace) -> dict[str, Any]:
-    """``--timesteps``, ``--n-envs`` and ``--seed`` as configuration overrides (the ones given)."""
+    """``--timesteps``, ``--n-envs``, ``--seed`` and ``--cell-from-diagnosis`` as configuration overrides (those given)."""
     given = (("total_timesteps", args.timesteps), ("n_envs", args.n_envs), ("seed", args.seed))
-    return {k: v for k, v in given if v is not None}
+    out = {k: v for k, v in given if v is not None}
+    if args.cell_from_diagnosis is not None:
+        from drillgym.eval.diagnosis.training_cell import cell_overrides
+
+        out.update(cell_overrides(args.cell_from_diagnosis))
+    return out
 
 
 def _single_run(args: argparse.Namespace) -> int:
@@ -178,7 +191,7 @@ def _check(args: argparse.Namespace) -> list[str]:
         raise UserError("--jobs and --workers must be >= 1, --eval-seeds >= 2")
     if args.config is not None:
         args.config = resolve_config(args.config)
-        load_config(args.config)
+    load_config(args.config, _overrides(args))  # the configuration every seed will train with, checked now
     baselines = split_controller_specs(args.baselines)
     named = {args.reference} | ({BEST_CLASSICAL} if args.best_baseline == "auto" else {args.best_baseline})
     for spec in {*baselines, *named}:
@@ -194,7 +207,11 @@ def seed_command(args: argparse.Namespace, seed: int, out: Path) -> list[str]:
     cmd = [sys.executable, "-m", "drillgym.eval.cli", "train", "--out", str(out), "--seed", str(seed)]
     if args.config is not None:
         cmd += ["--config", str(args.config)]
-    for flag, value in (("--timesteps", args.timesteps), ("--n-envs", args.n_envs)):
+    for flag, value in (
+        ("--timesteps", args.timesteps),
+        ("--n-envs", args.n_envs),
+        ("--cell-from-diagnosis", args.cell_from_diagnosis),
+    ):
         if value is not None:
             cmd += [flag, str(value)]
     if args.retrain:

@@ -94,3 +94,19 @@ def test_a_scenarios_effects_reach_its_episodes_after_the_cells(tmp_path):
     assert len(episodes) == 7 and episodes["error"].isna().all()
     ideal = episodes.loc["paper_tool_long", "deviation_mean_mm"]
     assert episodes.loc["paper_tool_short", "deviation_mean_mm"] != ideal  # each scenario its own cell
+
+
+def test_a_cell_is_a_named_cell_or_an_effect_spec_and_a_spec_runs_as_that_cell(tmp_path):
+    from drillgym.envs.effects.cells import CELLS, cell_effects_spec
+    from drillgym.envs.errors import UserError
+    from drillgym.eval.cli import main
+
+    spec = CELLS["li2023-lab"]
+    assert cell_effects_spec("li2023-lab") == spec and cell_effects_spec(spec) == spec
+    with pytest.raises(UserError, match="unknown cell 'li2023_lab'.*effect spec"):
+        cell_effects_spec("li2023_lab")
+    argv = ["bench", "--suite", "paper", "--controllers", "none", "--seeds", "2", "--no-logs"]
+    assert main([*argv, "--cell", "li2023-lab", "--out", str(tmp_path / "named")]) == 0
+    assert main([*argv, "--cell", spec, "--out", str(tmp_path / "spec")]) == 0
+    named, given = (pd.read_csv(tmp_path / d / "episodes.csv") for d in ("named", "spec"))
+    assert named["deviation_mean_mm"].tolist() == given["deviation_mean_mm"].tolist()
