@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 from drillgym.controllers import make_controller
 from drillgym.controllers.base import Controller
@@ -55,6 +56,9 @@ class EpisodeJob:
     """``log_path`` as written in ``episodes.csv`` (relative to the output folder)."""
     effects: str = ""
     """Effect spec of the cell (:data:`drillgym.envs.effects.cells.CELLS`); empty: the ideal cell."""
+    reality: str = ""
+    """Spec of reality-library effects (:func:`drillgym.eval.diagnosis.reality.generate.build_reality`) on top of
+    the cell's, seeded by the episode's seed (the same draws for every controller); empty: none."""
 
     @property
     def key(self) -> tuple[str, str, str, int]:
@@ -152,11 +156,16 @@ def run_job(job: EpisodeJob) -> dict[str, Any]:
 def _run(job: EpisodeJob) -> dict[str, Any]:
 
     env = _env(job.kwargs)
-    env.unwrapped.set_effects(build_effects(job.effects) if job.effects else None)  # type: ignore[attr-defined]
+    effects: list[Any] = build_effects(job.effects) if job.effects else []
+    if job.reality:
+        effects += reality_effects(job.reality, job.seed)
+    env.unwrapped.set_effects(effects or None)  # type: ignore[attr-defined]
     controller = _controller(job.controller)
     if job.log_path is None:
         return run_controller_episode(env, controller, job.seed)
     extra = {"suite": job.suite, "scenario": job.scenario, "controller_spec": job.controller, "effects": job.effects}
+    if job.reality:
+        extra["reality"] = job.reality
     header = build_header(env, controller.describe(), job.seed, extra=extra)
     logger = EpisodeLogger(env, job.log_path, header, overwrite=True)
     try:
@@ -172,13 +181,35 @@ BATCH_MAX = 64
 """Episodes per batched call at most (the batched engine's throughput is flat beyond ~16)."""
 
 
-def batch_key(job: EpisodeJob) -> tuple[str, str, str, str, str]:
-    """What the episodes of one batch share: suite, scenario, its arguments, controller and cell."""
-    return (job.suite, job.scenario, json.dumps(job.kwargs, sort_keys=True), job.controller, job.effects)
+def batch_key(job: EpisodeJob) -> tuple[str, str, str, str, str, str]:
+    """What the episodes of one batch share: suite, scenario, its arguments, controller, cell and reality."""
+    return (job.suite, job.scenario, json.dumps(job.kwargs, sort_keys=True), job.controller, job.effects, job.reality)
+
+
+def reality_effects(spec: str, seed: int) -> list[Any]:
+    """The reality's effects for the episode of ``seed``, their per-episode draws seeded by it.
+
+    The specimen's own hardness is put back at each step first, as ``drillgym make-reality`` does.
+    """
+    from drillgym.eval.diagnosis.reality.bone import ForceScaleReset
+    from drillgym.eval.diagnosis.reality.generate import build_reality
+
+    effects = build_reality(spec)
+    rng = np.random.default_rng([seed, REALITY_STREAM])
+    for e in effects:
+        e.seed(rng)
+        e.set_series(0, 1)
+    return [ForceScaleReset(), *effects] if effects else []
+
+
+REALITY_STREAM = 7
+"""Key of a reality's per-episode draws beside the episode's seed."""
 
 
 def batchable(job: EpisodeJob) -> bool:
-    """Whether the job's cell runs on the batched engine (no effects, or compiled ones only)."""
+    """Whether the job's cell runs on the batched engine (no effects, or compiled ones only; no reality)."""
+    if job.reality:
+        return False
     try:
         return runs_compiled(job.effects)
     except ValueError:

@@ -52,6 +52,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "written or as its file label (li2023_kp-1.0 for li2023:kp=1.0); default: the first",
     )
     parser.add_argument(
+        "--reality",
+        default="",
+        metavar="SPEC",
+        help="effects of the reality library (drillgym make-reality --help) on every episode, beside --cell: judge "
+        "controllers in a simulated reality, e.g. the one a diagnosis was tested on; default none",
+    )
+    parser.add_argument(
         "--cell",
         default="ideal",
         help="cell: ideal (no unmodelled effect), li2023-lab (the effect fitted to Li's runs, docs/explain-paper.md) "
@@ -162,7 +169,7 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
         raise UserError(f"unknown suite {args.suite!r}; choose from {', '.join(SUITES)}")
     if args.seeds < 1:
         raise UserError(f"--seeds={args.seeds} must be >= 1")
-    cell_effects_spec(getattr(args, "cell", "ideal"))
+    _check_cell_and_reality(args)
     if args.workers < 1:
         raise UserError(f"--workers={args.workers} must be >= 1")
     resume = getattr(args, "resume", False)
@@ -196,10 +203,22 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
     return specs
 
 
+def _check_cell_and_reality(args: argparse.Namespace) -> None:
+    """``--cell`` names a cell or an effect spec; ``--reality`` is a spec of the reality library."""
+    cell_effects_spec(getattr(args, "cell", "ideal"))
+    if getattr(args, "reality", ""):
+        from drillgym.eval.diagnosis.reality.generate import build_reality
+
+        build_reality(args.reality)
+
+
 def run_settings(args: argparse.Namespace, specs: list[str]) -> dict[str, Any]:
     """What defines a run's episodes (``run.json``): ``--resume`` needs the same."""
     cell = getattr(args, "cell", "ideal")
-    return {"suite": args.suite, "controllers": specs, "cell": cell, "seeds": args.seeds, "logs": not args.no_logs}
+    settings = {"suite": args.suite, "controllers": specs, "cell": cell, "seeds": args.seeds, "logs": not args.no_logs}
+    if getattr(args, "reality", ""):  # absent from the run.json of a run without one, as before the option
+        settings["reality"] = args.reality
+    return settings
 
 
 def check_resume(args: argparse.Namespace, specs: list[str]) -> None:
@@ -209,8 +228,8 @@ def check_resume(args: argparse.Namespace, specs: list[str]) -> None:
         raise UserError(f"--resume: {out / 'episodes.csv'} does not exist, so there is nothing to resume")
     if not (out / RUN_JSON).is_file():
         return  # a run from before run.json: finished_rows still checks every episode against the grid
-    then = read_json(out / RUN_JSON)
-    now = run_settings(args, specs)
+    then = {"reality": "", **read_json(out / RUN_JSON)}  # a run without --reality has none in its run.json
+    now = {"reality": "", **run_settings(args, specs)}
     changed = [f"{key} {then.get(key)!r} then, {value!r} now" for key, value in now.items() if then.get(key) != value]
     if changed:
         raise UserError(
@@ -293,6 +312,8 @@ def resume_command(args: argparse.Namespace) -> str:
     """The ``drillgym bench ... --resume`` command that finishes this run."""
     argv = ["drillgym", "bench", "--suite", args.suite, "--controllers", args.controllers]
     argv += ["--cell", getattr(args, "cell", "ideal"), "--seeds", str(args.seeds), "--out", str(args.out)]
+    if getattr(args, "reality", ""):
+        argv += ["--reality", args.reality]
     if args.workers != 1:
         argv += ["--workers", str(args.workers)]
     if getattr(args, "reference", None):
@@ -335,10 +356,14 @@ def run(args: argparse.Namespace) -> int:
         raise
     reference = reference_spec(specs, getattr(args, "reference", None))
     report = write_report(out, rows, args.suite, [s.name for s in scenarios], specs, args.seeds, reference)
+    notes = []
     if effects:
+        notes.append(f"Cell: {args.cell} (unmodelled effects on: `{effects}`; docs/explain-paper.md).")
+    if getattr(args, "reality", ""):
+        notes.append(f"Reality: `{args.reality}` (reality-library effects on every episode; docs/diagnosis.md).")
+    if notes:
         summary = out / "summary.md"
-        note = f"Cell: {args.cell} (unmodelled effects on: `{effects}`; docs/explain-paper.md).\n\n"
-        summary.write_text(note + summary.read_text())
+        summary.write_text("\n".join(notes) + "\n\n" + summary.read_text())
     print((out / "summary.md").read_text())
     if report.verdicts:
         print(f"Verdicts vs `{reference}` (scenario {report.verdict_scenario}; lower is better for every metric):")
@@ -364,8 +389,11 @@ def _jobs(args: argparse.Namespace, specs: list[str], scenarios: list[Any], effe
                 log = None if args.no_logs else args.out / name
                 fx = "+".join(x for x in (effects, sc.effects) if x)  # the --cell's, then the scenario's
                 jobs.append(
-                    EpisodeJob(args.suite, sc.name, sc.kwargs, spec, seed, log, "" if log is None else name, fx)
-                )
+                    EpisodeJob(
+                        args.suite, sc.name, sc.kwargs, spec, seed, log, "" if log is None else name, fx,
+                        getattr(args, "reality", ""),
+                    )
+                )  # fmt: skip
     return jobs
 
 

@@ -103,7 +103,7 @@ def test_a_cell_is_a_named_cell_or_an_effect_spec_and_a_spec_runs_as_that_cell(t
 
     spec = CELLS["li2023-lab"]
     assert cell_effects_spec("li2023-lab") == spec and cell_effects_spec(spec) == spec
-    with pytest.raises(UserError, match="unknown cell 'li2023_lab'.*effect spec"):
+    with pytest.raises(UserError, match=r"unknown cell 'li2023_lab'.*effect spec"):
         cell_effects_spec("li2023_lab")
     argv = ["bench", "--suite", "paper", "--controllers", "none", "--seeds", "2", "--no-logs"]
     assert main([*argv, "--cell", "li2023-lab", "--out", str(tmp_path / "named")]) == 0
