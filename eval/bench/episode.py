@@ -66,14 +66,23 @@ class EpisodeJob:
         return (self.suite, self.scenario, self.controller, self.seed)
 
 
-def grid_jobs(suites: list[str], specs: list[str], seeds: int, purpose: Purpose = Purpose.JUDGE) -> list[EpisodeJob]:
+def grid_jobs(
+    suites: list[str], specs: list[str], seeds: int, purpose: Purpose = Purpose.JUDGE, cell: str = ""
+) -> list[EpisodeJob]:
     """Every (suite scenario, controller spec, seed) episode, without logs.
 
     The seeds are episodes 0..seeds-1 of ``purpose``'s namespace (:mod:`drillgym.envs.seeds`): the judge's are
-    plain 0..seeds-1, a tuner's never meet them.
+    plain 0..seeds-1, a tuner's never meet them. ``cell``: an effect spec on every episode, before the scenario's own.
     """
     return [
-        EpisodeJob(suite, sc.name, sc.kwargs, spec, episode_seed(purpose, i), effects=sc.effects)
+        EpisodeJob(
+            suite,
+            sc.name,
+            sc.kwargs,
+            spec,
+            episode_seed(purpose, i),
+            effects="+".join(x for x in (cell, sc.effects) if x),
+        )
         for suite in suites
         for sc in suite_scenarios(suite)
         for spec in specs

@@ -289,7 +289,9 @@ def judge(args: argparse.Namespace, out: Path, baselines: list[str]) -> int:
     suites = [s.strip() for s in args.eval_suites.split(",") if s.strip()]
     policies = {f"seed{s}": f"residual:{out / f'seed{s}' / 'policy.zip'}" for s in args.seeds}
     specs = [*baselines, *policies.values()]
-    frame = episodes_frame(run_jobs(grid_jobs(suites, specs, args.eval_seeds), args.workers, desc="judge seeds"))
+    cell = load_config(args.config, _overrides(args)).training_cell().nominal_spec()  # judged in the cell trained for
+    jobs = grid_jobs(suites, specs, args.eval_seeds, cell=cell)
+    frame = episodes_frame(run_jobs(jobs, args.workers, desc="judge seeds"))
     run_of = {spec: run for run, spec in policies.items()}
     frame.insert(0, "run", [run_of.get(c, "") for c in frame["controller"]])
     frame["controller"] = [POLICY_LABEL if c in run_of else c for c in frame["controller"]]
@@ -299,6 +301,8 @@ def judge(args: argparse.Namespace, out: Path, baselines: list[str]) -> int:
         print(f"drillgym train: {len(errors)} evaluation episodes failed; see seed_episodes.csv", file=sys.stderr)
         return 1
     best, extra, lines = _protocol(args, out, frame, baselines)
+    if cell:
+        lines = [f"Judged in the cell the seeds were trained for: `{cell}` (every suite, every controller).", *lines]
     write_seed_report(pd.DataFrame(frame), out, best, reference=args.reference, extra=extra, extra_markdown=lines)
     print((out / "seed_report.md").read_text())
     files = "seed_report.md, seed_report.json, seed_report.png, seed_episodes.csv"

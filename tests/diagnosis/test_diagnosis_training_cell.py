@@ -64,3 +64,30 @@ def test_train_refuses_a_bad_diagnosis_on_one_line(tmp_path, capsys):
     code = main(["train", "--out", str(tmp_path / "run"), "--cell-from-diagnosis", str(path), "--seeds", "0,1"])
     err = capsys.readouterr().err
     assert code == 2 and "named no effect" in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_seeds_of_a_cell_run_are_judged_in_that_cell(tmp_path, monkeypatch):
+    import argparse
+
+    from drillgym.eval.bench import jobs
+    from drillgym.eval.cli.train import add_arguments, judge
+
+    path = tmp_path / "diagnosis.json"
+    path.write_text(json.dumps(_diagnosis(["joint_friction", "latency"])))
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    args = parser.parse_args(["--out", str(tmp_path), "--seeds", "0", "--cell-from-diagnosis", str(path)])
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def capture(grid, workers, desc=""):
+        seen.extend(grid)
+        raise Stop
+
+    monkeypatch.setattr(jobs, "run_jobs", capture)
+    with pytest.raises(Stop):
+        judge(args, tmp_path, ["li2023_tuned"])
+    cell = cell_from_diagnosis(path).nominal_spec()
+    assert seen and all(job.effects.startswith(cell) for job in seen)
