@@ -25,6 +25,9 @@ from drillgym.envs.effects.registry import EFFECTS, build_effects, parse_effect_
 from drillgym.envs.errors import UserError
 from drillgym.envs.seeds import training_stream
 
+CELL_STREAM = 7_001
+"""Extra key of the cell draws' generator: apart from the scenario and seed draws of the same run and worker."""
+
 
 @dataclass(frozen=True)
 class TrainingCell:
@@ -123,7 +126,3 @@ class CellDraws(gym.Wrapper):
         opts = {"effects": build_effects(self.current) if self.current else [], **(options or {})}
         obs, info = self.env.reset(seed=seed, options=opts)
         return obs, {**info, "cell": self.current}
-
-
-CELL_STREAM = 7_001
-"""Extra key of the cell draws' generator: apart from the scenario and seed draws of the same run and worker."""
