@@ -74,20 +74,15 @@ def grid_jobs(
     The seeds are episodes 0..seeds-1 of ``purpose``'s namespace (:mod:`drillgym.envs.seeds`): the judge's are
     plain 0..seeds-1, a tuner's never meet them. ``cell``: an effect spec on every episode, before the scenario's own.
     """
-    return [
-        EpisodeJob(
-            suite,
-            sc.name,
-            sc.kwargs,
-            spec,
-            episode_seed(purpose, i),
-            effects="+".join(x for x in (cell, sc.effects) if x),
-        )
-        for suite in suites
-        for sc in suite_scenarios(suite)
-        for spec in specs
-        for i in range(seeds)
-    ]
+    jobs = []
+    for suite in suites:
+        for sc in suite_scenarios(suite):
+            for spec in specs:
+                for i in range(seeds):
+                    seed = episode_seed(purpose, i)
+                    effects = "+".join(x for x in (cell, sc.episode_effects(seed)) if x)
+                    jobs.append(EpisodeJob(suite, sc.name, sc.kwargs, spec, seed, effects=effects))
+    return jobs
 
 
 _envs: OrderedDict[str, gym.Env] = OrderedDict()

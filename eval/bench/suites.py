@@ -16,15 +16,19 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+import numpy as np
+
 from drillgym.envs.errors import UserError
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.seeds import Purpose, stream
+from drillgym.training.cell import TrainingCell
 from drillgym.training.domain_randomization import TRAINING_BONES, TRAINING_RANGES
 
 __all__ = [
     "GENERALISATION_PLANS",
     "JUDGE_ONLY_SUITES",
     "ROBUSTNESS_CELLS",
+    "ROBUSTNESS_DRAWS",
     "SUITES",
     "TRAINING_BONES",
     "TRAINING_RANGES",
@@ -42,6 +46,20 @@ class SuiteScenario(NamedTuple):
     effects: str = ""
     """Unmodelled effects switched on in this scenario (:func:`drillgym.envs.effects.build_effects` spec; empty:
     none). A benchmark's ``--cell`` adds its own."""
+    draws: tuple[tuple[str, float, float], ...] = ()
+    """``(effect.param, low, high)``: parameters of ``effects`` each episode draws uniformly, seeded by its seed (the
+    same cell for every controller on a seed; :meth:`episode_effects`)."""
+
+    def episode_effects(self, seed: int) -> str:
+        """The effect spec of the episode of ``seed``: ``effects`` with ``draws`` drawn for it."""
+        if not self.draws:
+            return self.effects
+        cell = TrainingCell(self.effects, {key: (lo, hi) for key, lo, hi in self.draws})
+        return cell.draw_spec(np.random.default_rng([seed, EPISODE_DRAWS_KEY]))
+
+
+EPISODE_DRAWS_KEY = 11
+"""Key of a suite scenario's per-episode draws beside the episode's seed."""
 
 
 def paper() -> list[SuiteScenario]:
@@ -133,9 +151,25 @@ ROBUSTNESS_CELLS: dict[str, str] = {
 * ``all``: every one of them together (the longer tool)."""
 
 
+ROBUSTNESS_DRAWS: tuple[tuple[str, float, float], ...] = (
+    ("joint_friction.coulomb_rad", 0.0, 0.000417),
+    ("latency.extra_latency_s", 0.0, 0.06),
+    ("joint_backlash.play_rad", 0.0, 3e-4),
+    ("tool_length.dl_m", -1e-3, 1e-3),
+    ("ft_drift.fx_rate_n_s", -0.01, 0.01),
+    ("ft_drift.fy_rate_n_s", -0.01, 0.01),
+)
+"""The ``drawn`` cell of the robustness suite: each episode draws every effect of ``all`` anew, from none up to its
+size there (the tool length within ±1 mm, the drift's sign either way), as cells differ from one another."""
+
+
 def robustness() -> list[SuiteScenario]:
-    """The paper plan in each of :data:`ROBUSTNESS_CELLS`, named ``paper_<cell>``."""
-    return [SuiteScenario(f"paper_{cell}", {}, spec) for cell, spec in ROBUSTNESS_CELLS.items()]
+    """The paper plan in each of :data:`ROBUSTNESS_CELLS`, named ``paper_<cell>``, and in cells drawn per episode.
+
+    ``paper_drawn``: every effect of the ``all`` cell drawn for each episode (:data:`ROBUSTNESS_DRAWS`).
+    """
+    cells = [SuiteScenario(f"paper_{cell}", {}, spec) for cell, spec in ROBUSTNESS_CELLS.items()]
+    return [*cells, SuiteScenario("paper_drawn", {}, ROBUSTNESS_CELLS["all"], ROBUSTNESS_DRAWS)]
 
 
 SUITES: dict[str, Callable[[], list[SuiteScenario]]] = {

@@ -28,7 +28,9 @@ def _jobs(suite: str, specs: list[str], seeds: int, out: Path) -> list[EpisodeJo
         for spec in specs:
             for seed in range(seeds):
                 name = f"logs/{suite}__{sc.name}__{controller_label(spec)}__seed{seed}.parquet"
-                jobs.append(EpisodeJob(suite, sc.name, sc.kwargs, spec, seed, out / name, name, sc.effects))
+                jobs.append(
+                    EpisodeJob(suite, sc.name, sc.kwargs, spec, seed, out / name, name, sc.episode_effects(seed))
+                )
     return jobs
 
 

@@ -76,12 +76,31 @@ def test_the_robustness_suite_is_the_paper_plan_in_each_cell_and_in_all_of_them(
     from drillgym.eval.bench.suites import JUDGE_ONLY_SUITES, ROBUSTNESS_CELLS
 
     scenarios = suite_scenarios("robustness")
-    assert [s.name for s in scenarios] == [f"paper_{c}" for c in ROBUSTNESS_CELLS]
+    assert [s.name for s in scenarios] == [*(f"paper_{c}" for c in ROBUSTNESS_CELLS), "paper_drawn"]
     assert all(s.kwargs == {} and s.effects for s in scenarios)
-    singles = [s for s in scenarios if s.name != "paper_all"]
+    singles = [s for s in scenarios if s.name not in ("paper_all", "paper_drawn")]
     combined = {type(e).name for e in build_effects(ROBUSTNESS_CELLS["all"])}
     assert combined == {type(build_effects(s.effects)[0]).name for s in singles}
     assert "robustness" in JUDGE_ONLY_SUITES  # no tuner may see it
+
+
+def test_the_drawn_cell_draws_every_effect_within_its_range_per_episode_the_same_for_every_controller():
+    from drillgym.eval.bench.episode import grid_jobs
+    from drillgym.eval.bench.suites import ROBUSTNESS_CELLS, ROBUSTNESS_DRAWS
+    from drillgym.training.cell import TrainingCell
+
+    jobs = [j for j in grid_jobs(["robustness"], ["none", "li2023"], 30) if j.scenario == "paper_drawn"]
+    by_seed: dict[int, set[str]] = {}
+    for job in jobs:
+        by_seed.setdefault(job.seed, set()).add(job.effects)
+    assert all(len(specs) == 1 for specs in by_seed.values())  # paired: one cell per seed for every controller
+    drawn = [TrainingCell(next(iter(specs))).values for specs in by_seed.values()]
+    assert len({str(d) for d in drawn}) == 30  # a new cell each episode
+    assert {*drawn[0]} == {*TrainingCell(ROBUSTNESS_CELLS["all"]).values}  # every effect of the all cell
+    for key, lo, hi in ROBUSTNESS_DRAWS:
+        effect, param = key.split(".")
+        values = [d[effect][param] for d in drawn]
+        assert lo <= min(values) and max(values) <= hi and max(values) - min(values) > 0.5 * (hi - lo)
 
 
 def test_a_scenarios_effects_reach_its_episodes_after_the_cells(tmp_path):
@@ -91,7 +110,7 @@ def test_a_scenarios_effects_reach_its_episodes_after_the_cells(tmp_path):
     argv = ["bench", "--suite", "robustness", "--controllers", "none", "--seeds", "1", "--no-logs"]
     assert main([*argv, "--cell", "li2023-lab", "--out", str(out)]) == 0
     episodes = pd.read_csv(out / "episodes.csv").set_index("scenario")
-    assert len(episodes) == 7 and episodes["error"].isna().all()
+    assert len(episodes) == 8 and episodes["error"].isna().all()
     ideal = episodes.loc["paper_tool_long", "deviation_mean_mm"]
     assert episodes.loc["paper_tool_short", "deviation_mean_mm"] != ideal  # each scenario its own cell
 
