@@ -32,6 +32,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+import drillgym.training  # noqa: F401  (registers the residual:... controllers, as the drillgym command does)
 from drillgym.controllers import make_controller
 from drillgym.controllers.rollout import run_episode
 
