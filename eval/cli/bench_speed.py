@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import Any
 
 from drillgym.envs.errors import UserError
 from drillgym.eval.perf.speed import batched_throughput, controller_cycle_times, measure, rollout_throughput
@@ -33,12 +34,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=20,
         help="episodes per controller and engine in each of 3 rounds (default 20)",
     )
+    parser.add_argument(
+        "--diagnosis-episodes",
+        type=int,
+        default=0,
+        help="also time drillgym diagnose on this many episodes of a withheld-effect reality (3 runs, median; "
+        "e.g. 12; default 0: skipped)",
+    )
+    parser.add_argument(
+        "--diagnosis-workers", type=int, default=2, help="worker processes of the timed diagnosis (default 2)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym bench-speed``."""
     if args.rollout_seeds < 1:
         raise UserError(f"--rollout-seeds={args.rollout_seeds} must be >= 1")
+    if args.diagnosis_episodes and (args.diagnosis_episodes < 6 or args.diagnosis_workers < 1):
+        raise UserError("--diagnosis-episodes must be 0 (skipped) or >= 6, --diagnosis-workers >= 1")
     result = measure(args.runs)
     result["controllers"] = controller_cycle_times()
     sizes = tuple(int(n) for n in args.batch_sizes.split(",") if n.strip())
@@ -47,9 +60,19 @@ def run(args: argparse.Namespace) -> int:
     specs = tuple(s.strip() for s in args.rollout_controllers.split(",") if s.strip())
     if specs:
         result["rollouts"] = rollout_throughput(specs, args.rollout_seeds)
+    if args.diagnosis_episodes:
+        from drillgym.eval.perf.diagnosis_speed import diagnosis_time  # the diagnosis's imports, only when asked
+
+        result["diagnosis"] = diagnosis_time(args.diagnosis_episodes, args.diagnosis_workers)
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
+    _print(result, specs)
+    return 0
+
+
+def _print(result: dict[str, Any], specs: tuple[str, ...]) -> None:
+    """The figures as text."""
     load = result["loadavg_before"]
     print(
         f"paper scenario, zero action, {result['runs']} runs (medians), one core; "
@@ -101,7 +124,13 @@ def run(args: argparse.Namespace) -> int:
                 f"  {spec:12s} single env {t['single_env_episodes_per_s_median']:6.1f}   "
                 f"batched {t['batched_episodes_per_s_median']:6.1f}   {t['speedup_median']:.1f}x"
             )
+    if "diagnosis" in result:
+        d = result["diagnosis"]
+        runs = ", ".join(f"{t:.1f}" for t in d["runs_s"])
+        print(
+            f"diagnosis of {d['episodes']} episodes on {d['workers']} workers: {d['median_s']:.1f} s median "
+            f"(runs {runs} s; named {'+'.join(d['named']) or 'nothing'})"
+        )
     print("controller cycle time (one predict per 50 ms agent step; Li's budget: 50 ms)")
     for spec, t in result["controllers"].items():
         print(f"  {spec:10s} p50 {t['p50_us']:7.1f} µs   p99 {t['p99_us']:7.1f} µs   max {t['max_us']:7.1f} µs")
-    return 0

@@ -58,3 +58,13 @@ def test_progress_bars_stay_out_of_a_log_that_is_not_a_terminal(tmp_path, capsys
     assert main(["bench", "--controllers", "none", "--seeds", "1", "--no-logs", "--out", str(tmp_path)]) == 0
     captured = capsys.readouterr()
     assert "\r" not in captured.out + captured.err
+
+
+def test_bench_speed_times_a_diagnosis_of_a_withheld_effect_reality(capsys):
+    from drillgym.eval.perf.diagnosis_speed import diagnosis_time
+
+    result = diagnosis_time(episodes=6, workers=1, runs=1)
+    assert result["episodes"] == 6 and len(result["runs_s"]) == 1 and result["median_s"] > 0
+    assert result["reality"].startswith("stribeck_friction")
+    assert main(["bench-speed", "--diagnosis-episodes", "3"]) == 2
+    assert "--diagnosis-episodes must be 0 (skipped) or >= 6" in capsys.readouterr().err
