@@ -36,3 +36,17 @@ def unscale_actions(correction_base_m: np.ndarray, feed_scale: np.ndarray | floa
     a[:, :3] = correction_base_m / MAX_CORRECTION_M
     a[:, 3] = np.log2(np.maximum(feed_scale, 1e-9)) / FEED_OVERRIDE_LOG2_MAX
     return np.clip(a, -1.0, 1.0).astype(np.float32)
+
+
+def window_mean(window: np.ndarray, step: int) -> np.ndarray:
+    """Mean of a ring buffer's samples so far, oldest first, as ``np.mean`` over a deque of them sums them.
+
+    ``window`` (W, N, k) holds sample ``j`` at ``j % W``; ``step`` is the newest sample's index. Returns (N, k).
+    """
+    size = window.shape[0]
+    filled = min(step + 1, size)
+    first = step + 1 - filled
+    total = window[first % size].copy()
+    for k in range(first + 1, step + 1):
+        total += window[k % size]
+    return total / filled

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from drillgym.controllers.base import Controller
-from drillgym.controllers.batch import matvec, unscale_actions
+from drillgym.controllers.batch import matvec, unscale_actions, window_mean
 from drillgym.controllers.models import (
     LI2023_MODEL_PEAK_N,
     OfflineForceModel,
@@ -192,19 +192,10 @@ class Li2023Controller(Controller):
         total = np.clip(total, -cfg.max_correction_m, cfg.max_correction_m)
         return unscale_actions(total)
 
-    def _window_mean(self, window: np.ndarray) -> np.ndarray:
-        """Mean of the filter window's samples so far (oldest first), (N, 3)."""
-        filled = min(self.step + 1, self.window_steps)
-        first = self.step + 1 - filled
-        total = window[first % self.window_steps].copy()
-        for k in range(first + 1, self.step + 1):
-            total += window[k % self.window_steps]
-        return total / filled
-
     def _compensation_point(self, obs: dict[str, np.ndarray], t: float) -> None:
         cfg = self.config
-        force = self._window_mean(self.force_window)
-        dx = self.deviation_estimate_base_m(obs["q_rad"], self._window_mean(self.tcp_window), force)
+        force = window_mean(self.force_window, self.step)
+        dx = self.deviation_estimate_base_m(obs["q_rad"], window_mean(self.tcp_window, self.step), force)
         dd = dx - self.prev_dx
         self.sum_dd = self.sum_dd + dd
         u = cfg.kp * dd + cfg.ki * self.sum_dd + cfg.kd * (dd - self.prev_dd)

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drillgym.controllers.base import Controller
-from drillgym.controllers.batch import unscale_actions
+from drillgym.controllers.batch import unscale_actions, window_mean
 from drillgym.controllers.models import RobotComplianceModel
 from drillgym.envs.constants import CONTROL_DT_S, FEED_OVERRIDE_LOG2_MAX, MAX_CORRECTION_M, SUBSTEPS_PER_STEP
 from drillgym.envs.errors import UserError
@@ -131,7 +131,7 @@ class Zhang2005Controller(Controller):
         cfg = self.config
         n = self.num_episodes
         self.window[self.step % self.window_steps] = obs["ft_wrench_mean"]
-        wrench = self._window_mean() - self.gravity_wrench_sensor()
+        wrench = window_mean(self.window, self.step) - self.gravity_wrench_sensor()
         self.step += 1
         correction = np.zeros((n, 3))
         if cfg.deformation:
@@ -145,15 +145,6 @@ class Zhang2005Controller(Controller):
             feeding = (obs["phase"][:, 1] > 0.5) & (obs["path_depth_m"][:, 0].astype(float) >= self.cmrr_start_depth_m)
             scale = np.where(feeding, self._feed_scale(thrust_n=-wrench[:, 2], update=feeding), 1.0)
         return unscale_actions(correction, scale)
-
-    def _window_mean(self) -> np.ndarray:
-        """Mean of the filter window's wrenches so far (oldest first), (N, 6)."""
-        filled = min(self.step + 1, self.window_steps)
-        first = self.step + 1 - filled
-        total = self.window[first % self.window_steps].copy()
-        for k in range(first + 1, self.step + 1):
-            total += self.window[k % self.window_steps]
-        return total / filled
 
     def _feed_scale(self, thrust_n: np.ndarray, update: np.ndarray) -> np.ndarray:
         """PI on the feed (mm/s) holding the thrust at the reference; clamped, with anti-windup.

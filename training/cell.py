@@ -20,7 +20,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from drillgym.envs.effects.cells import CELLS
+from drillgym.envs.effects.cells import cell_effects_spec
 from drillgym.envs.effects.registry import EFFECTS, build_effects, parse_effect_spec
 from drillgym.envs.errors import UserError
 from drillgym.envs.seeds import training_stream
@@ -43,9 +43,7 @@ class TrainingCell:
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        values = self.values  # parses and checks the spec
-        if not self.empty:
-            build_effects(self.nominal_spec())
+        values = self.values  # parses and checks the spec (cell_effects_spec builds its effects)
         for key, bounds in self.ranges.items():
             effect, _, param = key.partition(".")
             if effect not in values:
@@ -63,11 +61,12 @@ class TrainingCell:
     @property
     def values(self) -> dict[str, dict[str, float]]:
         """``{effect: {param: value}}`` of the spec (a named cell's spec looked up)."""
-        return {name: dict(v) for name, v in parse_effect_spec(self.nominal_spec())} if self.nominal_spec() else {}
+        spec = self.nominal_spec()
+        return {name: dict(v) for name, v in parse_effect_spec(spec)} if spec else {}
 
     def nominal_spec(self) -> str:
         """The effect spec at the cell's own values (a named cell's spec)."""
-        return CELLS.get(self.spec, self.spec)
+        return cell_effects_spec(self.spec) if self.spec else ""
 
     @property
     def empty(self) -> bool:

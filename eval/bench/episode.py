@@ -80,8 +80,9 @@ def grid_jobs(
             for spec in specs:
                 for i in range(seeds):
                     seed = episode_seed(purpose, i)
-                    effects = "+".join(x for x in (cell, sc.episode_effects(seed)) if x)
-                    jobs.append(EpisodeJob(suite, sc.name, sc.kwargs, spec, seed, effects=effects))
+                    jobs.append(
+                        EpisodeJob(suite, sc.name, sc.kwargs, spec, seed, effects=sc.episode_effects(seed, cell))
+                    )
     return jobs
 
 
@@ -161,8 +162,10 @@ def _run(job: EpisodeJob) -> dict[str, Any]:
 
     env = _env(job.kwargs)
     effects: list[Any] = build_effects(job.effects) if job.effects else []
-    if job.reality:
-        effects += reality_effects(job.reality, job.seed)
+    if job.reality:  # drawn for the episode from its seed: the same reality for every controller on a seed
+        from drillgym.eval.diagnosis.reality.generate import episode_reality
+
+        effects += episode_reality(job.reality, np.random.default_rng([job.seed, REALITY_STREAM]))
     env.unwrapped.set_effects(effects or None)  # type: ignore[attr-defined]
     controller = _controller(job.controller)
     if job.log_path is None:
@@ -188,22 +191,6 @@ BATCH_MAX = 64
 def batch_key(job: EpisodeJob) -> tuple[str, str, str, str, str, str]:
     """What the episodes of one batch share: suite, scenario, its arguments, controller, cell and reality."""
     return (job.suite, job.scenario, json.dumps(job.kwargs, sort_keys=True), job.controller, job.effects, job.reality)
-
-
-def reality_effects(spec: str, seed: int) -> list[Any]:
-    """The reality's effects for the episode of ``seed``, their per-episode draws seeded by it.
-
-    The specimen's own hardness is put back at each step first, as ``drillgym make-reality`` does.
-    """
-    from drillgym.eval.diagnosis.reality.bone import ForceScaleReset
-    from drillgym.eval.diagnosis.reality.generate import build_reality
-
-    effects = build_reality(spec)
-    rng = np.random.default_rng([seed, REALITY_STREAM])
-    for e in effects:
-        e.seed(rng)
-        e.set_series(0, 1)
-    return [ForceScaleReset(), *effects] if effects else []
 
 
 REALITY_STREAM = 7

@@ -50,12 +50,16 @@ class SuiteScenario(NamedTuple):
     """``(effect.param, low, high)``: parameters of ``effects`` each episode draws uniformly, seeded by its seed (the
     same cell for every controller on a seed; :meth:`episode_effects`)."""
 
-    def episode_effects(self, seed: int) -> str:
-        """The effect spec of the episode of ``seed``: ``effects`` with ``draws`` drawn for it."""
-        if not self.draws:
-            return self.effects
-        cell = TrainingCell(self.effects, {key: (lo, hi) for key, lo, hi in self.draws})
-        return cell.draw_spec(np.random.default_rng([seed, EPISODE_DRAWS_KEY]))
+    def episode_effects(self, seed: int, cell: str = "") -> str:
+        """The effect spec of the episode of ``seed``.
+
+        ``cell``'s effects (a benchmark's ``--cell``) first, then ``effects`` with ``draws`` drawn for the episode.
+        """
+        own = self.effects
+        if self.draws:
+            drawn = TrainingCell(self.effects, {key: (lo, hi) for key, lo, hi in self.draws})
+            own = drawn.draw_spec(np.random.default_rng([seed, EPISODE_DRAWS_KEY]))
+        return "+".join(x for x in (cell, own) if x)
 
 
 EPISODE_DRAWS_KEY = 11

@@ -387,7 +387,7 @@ def _jobs(args: argparse.Namespace, specs: list[str], scenarios: list[Any], effe
             for seed in range(args.seeds):
                 name = f"logs/{args.suite}__{sc.name}__{controller_label(spec)}__seed{seed}.parquet"
                 log = None if args.no_logs else args.out / name
-                fx = "+".join(x for x in (effects, sc.episode_effects(seed)) if x)  # the --cell's, then the scenario's
+                fx = sc.episode_effects(seed, effects)  # the --cell's, then the scenario's
                 jobs.append(
                     EpisodeJob(
                         args.suite, sc.name, sc.kwargs, spec, seed, log, "" if log is None else name, fx,

@@ -61,6 +61,19 @@ def build_reality(spec: str) -> list[RealityEffect]:
     return out
 
 
+def episode_reality(spec: str, rng: np.random.Generator, index: int = 0, episodes: int = 1) -> list[RealityEffect]:
+    """The reality's effects for one episode, ready for ``env.set_effects``; empty for a clean reality.
+
+    Their per-episode draws come from ``rng``, their place in a series is ``index`` of ``episodes``, and the
+    specimen's own hardness is put back at each step first (:class:`ForceScaleReset`, so the bone effects multiply it).
+    """
+    effects = build_reality(spec)
+    for e in effects:
+        e.seed(rng)
+        e.set_series(index, episodes)
+    return [ForceScaleReset(), *effects] if effects else []
+
+
 def episode_name(index: int) -> str:
     """Name of episode ``index``'s log (its file stem, which the diagnosis reports episodes by)."""
     return f"episode_{index:03d}"
@@ -96,13 +109,8 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
     try:
         for i, plan in enumerate(plans):
             controller = make_controller(plan["controller"])
-            effects = build_reality(spec)
-            ep_rng = np.random.default_rng([seed, i, 7])
-            for e in effects:
-                e.seed(ep_rng)
-                e.set_series(i, episodes)
-            stack = [ForceScaleReset(), *effects] if effects else None
-            env.unwrapped.set_effects(stack)  # type: ignore[attr-defined]
+            effects = episode_reality(spec, np.random.default_rng([seed, i, 7]), i, episodes)
+            env.unwrapped.set_effects(effects or None)  # type: ignore[attr-defined]
             env.reset(seed=plan["seed"], options={"scenario": plan["scenario"]})
             header = build_header(env, controller.describe(), seed=None, source="real")
             logger = EpisodeLogger(env, out / f"{episode_name(i)}.parquet", header, overwrite=overwrite)
