@@ -313,6 +313,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return self._observation(), self._info()
 
     def _reset_state(self, specimen_seed: int | None = None) -> None:
+        if self.effects is not None or self._effects_attached:  # first, as a new cell is: nothing of the last
+            self.cell.clear_effects()  # episode's effects may reach the start pose, the marker or the RTDE TCP
         self.path.reset()
         self.cell.reset(np.array([0.0, 0.0, self.path.s_m]))
         rng = self.np_random
@@ -346,11 +348,9 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.tracker_reading = np.zeros(3)
         self.rtde_tcp_base = self.cell.tcp_rtde_base_m()
         self.step_terms: dict[str, float] = {}
-        if self.effects is not None or self._effects_attached:
-            self.cell.clear_effects()
-            self._effects_attached = self.effects is not None
-            if self.effects is not None:
-                self.effects.attach(self)
+        self._effects_attached = self.effects is not None
+        if self.effects is not None:
+            self.effects.attach(self)
         compiled = self.effects is None or self.effects.compiled
         self._kernel = KernelState(self) if compiled and self.use_compiled_step else None
 

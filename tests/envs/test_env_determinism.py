@@ -106,3 +106,25 @@ def test_returning_to_an_earlier_scenario_reuses_its_cell_and_replays_the_fresh_
         env.close()
         fresh.close()
     assert_identical(expected, again)
+
+
+def test_an_episode_after_one_with_effects_is_the_fresh_envs_episode():
+    """The last episode's effects (the links' play moving the tool and marker) never reach the next's start."""
+    from drillgym.controllers import make_controller
+    from drillgym.controllers.rollout import run_episode
+    from drillgym.envs.effects import build_effects
+
+    spec = "joint_backlash:play_rad=3e-4+ft_drift:fx_rate_n_s=0.01"  # an uncompiled one: the Python step
+
+    def deviation(env, controller, seed):
+        env.unwrapped.set_effects(build_effects(spec))
+        return run_episode(env, make_controller(controller), seed, keep_trace=False).metrics["deviation_mean_mm"]
+
+    fresh, used = gym.make(ENV_ID), gym.make(ENV_ID)
+    try:
+        expected = deviation(fresh, "li2023", 0)
+        deviation(used, "none", 0)
+        assert deviation(used, "li2023", 0) == expected
+    finally:
+        fresh.close()
+        used.close()
