@@ -42,10 +42,11 @@ from drillgym.envs.drilling.hole import centre_at
 from drillgym.envs.effects.registry import build_effects
 from drillgym.envs.episode_state import new_params, new_state
 from drillgym.envs.errors import UserError
-from drillgym.envs.kernel_state import NOISE_SIZE, is_noisy, record_channels
+from drillgym.envs.kernel_state import NOISE_SIZE, is_noisy
 from drillgym.envs.metrics import episode_metrics
 from drillgym.envs.observation import observation_space
 from drillgym.envs.reward import checked_action
+from drillgym.envs.sample_record import record_channels
 from drillgym.envs.task import Phase
 from drillgym.envs.views import observation_from_state, privileged_info
 
@@ -302,4 +303,4 @@ class BatchedDrillEnv(VectorEnv):
         sc = self.scenario
         centre = centre_at(self.arrays.centre[i], self.arrays.bins[i], float(self.params[i]["bin_m"]), sc.entry_depth_m)
         offset = math.hypot(centre[0], centre[1]) if centre is not None else math.nan
-        return episode_metrics(self.records(i), sc.entry_depth_m, sc.depth_m, offset, feed_phase=int(Phase.FEED))  # type: ignore[arg-type]
+        return episode_metrics(self.records(i), sc.entry_depth_m, sc.depth_m, offset, feed_phase=int(Phase.FEED))

@@ -12,6 +12,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from drillgym.envs import step_kernel as sk
 from drillgym.envs.cell import SimCell, draw_specimen_hardness
 from drillgym.envs.cell_params import CellParams
 from drillgym.envs.constants import (
@@ -29,13 +30,14 @@ from drillgym.envs.drilling.bone import BonePreset
 from drillgym.envs.drilling.contact import SampleRow
 from drillgym.envs.effects.base import Effect, EffectStack
 from drillgym.envs.errors import UserError
-from drillgym.envs.kernel_state import KernelState, record_channels
-from drillgym.envs.metrics import EpisodeRecorder, episode_metrics
+from drillgym.envs.kernel_state import KernelState
+from drillgym.envs.metrics import episode_metrics
 from drillgym.envs.observation import observation_of, observation_space
 from drillgym.envs.plan import DrillPlan
 from drillgym.envs.pybullet_world import PyBulletWorld
 from drillgym.envs.reward import RewardWeights, checked_action
 from drillgym.envs.robot.ur5 import TRACKER_FRAME
+from drillgym.envs.sample_record import SampleRecord, record_channels
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
 from drillgym.envs.task import DrillPath, Phase
@@ -247,7 +249,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.bone_material = bone_material
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = observation_space()  # type: ignore[assignment]
-        self.recorder = EpisodeRecorder()
+        self.recorder = SampleRecord()
         self.world: PyBulletWorld | None = (
             PyBulletWorld(visual_meshes=render_mode is not None) if pybullet_world else None
         )
@@ -398,18 +400,19 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         arm = cell.sensor_arm_m
         wrenches = np.array([(f[0], f[1], f[2], -arm * f[1], arm * f[0], tq) for _, _, f, tq, _, _, _ in samples])
         deviations = [math.hypot(tip[0], tip[1]) for tip, *_ in samples]
-        rec.t_s.extend(times)
-        rec.phase.extend(phases)
-        rec.stage.extend([smp[5] for smp in samples])
-        rec.depth_cmd_m.extend(depths)
-        rec.deviation_m.extend(deviations)
-        rec.tip_task_m.extend([smp[0] for smp in samples])  # for episode logs (eval/logs)
+        rows = rec.extend(SUBSTEPS_PER_STEP)  # the compiled step's layout (envs.sample_record)
+        rows[:, sk.OUT_T_S] = times
+        rows[:, sk.OUT_PHASE] = phases
+        rows[:, sk.OUT_STAGE] = [smp[5] for smp in samples]
+        rows[:, sk.OUT_DEPTH_CMD] = depths
+        rows[:, sk.OUT_DEVIATION] = deviations
+        rows[:, sk.OUT_TIP : sk.OUT_TIP + 3] = [smp[0] for smp in samples]  # effects may read them below
+        rows[:, sk.OUT_CUTTING] = [1.0 if smp[6] else 0.0 for smp in samples]
         if fx is not None:
-            wrenches = fx.sensor_wrenches(self, wrenches, np.asarray(rec.t_s[-SUBSTEPS_PER_STEP:]))
+            wrenches = fx.sensor_wrenches(self, wrenches, rows[:, sk.OUT_T_S].copy())
         readings = self.ft.sample_block(wrenches)
         forces = readings[:, :3]
-        rec.ft_force_n.extend(forces)
-        rec.ft_torque_nm.extend(readings[:, 3:])  # for episode logs (eval/logs)
+        rows[:, sk.OUT_FORCE : sk.OUT_TORQUE + 3] = readings
         if self.failure is None and _max_norm_exceeds(forces, sc.force_limit_n):
             self.failure = "force_limit"
         if rtde_time >= self.t_s - 1e-12:
@@ -418,7 +421,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.ft_mean = np.add.reduce(readings, axis=0) / SUBSTEPS_PER_STEP  # readings.mean(axis=0), bit for bit
         self.cell.end_step()
         self._sample_tracker()
-        rec.tracker_deviation_m.extend([self.tracker_lateral_m] * SUBSTEPS_PER_STEP)
+        rows[:, sk.OUT_TRACKER_DEVIATION] = self.tracker_lateral_m
         self.step_deviation_m = sum(deviations) / SUBSTEPS_PER_STEP
         self.step_lateral_n = sum(math.hypot(f[0], f[1]) for _, _, f, *_ in samples) / SUBSTEPS_PER_STEP
         terminated = self.path.phase == Phase.DONE or self.failure is not None
@@ -457,9 +460,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             assert self._kernel is not None
             self.truncated = self._kernel.truncated
             return done, q, tracker, record_channels(out)
-        rec = self.recorder
-        channels = {name: np.asarray(values) for name, values in rec.__dict__.items()}
-        return done, q, tracker, channels
+        return done, q, tracker, self.recorder.channels()
 
     def _open_loop(self, actions: np.ndarray, caller: str) -> tuple[int, np.ndarray, np.ndarray, np.ndarray | None]:
         """Advance through ``actions``, in one compiled call or step by step.
@@ -487,18 +488,12 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def _advance_compiled(self, corr: np.ndarray, scale: float) -> tuple[bool, bool]:
         """:meth:`_advance` without effects, in one compiled call (:mod:`drillgym.envs.step_kernel`)."""
         assert self._kernel is not None
-        self._record(self._kernel.step(self, corr, scale))
+        self._kernel.step(self, corr, scale)
         return self._ended()
 
     def _record(self, rows: np.ndarray) -> None:
-        """Append the compiled step's sample rows to the recorder."""
-        out = record_channels(rows)
-        rec = self.recorder
-        for name in ("t_s", "phase", "stage", "depth_cmd_m", "deviation_m", "tracker_deviation_m"):
-            getattr(rec, name).extend(out[name].tolist())
-        rec.tip_task_m.extend(map(tuple, out["tip_task_m"].tolist()))
-        rec.ft_force_n.extend(out["ft_force_n"])
-        rec.ft_torque_nm.extend(out["ft_torque_nm"])
+        """Append sample rows of the compiled step's layout to the recorder."""
+        self.recorder.extend(len(rows))[:] = rows
 
     def _ended(self) -> tuple[bool, bool]:
         """``(terminated, truncated)`` after a compiled step; the metrics when the episode ended."""
@@ -602,7 +597,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return self.cell.entry_base_m + self.cell.R_base_task @ np.array([0.0, 0.0, self.path.s_m])
 
     def _observation(self) -> dict[str, np.ndarray]:
-        tracking = bool(self.recorder.t_s) and self.scenario.tracker
+        tracking = len(self.recorder) > 0 and self.scenario.tracker
         return observation_of(
             self.ft_last,
             self.ft_mean,

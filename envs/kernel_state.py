@@ -131,21 +131,6 @@ def is_noisy(p: np.void) -> bool:
     return any(noisy_sensors(p))
 
 
-def record_channels(rows: np.ndarray) -> dict[str, np.ndarray]:
-    """The recorder's channels (:class:`~drillgym.envs.metrics.EpisodeRecorder`) in sample rows of the kernel's ``out``."""
-    return {
-        "t_s": rows[:, sk.OUT_T_S],
-        "phase": rows[:, sk.OUT_PHASE].astype(np.int64),
-        "stage": rows[:, sk.OUT_STAGE].astype(np.int64),
-        "depth_cmd_m": rows[:, sk.OUT_DEPTH_CMD],
-        "deviation_m": rows[:, sk.OUT_DEVIATION],
-        "tip_task_m": rows[:, sk.OUT_TIP : sk.OUT_TIP + 3],
-        "ft_force_n": rows[:, sk.OUT_FORCE : sk.OUT_FORCE + 3],
-        "ft_torque_nm": rows[:, sk.OUT_TORQUE : sk.OUT_TORQUE + 3],
-        "tracker_deviation_m": rows[:, sk.OUT_TRACKER_DEVIATION],
-    }
-
-
 PHASES = tuple(Phase)
 """The path phases by code."""
 
@@ -199,7 +184,6 @@ class KernelState:
         self._moves_links = self.p["backlash_half_rad"] > 0.0  # joint backlash moves the tool and the marker
         self.noise = np.zeros((1, NOISE_SIZE))
         self.command = np.zeros((1, 4))
-        self.recorded = np.zeros(1, dtype=np.int64)
         self.active = np.ones(1, dtype=bool)
         self.loaded = False
         self._noisy = noisy_sensors(self.p)
@@ -207,8 +191,8 @@ class KernelState:
         self._arr = {f.name: self.state[f.name][0] for f in STATE_FIELDS if f.shape}
         """Episode 0's array fields as plain array views (faster to read than the record's fields)."""
 
-    def step(self, env: UR5BoneDrillEnv, correction_base_m: np.ndarray, feed_scale: float) -> np.ndarray:
-        """Advance ``env`` by one agent step of ``command``; the step's sample rows (5, ``OUT_COLUMNS``)."""
+    def step(self, env: UR5BoneDrillEnv, correction_base_m: np.ndarray, feed_scale: float) -> None:
+        """Advance ``env`` by one agent step of ``command``; its sample rows go to the env's record."""
         if not self.loaded:
             self.load(env)
         t_apply = env.t_s + env.scenario.latency_s  # as the kernel queues it
@@ -217,14 +201,13 @@ class KernelState:
         cmd[0, 3] = feed_scale
         draw_noise(env.np_random, self.noise[0], *self._noisy, tracker_sample_is_new(env.t_s, env.tracker_stamp))
         self._noise_at[0] = 0
-        out = np.empty((1, SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
-        self.recorded[0] = 0
-        sk.advance_batch(*self.arrays, cmd, self.noise, out, self.recorded, self.active)
+        record = env.recorder
+        record.reserve(SUBSTEPS_PER_STEP)
+        sk.advance_batch(*self.arrays, cmd, self.noise, record.buffer, record.count, self.active)
         if self._singular[0]:
             raise np.linalg.LinAlgError(f"singular TCP Jacobian at q = {env.cell.q_motor_rad.tolist()} rad")
         env.pending.append((t_apply, correction_base_m, feed_scale))
         self.store(env)
-        return out[0]
 
     @property
     def noiseless(self) -> bool:

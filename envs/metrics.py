@@ -8,6 +8,7 @@ real run as the env reports in ``info["metrics"]``. Units in the names; forces f
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -60,8 +61,31 @@ class EpisodeRecorder:
             v.clear()
 
 
+class RecordedChannels(Protocol):
+    """What :func:`episode_metrics` reads: per-sample channels as sequences or arrays.
+
+    An :class:`EpisodeRecorder` (the real cell's), a simulated episode's
+    :class:`~drillgym.envs.sample_record.SampleRecord`, or any object with these channels.
+    """
+
+    @property
+    def t_s(self) -> Any: ...  # noqa: D102
+    @property
+    def phase(self) -> Any: ...  # noqa: D102
+    @property
+    def stage(self) -> Any: ...  # noqa: D102
+    @property
+    def depth_cmd_m(self) -> Any: ...  # noqa: D102
+    @property
+    def deviation_m(self) -> Any: ...  # noqa: D102
+    @property
+    def ft_force_n(self) -> Any: ...  # noqa: D102
+    @property
+    def tracker_deviation_m(self) -> Any: ...  # noqa: D102
+
+
 def episode_metrics(
-    rec: EpisodeRecorder,
+    rec: RecordedChannels,
     entry_depth_m: float,
     depth_m: float,
     hole_offset_m: float,

@@ -43,7 +43,7 @@ from drillgym.envs.record_fields import Field
 
 if TYPE_CHECKING:
     from drillgym.envs.cell import SimCell
-    from drillgym.envs.metrics import EpisodeRecorder
+    from drillgym.envs.sample_record import SampleRecord
     from drillgym.envs.scenario import Scenario
     from drillgym.envs.task import DrillPath
 
@@ -68,7 +68,7 @@ class EffectHost(Protocol):
     cell: SimCell
     scenario: Scenario
     path: DrillPath
-    recorder: EpisodeRecorder
+    recorder: SampleRecord
     feed_scale: float
     correction_base_m: np.ndarray
     pending: deque[tuple[float, np.ndarray, float]]

@@ -18,7 +18,7 @@ import numpy as np
 
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.constants import SUBSTEPS_PER_STEP, scaled_rows
-from drillgym.envs.kernel_state import record_channels
+from drillgym.envs.sample_record import record_channels
 from drillgym.eval.logs.header import build_header
 from drillgym.eval.logs.logger import FT_COLUMNS
 from drillgym.eval.logs.writer import FLUSH_ROWS, EpisodeLogWriter

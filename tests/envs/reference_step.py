@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from drillgym.envs import step_kernel as sk
 from drillgym.envs.constants import (
     ACTION_DIM,
     CONTROL_DT_S,
@@ -329,7 +330,7 @@ def _sample_tracker(env: Any) -> None:
 
 def reference_observation(env: Any) -> dict[str, np.ndarray]:
     """The observation as the original ``_observation`` packed it."""
-    if env.recorder.t_s:
+    if len(env.recorder):
         tracker_err = env.tracker_error_base if env.scenario.tracker else np.zeros(3)
     else:
         tracker_err = np.zeros(3)
@@ -394,7 +395,7 @@ def reference_step(env: Any, action: np.ndarray) -> tuple[dict[str, np.ndarray],
     rtde_time = latest_sample_time_s(env.t_s + CONTROL_DT_S, RTDE_RATE_HZ)
     wrenches = np.empty((SUBSTEPS_PER_STEP, 6))
     samples = []
-    rec = env.recorder
+    rows = env.recorder.extend(SUBSTEPS_PER_STEP)  # the record's layout: columns of drillgym.envs.step_kernel
     if fx is None:
         offset, hook = None, None
     else:
@@ -421,17 +422,17 @@ def reference_step(env: Any, action: np.ndarray) -> tuple[dict[str, np.ndarray],
         fx_, fy_, fz_ = smp.force
         arm = cell.sensor_arm_m
         wrenches[k] = (fx_, fy_, fz_, -arm * fy_, arm * fx_, smp.torque_axis)
-        rec.t_s.append(env.t_s)
-        rec.phase.append(phase.value)
-        rec.stage.append(smp.stage)
-        rec.depth_cmd_m.append(s)
-        rec.deviation_m.append(math.hypot(smp.tip[0], smp.tip[1]))
-        rec.tip_task_m.append(smp.tip)
+        rows[k, sk.OUT_T_S] = env.t_s
+        rows[k, sk.OUT_PHASE] = phase.value
+        rows[k, sk.OUT_STAGE] = smp.stage
+        rows[k, sk.OUT_DEPTH_CMD] = s
+        rows[k, sk.OUT_DEVIATION] = math.hypot(smp.tip[0], smp.tip[1])
+        rows[k, sk.OUT_TIP : sk.OUT_TIP + 3] = smp.tip
+        rows[k, sk.OUT_CUTTING] = 1.0 if smp.cutting else 0.0
     if fx is not None:
-        wrenches = fx.sensor_wrenches(env, wrenches, np.asarray(rec.t_s[-SUBSTEPS_PER_STEP:]))
+        wrenches = fx.sensor_wrenches(env, wrenches, rows[:, sk.OUT_T_S].copy())
     readings = _sample_block(env.ft, wrenches)
-    rec.ft_force_n.extend(readings[:, :3])
-    rec.ft_torque_nm.extend(readings[:, 3:])
+    rows[:, sk.OUT_FORCE : sk.OUT_TORQUE + 3] = readings
     if env.failure is None and float(np.max(np.linalg.norm(readings[:, :3], axis=1))) > sc.force_limit_n:
         env.failure = "force_limit"
     if rtde_time >= env.t_s - 1e-12:
@@ -440,7 +441,7 @@ def reference_step(env: Any, action: np.ndarray) -> tuple[dict[str, np.ndarray],
     env.ft_mean = readings.mean(axis=0)
     _end_step(cell)
     _sample_tracker(env)
-    rec.tracker_deviation_m.extend([env.tracker_lateral_m] * SUBSTEPS_PER_STEP)
+    rows[:, sk.OUT_TRACKER_DEVIATION] = env.tracker_lateral_m
     dev_mean = sum(math.hypot(x.tip[0], x.tip[1]) for x in samples) / SUBSTEPS_PER_STEP
     lat_mean = sum(math.hypot(x.force[0], x.force[1]) for x in samples) / SUBSTEPS_PER_STEP
     terms = {

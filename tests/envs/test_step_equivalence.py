@@ -59,7 +59,7 @@ def _run_pair(kwargs: dict, seed: int, policy: str | None, actions_seed: int | N
             obs_f, obs_r = out_f[0], out_r[0]
             if out_f[2] or out_f[3]:
                 break
-        rec_f, rec_r = fast.unwrapped.recorder.__dict__, u.recorder.__dict__
+        rec_f, rec_r = fast.unwrapped.recorder.channels(), u.recorder.channels()
         worst, where = largest_difference(
             {k: np.asarray(v) for k, v in rec_f.items()}, {k: np.asarray(v) for k, v in rec_r.items()}
         )
@@ -117,7 +117,7 @@ def test_advance_records_what_step_records(name):
             if term_s or trunc_s:
                 break
         assert k > 100
-        rec_s, rec_a = stepper.recorder.__dict__, advancer.recorder.__dict__
+        rec_s, rec_a = stepper.recorder.channels(), advancer.recorder.channels()
         assert (
             first_difference({k: np.asarray(v) for k, v in rec_s.items()}, {k: np.asarray(v) for k, v in rec_a.items()})
             is None

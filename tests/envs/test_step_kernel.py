@@ -40,7 +40,7 @@ def _run(kwargs: dict, seed: int, actions: np.ndarray | None, effects=None) -> i
             assert worst <= TOLERANCE, f"step {step}: {where} differs by {worst:.2e}"
             if out_c[2] or out_c[3]:
                 break
-        rec_c, rec_p = compiled.unwrapped.recorder.__dict__, python.unwrapped.recorder.__dict__
+        rec_c, rec_p = compiled.unwrapped.recorder.channels(), python.unwrapped.recorder.channels()
         worst, where = largest_difference(
             {k: np.asarray(v) for k, v in rec_c.items()}, {k: np.asarray(v) for k, v in rec_p.items()}
         )
@@ -189,8 +189,8 @@ def test_an_open_loop_replay_equals_stepping_the_same_actions(kwargs, spec, comp
                 break
         assert done == k + 1 < len(actions)
         worst, where = largest_difference(
-            {"q": q, "tracker": tracker, **{k: np.asarray(v) for k, v in replayed.recorder.__dict__.items()}},
-            {"q": q_ref, "tracker": tracker_ref, **{k: np.asarray(v) for k, v in stepped.recorder.__dict__.items()}},
+            {"q": q, "tracker": tracker, **{k: np.asarray(v) for k, v in replayed.recorder.channels().items()}},
+            {"q": q_ref, "tracker": tracker_ref, **{k: np.asarray(v) for k, v in stepped.recorder.channels().items()}},
         )
         assert worst <= TOLERANCE, f"{where} differs by {worst:.2e}"
         assert replayed.metrics == pytest.approx(stepped.metrics, rel=TOLERANCE)
@@ -209,7 +209,7 @@ def test_an_open_loop_replay_rejects_a_nan_action_and_keeps_the_state():
     actions[30, 2] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         env.advance_open_loop(actions)
-    assert env.steps == 0 and not env.recorder.t_s
+    assert env.steps == 0 and len(env.recorder) == 0
     env.close()
 
 
@@ -231,7 +231,7 @@ def test_a_replay_returns_the_channels_an_open_loop_advance_records_bit_for_bit(
         done_ref, q_ref, tracker_ref = recorded.advance_open_loop(actions)
         assert done == done_ref and np.array_equal(q, q_ref, equal_nan=True)
         assert np.array_equal(tracker, tracker_ref, equal_nan=True)
-        for name, values in recorded.recorder.__dict__.items():
+        for name, values in recorded.recorder.channels().items():
             ref = np.asarray(values)
             assert channels[name].shape == ref.shape and np.array_equal(channels[name], ref), name
         assert replayed.truncated == recorded.truncated
