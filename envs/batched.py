@@ -36,17 +36,18 @@ from gymnasium.vector.utils import batch_space
 
 from drillgym.envs import step_kernel as sk
 from drillgym.envs.cell import chains_of
+from drillgym.envs.compiled_step import episode_arrays
 from drillgym.envs.constants import ACTION_DIM, CONTROL_DT_S, MAX_EPISODE_STEPS, SUBSTEPS_PER_STEP, scaled_rows
 from drillgym.envs.drill_env import UR5BoneDrillEnv
 from drillgym.envs.drilling.hole import centre_at
 from drillgym.envs.effects.registry import build_effects
 from drillgym.envs.episode_state import new_params, new_state
 from drillgym.envs.errors import UserError
-from drillgym.envs.kernel_state import NOISE_SIZE, is_noisy
 from drillgym.envs.metrics import episode_metrics
 from drillgym.envs.observation import observation_space
 from drillgym.envs.reward import checked_action
-from drillgym.envs.sample_record import record_channels
+from drillgym.envs.sample_record import OUT_COLUMNS, record_channels
+from drillgym.envs.step_noise import NOISE_SIZE, is_noisy
 from drillgym.envs.task import Phase
 from drillgym.envs.views import observation_from_state, privileged_info
 
@@ -122,7 +123,7 @@ class BatchedDrillEnv(VectorEnv):
         self.command = np.zeros((n, 4))
         self.noise = np.zeros((n, NOISE_BLOCK))
         self._noise_from: list[Mapping[str, Any] | None] = [None] * n
-        self.record = np.zeros((n, steps * SUBSTEPS_PER_STEP, sk.OUT_COLUMNS))
+        self.record = np.zeros((n, steps * SUBSTEPS_PER_STEP, OUT_COLUMNS))
         self.recorded = np.zeros(n, dtype=np.int64)
         self.prev_action = np.zeros((n, ACTION_DIM))
         self.peak_lateral_n = np.zeros(n)
@@ -137,17 +138,16 @@ class BatchedDrillEnv(VectorEnv):
         if self.effects:
             env.set_effects(build_effects(self.effects))
         env.reset(seed=seed)
-        ks = env._kernel
-        if ks is None:
+        if env._kernel is None:
             raise UserError(f"effects {self.effects!r} do not all run in the compiled step; use UR5BoneDrillEnv")
-        ks.load(env)
+        start = episode_arrays(env)
         for name in ("tab", "rows", "centre", "filled", "delay"):
-            self._fit(name, getattr(ks.arrays, name).shape[1:])
+            self._fit(name, getattr(start, name).shape[1:])
         arrays = self.arrays
         for name in ("state", "params", "pend", "bins"):
-            getattr(arrays, name)[i] = getattr(ks.arrays, name)[0]
+            getattr(arrays, name)[i] = getattr(start, name)[0]
         for name in ("tab", "centre", "filled", "delay"):  # padded to the batch's largest
-            row, one = getattr(arrays, name)[i], getattr(ks.arrays, name)[0]
+            row, one = getattr(arrays, name)[i], getattr(start, name)[0]
             row[...] = 0
             row[tuple(slice(0, m) for m in one.shape)] = one
         self.recorded[i] = 0
@@ -278,7 +278,7 @@ class BatchedDrillEnv(VectorEnv):
     # ------------------------------------------------------------------ helpers
     def _observation(self) -> dict[str, np.ndarray]:
         """The single env's observation (:meth:`UR5BoneDrillEnv._observation`) of every episode, batched."""
-        return observation_from_state(self.state, self.params, self.recorded > 0, self.scenario.tracker)
+        return observation_from_state(self.state, self.params, self.recorded > 0, self.scenario.tracker, self.num_envs)
 
     def final_info(self, i: int) -> dict[str, Any]:
         """Episode ``i``'s last info: the single env's privileged entries and its metrics."""

@@ -22,6 +22,7 @@ from drillgym.envs.drilling.force_model import EngagementTable
 from drillgym.envs.drilling.geometry import DrillGeometry
 from drillgym.envs.drilling.hole import Hole
 from drillgym.envs.drilling.tool import CantileverTool
+from drillgym.envs.read_through import ReadThrough
 from drillgym.envs.robot import ur5_kernel
 from drillgym.envs.robot.compliance import JointCompliance
 from drillgym.envs.robot.ur5 import FLANGE_FRAME, Q_HOME_RAD, TCP_FRAME, TRACKER_FRAME, UR5Kinematics
@@ -66,7 +67,7 @@ def draw_specimen_hardness(rng: np.random.Generator, variability: float) -> floa
     return min(max(factor, low), high)
 
 
-class SimCell:
+class SimCell(ReadThrough):
     """Quasi-static physics of the UR5 drilling cell for one scenario.
 
     Attributes (besides the physics):

@@ -12,9 +12,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from drillgym.envs import step_kernel as sk
 from drillgym.envs.cell import SimCell, draw_specimen_hardness
 from drillgym.envs.cell_params import CellParams
+from drillgym.envs.compiled_step import CompiledEpisode
 from drillgym.envs.constants import (
     ACTION_DIM,
     CONTROL_DT_S,
@@ -30,14 +30,27 @@ from drillgym.envs.drilling.bone import BonePreset
 from drillgym.envs.drilling.contact import SampleRow
 from drillgym.envs.effects.base import Effect, EffectStack
 from drillgym.envs.errors import UserError
-from drillgym.envs.kernel_state import KernelState
 from drillgym.envs.metrics import episode_metrics
 from drillgym.envs.observation import observation_of, observation_space
 from drillgym.envs.plan import DrillPlan
 from drillgym.envs.pybullet_world import PyBulletWorld
+from drillgym.envs.read_through import ReadThrough
 from drillgym.envs.reward import RewardWeights, checked_action
 from drillgym.envs.robot.ur5 import TRACKER_FRAME
-from drillgym.envs.sample_record import SampleRecord, record_channels
+from drillgym.envs.sample_record import (
+    OUT_CUTTING,
+    OUT_DEPTH_CMD,
+    OUT_DEVIATION,
+    OUT_FORCE,
+    OUT_PHASE,
+    OUT_STAGE,
+    OUT_T_S,
+    OUT_TIP,
+    OUT_TORQUE,
+    OUT_TRACKER_DEVIATION,
+    SampleRecord,
+    record_channels,
+)
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.sensors import ForceTorqueSensor, PositionTracker, latest_sample_time_s
 from drillgym.envs.task import DrillPath, Phase
@@ -89,7 +102,7 @@ def _max_norm_exceeds(forces_n: np.ndarray, limit_n: float) -> bool:
     return float(np.max(np.linalg.norm(forces_n, axis=1))) > limit_n
 
 
-class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
+class UR5BoneDrillEnv(ReadThrough, gym.Env[dict[str, np.ndarray], np.ndarray]):
     """A UR5 with compliant joints drilling an inclined bone surface: Li et al. 2023's experiment.
 
     ## Description
@@ -306,6 +319,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         effects = EffectStack(opts["effects"]) if opts.get("effects") else None
         changes = dict(opts.get("scenario") or {})
         scenario = Scenario.from_kwargs(**{**self.scenario.to_dict(), **changes}) if changes else None
+        if self._kernel is not None:  # the last episode's fields back into the objects, before they change
+            self._kernel.release()
         super().reset(seed=seed)
         if "effects" in opts:
             self.effects = effects
@@ -348,13 +363,15 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.s_start_m = self.path.s_m
         self.tracker_stamp = -1.0
         self.tracker_reading = np.zeros(3)
+        self.tracker_error_base = np.zeros(3)
+        self.tracker_lateral_m = 0.0
         self.rtde_tcp_base = self.cell.tcp_rtde_base_m()
         self.step_terms: dict[str, float] = {}
         self._effects_attached = self.effects is not None
         if self.effects is not None:
             self.effects.attach(self)
         compiled = self.effects is None or self.effects.compiled
-        self._kernel = KernelState(self) if compiled and self.use_compiled_step else None
+        self._kernel = CompiledEpisode(self) if compiled and self.use_compiled_step else None
 
     def set_effects(self, effects: list[Effect] | tuple[Effect, ...] | None) -> None:
         """Switch unmodelled effects (:mod:`drillgym.envs.effects`) on from the next ``reset``; None or [] switches them off."""
@@ -364,8 +381,10 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         """Apply one correction + feed override for 50 ms (5 physics updates / F/T samples)."""
         a = checked_action(action, "env state unchanged")
         terminated, truncated = self._advance(a, "step")
-        terms = self.reward.terms(self.step_deviation_m, self.step_lateral_n, a, self.prev_action, self.peak_lateral_n)
-        self.peak_lateral_n = max(self.peak_lateral_n, self.step_lateral_n)
+        src = self if self._kernel is None else self._kernel.v  # the compiled step's scalars, not read through
+        deviation_m, lateral_n = src.step_deviation_m, src.step_lateral_n
+        terms = self.reward.terms(deviation_m, lateral_n, a, self.prev_action, self.peak_lateral_n)
+        self.peak_lateral_n = max(self.peak_lateral_n, lateral_n)
         self.step_terms = terms
         self.prev_action = a
         return self._observation(), float(sum(terms.values())), terminated, truncated, self._info()
@@ -381,7 +400,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     def _advance(self, a: np.ndarray, caller: str) -> tuple[bool, bool]:
         """One agent step of physics for a checked action ``a``; sets ``step_deviation_m`` and ``step_lateral_n``."""
-        if self.path.phase == Phase.DONE or self.failure is not None:
+        if self._ended_already():
             raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
         corr, scale = scale_action(a)
         if self._kernel is not None:  # no effects, or only compiled ones (Effect.compiled)
@@ -401,18 +420,18 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         wrenches = np.array([(f[0], f[1], f[2], -arm * f[1], arm * f[0], tq) for _, _, f, tq, _, _, _ in samples])
         deviations = [math.hypot(tip[0], tip[1]) for tip, *_ in samples]
         rows = rec.extend(SUBSTEPS_PER_STEP)  # the compiled step's layout (envs.sample_record)
-        rows[:, sk.OUT_T_S] = times
-        rows[:, sk.OUT_PHASE] = phases
-        rows[:, sk.OUT_STAGE] = [smp[5] for smp in samples]
-        rows[:, sk.OUT_DEPTH_CMD] = depths
-        rows[:, sk.OUT_DEVIATION] = deviations
-        rows[:, sk.OUT_TIP : sk.OUT_TIP + 3] = [smp[0] for smp in samples]  # effects may read them below
-        rows[:, sk.OUT_CUTTING] = [1.0 if smp[6] else 0.0 for smp in samples]
+        rows[:, OUT_T_S] = times
+        rows[:, OUT_PHASE] = phases
+        rows[:, OUT_STAGE] = [smp[5] for smp in samples]
+        rows[:, OUT_DEPTH_CMD] = depths
+        rows[:, OUT_DEVIATION] = deviations
+        rows[:, OUT_TIP : OUT_TIP + 3] = [smp[0] for smp in samples]  # effects may read them below
+        rows[:, OUT_CUTTING] = [1.0 if smp[6] else 0.0 for smp in samples]
         if fx is not None:
-            wrenches = fx.sensor_wrenches(self, wrenches, rows[:, sk.OUT_T_S].copy())
+            wrenches = fx.sensor_wrenches(self, wrenches, rows[:, OUT_T_S].copy())
         readings = self.ft.sample_block(wrenches)
         forces = readings[:, :3]
-        rows[:, sk.OUT_FORCE : sk.OUT_TORQUE + 3] = readings
+        rows[:, OUT_FORCE : OUT_TORQUE + 3] = readings
         if self.failure is None and _max_norm_exceeds(forces, sc.force_limit_n):
             self.failure = "force_limit"
         if rtde_time >= self.t_s - 1e-12:
@@ -421,7 +440,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.ft_mean = np.add.reduce(readings, axis=0) / SUBSTEPS_PER_STEP  # readings.mean(axis=0), bit for bit
         self.cell.end_step()
         self._sample_tracker()
-        rows[:, sk.OUT_TRACKER_DEVIATION] = self.tracker_lateral_m
+        rows[:, OUT_TRACKER_DEVIATION] = self.tracker_lateral_m
         self.step_deviation_m = sum(deviations) / SUBSTEPS_PER_STEP
         self.step_lateral_n = sum(math.hypot(f[0], f[1]) for _, _, f, *_ in samples) / SUBSTEPS_PER_STEP
         terminated = self.path.phase == Phase.DONE or self.failure is not None
@@ -458,7 +477,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         done, q, tracker, out = self._open_loop(actions, "replay_open_loop")
         if out is not None:
             assert self._kernel is not None
-            self.truncated = self._kernel.truncated
+            self.truncated = self._kernel.v.truncated
             return done, q, tracker, record_channels(out)
         return done, q, tracker, self.recorder.channels()
 
@@ -469,11 +488,11 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         recorded); else step by step (recorded; rows None).
         """
         a = checked_action(actions, "env state unchanged", num_envs=len(actions))
-        if self.path.phase == Phase.DONE or self.failure is not None:
+        if self._ended_already():
             raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
         kernel = self._kernel
         if kernel is not None and kernel.noiseless:
-            return kernel.open_loop(self, scaled_rows(a))
+            return kernel.open_loop(scaled_rows(a))
         q = np.full((len(a), 6), np.nan)
         tracker = np.full((len(a), 3), np.nan)
         done = 0
@@ -485,10 +504,16 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
                 break
         return done, q, tracker, None
 
+    def _ended_already(self) -> bool:
+        """Whether the episode ended at an earlier step (drilled and retracted, or the force limit)."""
+        if self._kernel is not None and self._kernel.started:
+            return self._kernel.ended
+        return self.path.phase == Phase.DONE or self.failure is not None
+
     def _advance_compiled(self, corr: np.ndarray, scale: float) -> tuple[bool, bool]:
         """:meth:`_advance` without effects, in one compiled call (:mod:`drillgym.envs.step_kernel`)."""
         assert self._kernel is not None
-        self._kernel.step(self, corr, scale)
+        self._kernel.step(corr, scale)
         return self._ended()
 
     def _record(self, rows: np.ndarray) -> None:
@@ -498,7 +523,7 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def _ended(self) -> tuple[bool, bool]:
         """``(terminated, truncated)`` after a compiled step; the metrics when the episode ended."""
         assert self._kernel is not None
-        terminated, truncated = self._kernel.terminated, self._kernel.truncated
+        terminated, truncated = self._kernel.v.terminated, self._kernel.v.truncated
         self.truncated = truncated
         if terminated or truncated:
             self.metrics = self.episode_metrics()
@@ -597,6 +622,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return self.cell.entry_base_m + self.cell.R_base_task @ np.array([0.0, 0.0, self.path.s_m])
 
     def _observation(self) -> dict[str, np.ndarray]:
+        if self._kernel is not None and self._kernel.started:
+            return self._kernel.observation()
         tracking = len(self.recorder) > 0 and self.scenario.tracker
         return observation_of(
             self.ft_last,
@@ -612,6 +639,8 @@ class UR5BoneDrillEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         )
 
     def _info(self) -> dict[str, Any]:
+        if self._kernel is not None and self._kernel.started:
+            return self._kernel.info()
         smp = self.cell.sample
         info: dict[str, Any] = {
             "t_s": self.t_s,

@@ -178,6 +178,18 @@ StateScalars: Any = _tuple_of("StateScalars", STATE_FIELDS)
 """One episode's scalar state fields as Python numbers, by name: ``StateScalars._make(view[i].item())``."""
 
 
+STEP_SCALAR_NAMES = frozenset(
+    {"t_s", "path_m", "feed_scale", "tracker_stamp_s", "step_deviation_m", "step_lateral_n", "phase", "failure"}
+    | {"terminated", "truncated", "singular"}
+)
+"""The scalars every step reads back (time, path, the reward's inputs, how the episode stands)."""
+_STEP_FIELDS = tuple(f for f in STATE_FIELDS if f.name in STEP_SCALAR_NAMES)
+STEP_SCALARS = _scalar_view(_STEP_FIELDS, STATE)
+"""A view of the state with :data:`STEP_SCALAR_NAMES` alone (cheaper to read than :data:`STATE_SCALARS`)."""
+StepScalars: Any = _tuple_of("StepScalars", _STEP_FIELDS)
+"""One episode's :data:`STEP_SCALAR_NAMES` as Python numbers: ``StepScalars._make(view[i].item())``."""
+
+
 def new_state(n: int) -> np.ndarray:
     """``n`` episodes' state, zero but for ``key_chip_m`` (NaN: no force rows cached yet)."""
     state = np.zeros(n, dtype=STATE)

@@ -42,7 +42,9 @@ _LO = np.concatenate([np.full(n, 0.0 if k in _NONNEG_KEYS else -b) for k, (n, b)
 
 OBS_SIZE = int(_OFFSETS[-1])
 """Length of the flat observation (the entries of :data:`OBS_BOUNDS` in order)."""
-_SLICES = [(k, int(_OFFSETS[i]), int(_OFFSETS[i + 1])) for i, k in enumerate(_KEYS)]
+OBS_LOW, OBS_HIGH = _LO, _HI
+"""Each flat entry's box (float64, length :data:`OBS_SIZE`)."""
+_PARTS = [(k, slice(int(_OFFSETS[i]), int(_OFFSETS[i + 1]))) for i, k in enumerate(_KEYS)]
 
 
 def pack_observation(values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -93,5 +95,11 @@ def pack_flat_observation(flat: np.ndarray) -> dict[str, np.ndarray]:
     (one row each) gives arrays with the same leading axis.
     """
     np.maximum(flat, _LO, out=flat)  # np.clip(flat, _LO, _HI, out=flat), without its Python wrapper
-    out = np.minimum(flat, _HI, out=flat).astype(np.float32)
-    return {k: out[..., a:b] for k, a, b in _SLICES}
+    return unpack_observation(np.minimum(flat, _HI, out=flat).astype(np.float32))
+
+
+def unpack_observation(flat: np.ndarray) -> dict[str, np.ndarray]:
+    """The observation's entries as views of ``flat`` (float32, already clipped; one row per episode of a batch)."""
+    if flat.ndim == 1:
+        return {k: flat[part] for k, part in _PARTS}
+    return {k: flat[:, part] for k, part in _PARTS}

@@ -79,6 +79,10 @@ def checked_action(action: np.ndarray, consequence: str, num_envs: int | None = 
     shape = (ACTION_DIM,) if num_envs is None else (num_envs, ACTION_DIM)
     if a.shape != shape:
         raise UserError(f"action must have shape {shape}, got {np.shape(action)}")
+    if num_envs is None:  # one action: four floats, cheaper in Python than through numpy's calls
+        values = a.tolist()
+        if all(map(math.isfinite, values)):  # clipped as np.clip(a, -1, 1) clips (-0.0 stays -0.0)
+            return np.array([-1.0 if x < -1.0 else (1.0 if x > 1.0 else x) for x in values])
     if not np.isfinite(a).all():
         where = "" if num_envs is None else f" in episodes {np.flatnonzero(~np.isfinite(a).all(axis=1)).tolist()}"
         raise UserError(f"action={a.tolist()} contains NaN or inf{where}; rejected ({consequence})")

@@ -1,7 +1,7 @@
 """One simulated episode's recorded F/T samples: the rows the compiled step writes, read as named channels.
 
 The compiled step (:mod:`drillgym.envs.step_kernel`) appends each step's five sample rows
-(:data:`~drillgym.envs.step_kernel.OUT_COLUMNS` columns) to a record and counts them; the batched env keeps one
+(:data:`OUT_COLUMNS` columns, declared here) to a record and counts them; the batched env keeps one
 record per episode, the single env this one. The Python step fills the same rows (:meth:`SampleRecord.extend`),
 so both steppers record alike and nothing is copied from one layout into another. The channels
 (:data:`CHANNELS`) are those of :class:`drillgym.envs.metrics.EpisodeRecorder` (the real cell's), as arrays:
@@ -15,7 +15,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from drillgym.envs import step_kernel as sk
+OUT_T_S, OUT_PHASE, OUT_STAGE, OUT_DEPTH_CMD, OUT_DEVIATION = 0, 1, 2, 3, 4
+"""The sample row's columns: the sample's time (s), path phase, stage, commanded depth (m), true tip deviation (m)."""
+OUT_TIP = 5
+"""True tip position (3, m, task frame)."""
+OUT_FORCE = 8
+"""F/T force reading (3, N, sensor frame); the torque reading (3, N·m) follows."""
+OUT_TORQUE = 11
+OUT_TRACKER_DEVIATION = 14
+"""Lateral tracker error (m)."""
+OUT_CUTTING = 15
+"""1 if the drill cut at the sample."""
+OUT_COLUMNS = 16
+
 
 CHANNELS = (
     "t_s",
@@ -42,15 +54,15 @@ def record_channels(rows: np.ndarray) -> dict[str, np.ndarray]:
     readings, sensor frame), ``tracker_deviation_m`` (lateral tracker error, m).
     """
     return {
-        "t_s": rows[:, sk.OUT_T_S],
-        "phase": rows[:, sk.OUT_PHASE].astype(np.int64),
-        "stage": rows[:, sk.OUT_STAGE].astype(np.int64),
-        "depth_cmd_m": rows[:, sk.OUT_DEPTH_CMD],
-        "deviation_m": rows[:, sk.OUT_DEVIATION],
-        "tip_task_m": rows[:, sk.OUT_TIP : sk.OUT_TIP + 3],
-        "ft_force_n": rows[:, sk.OUT_FORCE : sk.OUT_FORCE + 3],
-        "ft_torque_nm": rows[:, sk.OUT_TORQUE : sk.OUT_TORQUE + 3],
-        "tracker_deviation_m": rows[:, sk.OUT_TRACKER_DEVIATION],
+        "t_s": rows[:, OUT_T_S],
+        "phase": rows[:, OUT_PHASE].astype(np.int64),
+        "stage": rows[:, OUT_STAGE].astype(np.int64),
+        "depth_cmd_m": rows[:, OUT_DEPTH_CMD],
+        "deviation_m": rows[:, OUT_DEVIATION],
+        "tip_task_m": rows[:, OUT_TIP : OUT_TIP + 3],
+        "ft_force_n": rows[:, OUT_FORCE : OUT_FORCE + 3],
+        "ft_torque_nm": rows[:, OUT_TORQUE : OUT_TORQUE + 3],
+        "tracker_deviation_m": rows[:, OUT_TRACKER_DEVIATION],
     }
 
 
@@ -62,12 +74,12 @@ class SampleRecord:
     """
 
     def __init__(self) -> None:
-        self.buffer = np.empty((1, INITIAL_ROWS, sk.OUT_COLUMNS))
+        self.buffer = np.empty((1, INITIAL_ROWS, OUT_COLUMNS))
         self.count = np.zeros(1, dtype=np.int64)
 
     def clear(self) -> None:
         """Start a new episode in a new buffer (rows read from the last one keep their values)."""
-        self.buffer = np.empty((1, INITIAL_ROWS, sk.OUT_COLUMNS))
+        self.buffer = np.empty((1, INITIAL_ROWS, OUT_COLUMNS))
         self.count = np.zeros(1, dtype=np.int64)
 
     def __len__(self) -> int:
@@ -84,7 +96,7 @@ class SampleRecord:
         n = int(self.count[0])
         capacity = self.buffer.shape[1]
         if n + rows > capacity:
-            grown = np.empty((1, max(2 * capacity, n + rows), sk.OUT_COLUMNS))
+            grown = np.empty((1, max(2 * capacity, n + rows), OUT_COLUMNS))
             grown[0, :n] = self.buffer[0, :n]
             self.buffer = grown
 
@@ -102,44 +114,44 @@ class SampleRecord:
     @property
     def t_s(self) -> np.ndarray:
         """Sample times (s)."""
-        return self.buffer[0, : self.count[0], sk.OUT_T_S]
+        return self.buffer[0, : self.count[0], OUT_T_S]
 
     @property
     def phase(self) -> np.ndarray:
         """Path phase codes (:class:`drillgym.envs.task.Phase`)."""
-        return self.buffer[0, : self.count[0], sk.OUT_PHASE].astype(np.int64)
+        return self.buffer[0, : self.count[0], OUT_PHASE].astype(np.int64)
 
     @property
     def stage(self) -> np.ndarray:
         """Drilling stage codes (0: no contact)."""
-        return self.buffer[0, : self.count[0], sk.OUT_STAGE].astype(np.int64)
+        return self.buffer[0, : self.count[0], OUT_STAGE].astype(np.int64)
 
     @property
     def depth_cmd_m(self) -> np.ndarray:
         """Commanded depth past the entry point (m)."""
-        return self.buffer[0, : self.count[0], sk.OUT_DEPTH_CMD]
+        return self.buffer[0, : self.count[0], OUT_DEPTH_CMD]
 
     @property
     def deviation_m(self) -> np.ndarray:
         """True tip distance from the planned axis (m)."""
-        return self.buffer[0, : self.count[0], sk.OUT_DEVIATION]
+        return self.buffer[0, : self.count[0], OUT_DEVIATION]
 
     @property
     def tip_task_m(self) -> np.ndarray:
         """True drill-tip position (n, 3; m, task frame); privileged (sim only)."""
-        return self.buffer[0, : self.count[0], sk.OUT_TIP : sk.OUT_TIP + 3]
+        return self.buffer[0, : self.count[0], OUT_TIP : OUT_TIP + 3]
 
     @property
     def ft_force_n(self) -> np.ndarray:
         """F/T force readings (n, 3; N, sensor frame)."""
-        return self.buffer[0, : self.count[0], sk.OUT_FORCE : sk.OUT_FORCE + 3]
+        return self.buffer[0, : self.count[0], OUT_FORCE : OUT_FORCE + 3]
 
     @property
     def ft_torque_nm(self) -> np.ndarray:
         """F/T torque readings (n, 3; N·m, sensor frame)."""
-        return self.buffer[0, : self.count[0], sk.OUT_TORQUE : sk.OUT_TORQUE + 3]
+        return self.buffer[0, : self.count[0], OUT_TORQUE : OUT_TORQUE + 3]
 
     @property
     def tracker_deviation_m(self) -> np.ndarray:
         """Lateral tracker error (m; the latest tracker sample's at each F/T sample)."""
-        return self.buffer[0, : self.count[0], sk.OUT_TRACKER_DEVIATION]
+        return self.buffer[0, : self.count[0], OUT_TRACKER_DEVIATION]

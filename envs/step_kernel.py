@@ -49,6 +49,17 @@ from drillgym.envs.effects.joints import friction_lag
 from drillgym.envs.effects.spindle import sag
 from drillgym.envs.effects.timing import delayed
 from drillgym.envs.robot.ur5_kernel import frame_pose, ik_step, jacobian_and_compliance, joint_deflection
+from drillgym.envs.sample_record import (
+    OUT_CUTTING,
+    OUT_DEPTH_CMD,
+    OUT_DEVIATION,
+    OUT_FORCE,
+    OUT_PHASE,
+    OUT_STAGE,
+    OUT_T_S,
+    OUT_TIP,
+    OUT_TRACKER_DEVIATION,
+)
 
 PENDING_ROWS = 16
 """Capacity of the command queue (a latency of up to 0.5 s queues at most 11 commands)."""
@@ -60,18 +71,6 @@ its newest half is kept, 0.512 s of samples, more than the longest extra latency
 TABLE_ROWS = 11
 """``tab`` rows (one column per grid depth): depth (m), edge forces (4), per-chip forces (4), engaged fraction,
 the depth profile's factor on the forces (1 without one; :meth:`TipContactSolver.set_depth_profile`)."""
-OUT_T_S, OUT_PHASE, OUT_STAGE, OUT_DEPTH_CMD, OUT_DEVIATION = 0, 1, 2, 3, 4
-"""``out`` columns: the sample's time (s), path phase, stage, commanded depth (m), true tip deviation (m)."""
-OUT_TIP = 5
-"""True tip position (3, m, task frame)."""
-OUT_FORCE = 8
-"""F/T force reading (3, N, sensor frame); the torque reading (3, N·m) follows."""
-OUT_TORQUE = 11
-OUT_TRACKER_DEVIATION = 14
-"""Lateral tracker error (m)."""
-OUT_CUTTING = 15
-"""1 if the drill cut at the sample."""
-OUT_COLUMNS = 16
 
 
 class KernelArrays(NamedTuple):

@@ -11,6 +11,7 @@ from __future__ import annotations
 from enum import IntEnum
 
 from drillgym.envs.constants import APPROACH_SPEED_M_S, APPROACH_START_M, FEED_START_M, RETRACT_SPEED_M_S
+from drillgym.envs.read_through import ReadThrough
 
 
 class Phase(IntEnum):
@@ -22,7 +23,7 @@ class Phase(IntEnum):
     DONE = 3
 
 
-class DrillPath:
+class DrillPath(ReadThrough):
     """Nominal approach → feed → retract path along the planned axis (task frame)."""
 
     def __init__(self, depth_m: float, feed_m_s: float) -> None:

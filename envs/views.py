@@ -1,7 +1,9 @@
 """What an episode's named state (:mod:`drillgym.envs.episode_state`) shows: the observation and the info.
 
-The batched env's views of its episodes' arrays, equal bit for bit to what the single env shows from its Python
-objects (``tests/envs/test_batched.py``). Units: SI; frames as named (base, task, sensor).
+The views of the compiled step's episodes (the single env's one, the batched env's N), written once for both and
+equal bit for bit to what the single env shows from its Python objects on the Python step
+(``tests/envs/test_batched.py``, ``tests/envs/test_step_kernel.py``). Units: SI; frames as named (base, task,
+sensor).
 """
 
 from __future__ import annotations
@@ -9,13 +11,47 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numba
 import numpy as np
 
-from drillgym.envs.observation import observation_of
+from drillgym.envs.observation import OBS_HIGH, OBS_LOW, OBS_SIZE, unpack_observation
+
+
+@numba.njit(cache=True)
+def observation_rows(
+    state: np.ndarray, params: np.ndarray, tracking: np.ndarray, tracker_fitted: bool, out: np.ndarray
+) -> None:  # pragma: no cover (compiled)
+    """Each episode's flat observation (:data:`~drillgym.envs.observation.OBS_BOUNDS` end to end) into ``out`` (N, 33).
+
+    :func:`drillgym.envs.observation.observation_of`'s entries, clipped into their boxes (float64; the caller
+    casts). The TCP error is the RTDE TCP minus the nominal path point, ``entry + R_base_task (0, 0, s)``.
+    """
+    lo, hi = OBS_LOW, OBS_HIGH
+    for i in range(state.shape[0]):
+        s, p, row = state[i], params[i], out[i]
+        path_m = s.path_m
+        for k in range(6):
+            row[k] = s.ft_last[k]
+            row[6 + k] = s.ft_mean[k]
+            row[12 + k] = s.q_motor_rad[k]
+        for k in range(3):
+            row[18 + k] = s.rtde_tcp_base_m[k] - (p.entry_base_m[k] + p.R_base_task[k, 2] * path_m)
+            row[21 + k] = s.tracker_error_base_m[k] if tracking[i] and tracker_fitted else 0.0
+            row[29 + k] = s.correction_base_m[k]
+        row[24] = 1.0 if tracker_fitted else 0.0
+        row[25] = path_m
+        row[26] = row[27] = row[28] = 0.0  # one-hot: approach, feed, retract (or done)
+        row[26 + min(s.phase, 2)] = 1.0
+        row[32] = s.feed_scale
+        for k in range(OBS_SIZE):  # np.minimum(np.maximum(x, lo), hi): NaN stays NaN
+            if row[k] < lo[k]:
+                row[k] = lo[k]
+            if row[k] > hi[k]:
+                row[k] = hi[k]
 
 
 def observation_from_state(
-    state: np.ndarray, params: np.ndarray, tracking: np.ndarray, tracker_fitted: bool
+    state: np.ndarray, params: np.ndarray, tracking: np.ndarray, tracker_fitted: bool, num_envs: int | None = None
 ) -> dict[str, np.ndarray]:
     """The observation of N episodes (:data:`~drillgym.envs.observation.OBS_BOUNDS`, one row each).
 
@@ -24,22 +60,11 @@ def observation_from_state(
         params: their :data:`~drillgym.envs.episode_state.PARAMS` records (N,).
         tracking: (N,) whether each episode's tracker has reported (it has taken a step).
         tracker_fitted: whether the cell has a tracker (the ``tracker_valid`` entry; without one the error is 0).
+        num_envs: None for the single env's observation of its one episode (entries without the episode axis).
     """
-    s = state["path_m"]
-    nominal = params["entry_base_m"] + params["R_base_task"][:, :, 2] * s[:, None]  # entry + R_base_task · (0, 0, s)
-    return observation_of(
-        state["ft_last"],
-        state["ft_mean"],
-        state["q_motor_rad"],
-        state["rtde_tcp_base_m"] - nominal,
-        np.where((tracking & tracker_fitted)[:, None], state["tracker_error_base_m"], 0.0),
-        1.0 if tracker_fitted else 0.0,
-        s,
-        state["phase"],
-        state["correction_base_m"],
-        state["feed_scale"],
-        len(state),
-    )
+    flat = np.empty((len(state), OBS_SIZE))
+    observation_rows(state, params, tracking, tracker_fitted, flat)
+    return unpack_observation(flat.astype(np.float32) if num_envs is not None else flat[0].astype(np.float32))
 
 
 def privileged_info(state: np.ndarray, i: int) -> dict[str, Any]:

@@ -33,6 +33,7 @@ from drillgym.envs.drilling.contact_kernel import run_samples
 from drillgym.envs.drilling.force_model import EngagementTable, stage_bounds
 from drillgym.envs.drilling.geometry import DrillGeometry
 from drillgym.envs.drilling.hole import Hole
+from drillgym.envs.read_through import ReadThrough
 
 SampleRow = tuple[
     tuple[float, float, float], tuple[float, float, float], tuple[float, float, float], float, float, int, bool
@@ -53,7 +54,7 @@ class ContactSample:
     cutting: bool
 
 
-class TipContactSolver:
+class TipContactSolver(ReadThrough):
     """Solves the tip balance for one scenario; holds the cut-state (bottom, hole)."""
 
     def __init__(

@@ -17,7 +17,6 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from drillgym.envs import step_kernel as sk
 from drillgym.envs.constants import (
     ACTION_DIM,
     CONTROL_DT_S,
@@ -33,6 +32,18 @@ from drillgym.envs.drilling.contact import ContactSample
 from drillgym.envs.drilling.force_model import stage_of
 from drillgym.envs.observation import OBS_BOUNDS
 from drillgym.envs.robot.ur5 import R_BASE_BASELINK, TCP_FRAME, TRACKER_FRAME
+from drillgym.envs.sample_record import (
+    OUT_CUTTING,
+    OUT_DEPTH_CMD,
+    OUT_DEVIATION,
+    OUT_FORCE,
+    OUT_PHASE,
+    OUT_STAGE,
+    OUT_T_S,
+    OUT_TIP,
+    OUT_TORQUE,
+    OUT_TRACKER_DEVIATION,
+)
 from drillgym.envs.sensors import latest_sample_time_s
 from drillgym.envs.task import Phase
 
@@ -422,17 +433,17 @@ def reference_step(env: Any, action: np.ndarray) -> tuple[dict[str, np.ndarray],
         fx_, fy_, fz_ = smp.force
         arm = cell.sensor_arm_m
         wrenches[k] = (fx_, fy_, fz_, -arm * fy_, arm * fx_, smp.torque_axis)
-        rows[k, sk.OUT_T_S] = env.t_s
-        rows[k, sk.OUT_PHASE] = phase.value
-        rows[k, sk.OUT_STAGE] = smp.stage
-        rows[k, sk.OUT_DEPTH_CMD] = s
-        rows[k, sk.OUT_DEVIATION] = math.hypot(smp.tip[0], smp.tip[1])
-        rows[k, sk.OUT_TIP : sk.OUT_TIP + 3] = smp.tip
-        rows[k, sk.OUT_CUTTING] = 1.0 if smp.cutting else 0.0
+        rows[k, OUT_T_S] = env.t_s
+        rows[k, OUT_PHASE] = phase.value
+        rows[k, OUT_STAGE] = smp.stage
+        rows[k, OUT_DEPTH_CMD] = s
+        rows[k, OUT_DEVIATION] = math.hypot(smp.tip[0], smp.tip[1])
+        rows[k, OUT_TIP : OUT_TIP + 3] = smp.tip
+        rows[k, OUT_CUTTING] = 1.0 if smp.cutting else 0.0
     if fx is not None:
-        wrenches = fx.sensor_wrenches(env, wrenches, rows[:, sk.OUT_T_S].copy())
+        wrenches = fx.sensor_wrenches(env, wrenches, rows[:, OUT_T_S].copy())
     readings = _sample_block(env.ft, wrenches)
-    rows[:, sk.OUT_FORCE : sk.OUT_TORQUE + 3] = readings
+    rows[:, OUT_FORCE : OUT_TORQUE + 3] = readings
     if env.failure is None and float(np.max(np.linalg.norm(readings[:, :3], axis=1))) > sc.force_limit_n:
         env.failure = "force_limit"
     if rtde_time >= env.t_s - 1e-12:
@@ -441,7 +452,7 @@ def reference_step(env: Any, action: np.ndarray) -> tuple[dict[str, np.ndarray],
     env.ft_mean = readings.mean(axis=0)
     _end_step(cell)
     _sample_tracker(env)
-    rows[:, sk.OUT_TRACKER_DEVIATION] = env.tracker_lateral_m
+    rows[:, OUT_TRACKER_DEVIATION] = env.tracker_lateral_m
     dev_mean = sum(math.hypot(x.tip[0], x.tip[1]) for x in samples) / SUBSTEPS_PER_STEP
     lat_mean = sum(math.hypot(x.force[0], x.force[1]) for x in samples) / SUBSTEPS_PER_STEP
     terms = {
