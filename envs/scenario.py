@@ -7,7 +7,7 @@ Defaults are Li et al. 2023's experiment: β 30°, 0.5 mm/s, 20,000 rpm, a 1.5 m
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass, fields
 from typing import Any
 
 from drillgym.envs.drilling.bone import BONE_PRESETS
@@ -83,8 +83,8 @@ class Scenario:
         return cls(**kwargs)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain dict (JSON-ready) of the user-facing fields."""
-        return asdict(self)
+        """Plain dict (JSON-ready) of the user-facing fields (all scalars: ``dataclasses.asdict`` without its deep copy)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
     @property
     def beta_rad(self) -> float:

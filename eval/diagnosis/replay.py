@@ -100,7 +100,7 @@ class Replayer:
             scenario["density_scale"] = scenario.get("density_scale", 1.0) * hardness
         key = json.dumps(scenario, sort_keys=True)
         if self.env is None:
-            self.env = UR5BoneDrillEnv(**scenario)
+            self.env = UR5BoneDrillEnv(pybullet_world=False, **scenario)  # a replay renders nothing
             self._key = key
         env = self.env
         for e in effects:
