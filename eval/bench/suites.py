@@ -8,7 +8,8 @@
   stream of the judge's seed namespace (see :func:`generalisation`): plans no tuner or learner was given,
   between the anchors a gain-scheduling table is tuned on.
 * ``robustness``: the paper plan in imperfect cells, one unmodelled effect of the diagnosis's library at a
-  plausible size each, and all of them together (see :func:`robustness`): how each compensator degrades.
+  plausible size each, and all of them together, and the paper and generalisation plans in cells drawn per
+  episode (see :func:`robustness`): how each compensator degrades.
 """
 
 from __future__ import annotations
@@ -168,12 +169,16 @@ size there (the tool length within ±1 mm, the drift's sign either way), as cell
 
 
 def robustness() -> list[SuiteScenario]:
-    """The paper plan in each of :data:`ROBUSTNESS_CELLS`, named ``paper_<cell>``, and in cells drawn per episode.
+    """The paper plan in each of :data:`ROBUSTNESS_CELLS` and in cells drawn per episode; the generalisation plans in drawn cells.
 
-    ``paper_drawn``: every effect of the ``all`` cell drawn for each episode (:data:`ROBUSTNESS_DRAWS`).
+    ``paper_<cell>``: the paper plan in the cell. ``paper_drawn``: every effect of the ``all`` cell drawn for each
+    episode (:data:`ROBUSTNESS_DRAWS`). ``gNN_drawn``: the ``generalisation`` suite's plans, each in cells drawn
+    the same way, so a compensator is judged on plans and cells that no tuner or learner saw.
     """
     cells = [SuiteScenario(f"paper_{cell}", {}, spec) for cell, spec in ROBUSTNESS_CELLS.items()]
-    return [*cells, SuiteScenario("paper_drawn", {}, ROBUSTNESS_CELLS["all"], ROBUSTNESS_DRAWS)]
+    drawn = ROBUSTNESS_CELLS["all"]
+    plans = [SuiteScenario(f"{s.name}_drawn", s.kwargs, drawn, ROBUSTNESS_DRAWS) for s in generalisation()]
+    return [*cells, SuiteScenario("paper_drawn", {}, drawn, ROBUSTNESS_DRAWS), *plans]
 
 
 SUITES: dict[str, Callable[[], list[SuiteScenario]]] = {

@@ -72,13 +72,18 @@ def test_no_generalisation_plan_is_a_validation_plan_the_learner_is_selected_on(
     assert not [p for p in plans if p in validation]
 
 
-def test_the_robustness_suite_is_the_paper_plan_in_each_cell_and_in_all_of_them():
-    from drillgym.eval.bench.suites import JUDGE_ONLY_SUITES, ROBUSTNESS_CELLS
+def test_the_robustness_suite_is_the_paper_plan_in_each_cell_and_the_generalisation_plans_in_drawn_cells():
+    from drillgym.eval.bench.suites import JUDGE_ONLY_SUITES, ROBUSTNESS_CELLS, ROBUSTNESS_DRAWS
 
     scenarios = suite_scenarios("robustness")
-    assert [s.name for s in scenarios] == [*(f"paper_{c}" for c in ROBUSTNESS_CELLS), "paper_drawn"]
-    assert all(s.kwargs == {} and s.effects for s in scenarios)
-    singles = [s for s in scenarios if s.name not in ("paper_all", "paper_drawn")]
+    plans = [f"g{i:02d}_drawn" for i in range(1, 25)]
+    assert [s.name for s in scenarios] == [*(f"paper_{c}" for c in ROBUSTNESS_CELLS), "paper_drawn", *plans]
+    assert all(s.effects for s in scenarios)
+    assert all(s.kwargs == {} for s in scenarios if s.name.startswith("paper_"))
+    general = {s.name: s.kwargs for s in suite_scenarios("generalisation")}
+    for s in scenarios[len(ROBUSTNESS_CELLS) + 1 :]:  # the generalisation plans, in the drawn cell
+        assert s.kwargs == general[s.name.removesuffix("_drawn")] and s.draws == ROBUSTNESS_DRAWS
+    singles = [s for s in scenarios if s.name.startswith("paper_") and s.name not in ("paper_all", "paper_drawn")]
     combined = {type(e).name for e in build_effects(ROBUSTNESS_CELLS["all"])}
     assert combined == {type(build_effects(s.effects)[0]).name for s in singles}
     assert "robustness" in JUDGE_ONLY_SUITES  # no tuner may see it
@@ -110,7 +115,7 @@ def test_a_scenarios_effects_reach_its_episodes_after_the_cells(tmp_path):
     argv = ["bench", "--suite", "robustness", "--controllers", "none", "--seeds", "1", "--no-logs"]
     assert main([*argv, "--cell", "li2023-lab", "--out", str(out)]) == 0
     episodes = pd.read_csv(out / "episodes.csv").set_index("scenario")
-    assert len(episodes) == 8 and episodes["error"].isna().all()
+    assert len(episodes) == len(suite_scenarios("robustness")) and episodes["error"].isna().all()
     ideal = episodes.loc["paper_tool_long", "deviation_mean_mm"]
     assert episodes.loc["paper_tool_short", "deviation_mean_mm"] != ideal  # each scenario its own cell
 
