@@ -105,15 +105,17 @@ class CompiledEpisode:
         self._arr = {f.name: self.state[f.name][0] for f in STATE_FIELDS if f.shape}
         """Episode 0's array fields as plain array views (faster to read than the record's fields)."""
         self._noisy = noisy_sensors(self.p)
+        self._c_tool = env.cell.C_tool
         self._moves_links = bool(self.p["backlash_half_rad"] > 0.0)  # joint backlash moves the tool and the marker
         self.v = StepScalars._make(self._step_scalars[0].item())
         self.started = True
         self._objects: tuple[tuple[ReadThrough, Reader], ...] = (
-            (env, self._env_fields),
-            (env.path, self._path_fields),
-            (env.cell, self._cell_fields),
-            (env.cell.solver, self._solver_fields),
+            (env, self._reading(self._env_fields)),
+            (env.path, self._reading(self._path_fields)),
+            (env.cell, self._reading(self._cell_fields)),
+            (env.cell.solver, self._reading(self._solver_fields)),
         )
+        self._read = False
         for obj, reader in self._objects:
             attach(obj, reader)
 
@@ -165,8 +167,10 @@ class CompiledEpisode:
             raise np.linalg.LinAlgError(f"singular TCP Jacobian at q = {self._arr['q_motor_rad'].tolist()} rad")
         for e in self.effects:
             e.store_kernel_state(self.s)
-        for obj, _ in self._objects:
-            forget(obj)
+        if self._read:  # someone read the objects' fields since the last step: they are stale now
+            for obj, _ in self._objects:
+                forget(obj)
+            self._read = False
 
     @property
     def noiseless(self) -> bool:
@@ -190,17 +194,18 @@ class CompiledEpisode:
     def info(self) -> dict[str, Any]:
         """The step's info: the privileged state (true tip, force, stage), the reward's terms and the failure."""
         env, v, a = self.env, self.v, self._arr
-        smp = a["sample"].tolist()
-        force = np.array(smp[6:9])
+        row = a["sample"]
+        smp = row.tolist()
+        force = row[6:9].copy()
         info: dict[str, Any] = {
             "t_s": v.t_s,
             "phase": v.phase,
             "stage": int(smp[11]),
             "depth_cmd_m": v.path_m,
-            "tip_pos_task_m": np.array(smp[0:3]),
+            "tip_pos_task_m": row[0:3].copy(),
             "deviation_m": math.hypot(smp[0], smp[1]),
             "tip_deflection_robot_m": a["c_robot_m_n"] @ force,
-            "tip_deflection_tool_m": env.cell.C_tool @ force,
+            "tip_deflection_tool_m": self._c_tool @ force,
             "force_true_n": force.copy(),
             "depth_local_m": smp[10],
             "reward_terms": dict(env.step_terms),
@@ -213,6 +218,15 @@ class CompiledEpisode:
         return info
 
     # ------------------------------------------------------------------ the objects' fields
+    def _reading(self, fields: Reader) -> Reader:
+        """``fields``, noting that the objects now hold fields read from this step's state."""
+
+        def read() -> dict[str, Any]:
+            self._read = True
+            return fields()
+
+        return read
+
     def _scalars_now(self) -> Any:
         """Every scalar of the state, as Python numbers (:data:`StateScalars`)."""
         return StateScalars._make(self._scalars[0].item())

@@ -139,11 +139,16 @@ class DrillEpisode(ReadThrough):
 
     def _advance(self, a: np.ndarray, caller: str) -> tuple[bool, bool]:
         """One agent step of physics for a checked action ``a``; sets ``step_deviation_m`` and ``step_lateral_n``."""
-        if self._ended_already():
+        kernel = self._kernel
+        if kernel is not None:  # no effects, or only compiled ones (Effect.compiled): one compiled call
+            if kernel.started and kernel.ended:
+                raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
+            corr, scale = scale_action(a)
+            kernel.step(corr, scale)
+            return self._ended()
+        if self.path.phase == Phase.DONE or self.failure is not None:
             raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
         corr, scale = scale_action(a)
-        if self._kernel is not None:  # no effects, or only compiled ones (Effect.compiled)
-            return self._advance_compiled(corr, scale)
         return python_step.advance(self, corr, scale)
 
     def advance_open_loop(self, actions: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
@@ -204,12 +209,6 @@ class DrillEpisode(ReadThrough):
         if self._kernel is not None and self._kernel.started:
             return self._kernel.ended
         return self.path.phase == Phase.DONE or self.failure is not None
-
-    def _advance_compiled(self, corr: np.ndarray, scale: float) -> tuple[bool, bool]:
-        """:meth:`_advance` without effects, in one compiled call (:mod:`drillgym.envs.step_kernel`)."""
-        assert self._kernel is not None
-        self._kernel.step(corr, scale)
-        return self._ended()
 
     def _record(self, rows: np.ndarray) -> None:
         """Append sample rows of the compiled step's layout to the recorder."""

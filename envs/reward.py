@@ -53,7 +53,8 @@ class RewardWeights:
         with one entry per episode.
         """
         if action.ndim == 1:
-            change = float(np.add.reduce((action - prev_action) ** 2))  # np.sum's reduction
+            d = action - prev_action
+            change = float(np.add.reduce(d * d))  # np.sum((a - b) ** 2): numpy squares as d * d
             rise = max(lateral_force_n - peak_n, 0.0)
         else:
             change = np.add.reduce((action - prev_action) ** 2, axis=1)
