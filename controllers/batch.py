@@ -8,6 +8,7 @@ episode run in a batch of 64 command identical actions. Units: those of the argu
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from drillgym.envs.constants import ACTION_DIM, FEED_OVERRIDE_LOG2_MAX, MAX_CORRECTION_M
@@ -16,14 +17,24 @@ from drillgym.envs.constants import ACTION_DIM, FEED_OVERRIDE_LOG2_MAX, MAX_CORR
 def matvec(m: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``m @ x`` of every row: ``m`` (3, 3) shared or (N, 3, 3) per row, ``x`` (N, 3); (N, 3).
 
-    Each entry is ``(m[i, 0] x[0] + m[i, 1] x[1]) + m[i, 2] x[2]``, in that order.
+    Each entry is ``(m[i, 0] x[0] + m[i, 1] x[1]) + m[i, 2] x[2]``, in that order (compiled, without fused
+    multiply-adds: the numbers numpy's elementwise expression gives, ``tests/controllers/test_controller_batch.py``).
     """
-    out = np.empty(x.shape)
-    x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
-    for i in range(3):
-        row = m[..., i, :]
-        out[:, i] = row[..., 0] * x0 + row[..., 1] * x1 + row[..., 2] * x2
+    out = np.empty((len(x), 3))
+    mm = np.asarray(m, dtype=np.float64)
+    _matvec_rows(mm if mm.ndim == 3 else mm[None], np.asarray(x, dtype=np.float64), out)
     return out
+
+
+@numba.njit(cache=True)
+def _matvec_rows(m: np.ndarray, x: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover (compiled)
+    """:func:`matvec` into ``out``; ``m`` (1, 3, 3) for a shared matrix or (N, 3, 3)."""
+    shared = m.shape[0] == 1
+    for n in range(x.shape[0]):
+        a = m[0] if shared else m[n]
+        x0, x1, x2 = x[n, 0], x[n, 1], x[n, 2]
+        for i in range(3):
+            out[n, i] = a[i, 0] * x0 + a[i, 1] * x1 + a[i, 2] * x2
 
 
 def unscale_actions(correction_base_m: np.ndarray, feed_scale: np.ndarray | float = 1.0) -> np.ndarray:
@@ -35,7 +46,7 @@ def unscale_actions(correction_base_m: np.ndarray, feed_scale: np.ndarray | floa
     a = np.empty((n, ACTION_DIM))
     a[:, :3] = correction_base_m / MAX_CORRECTION_M
     a[:, 3] = np.log2(np.maximum(feed_scale, 1e-9)) / FEED_OVERRIDE_LOG2_MAX
-    return np.clip(a, -1.0, 1.0).astype(np.float32)
+    return np.minimum(np.maximum(a, -1.0), 1.0).astype(np.float32)  # np.clip(a, -1, 1), without its wrapper
 
 
 def window_mean(window: np.ndarray, step: int) -> np.ndarray:

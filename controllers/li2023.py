@@ -142,7 +142,7 @@ class Li2023Controller(Controller):
         """ΔP = -k_D⁻¹ F_model at the planned depth, lateral, base frame (m): (3,) for a depth, (N, 3) for N."""
         depth = np.asarray(depth_m, dtype=float)
         f_task = np.zeros((depth.size, 3))
-        f_task[:, :2] = self.offline_model.lateral_at(depth.ravel())
+        self.offline_model.lateral_into(depth.ravel(), f_task)
         out = -matvec(self.lateral, matvec(self.R, matvec(self.C_tool, f_task)))
         return out[0] if depth.ndim == 0 else out
 
@@ -189,7 +189,7 @@ class Li2023Controller(Controller):
             y_base = self.R[:, 1]
             along = total[:, 0] * y_base[0] + total[:, 1] * y_base[1] + total[:, 2] * y_base[2]
             total = total + ((cfg.y_gain - 1.0) * along)[:, None] * y_base
-        total = np.clip(total, -cfg.max_correction_m, cfg.max_correction_m)
+        total = np.minimum(np.maximum(total, -cfg.max_correction_m), cfg.max_correction_m)  # np.clip's numbers
         return unscale_actions(total)
 
     def _compensation_point(self, obs: dict[str, np.ndarray], t: float) -> None:

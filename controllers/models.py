@@ -93,6 +93,11 @@ class OfflineForceModel:
         cols = [np.interp(depth_m, self.depth_m, self.lateral_task_n[:, i], left=0.0, right=0.0) for i in range(2)]
         return np.array(cols) if np.ndim(depth_m) == 0 else np.stack(cols, axis=-1)
 
+    def lateral_into(self, depth_m: np.ndarray, out: np.ndarray) -> None:
+        """:meth:`lateral_at` of N depths written into ``out[:, :2]`` (N, >= 2), the same numbers without a copy."""
+        for i in range(2):
+            out[:, i] = np.interp(depth_m, self.depth_m, self.lateral_task_n[:, i], left=0.0, right=0.0)
+
 
 @functools.lru_cache(maxsize=8)
 def _li_model_bone(peak_n: float) -> BonePreset:

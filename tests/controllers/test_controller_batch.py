@@ -68,3 +68,15 @@ def test_matvec_is_the_matrix_product_row_by_row():
     m, per_row, x = rng.normal(size=(3, 3)), rng.normal(size=(4, 3, 3)), rng.normal(size=(4, 3))
     np.testing.assert_allclose(matvec(m, x), x @ m.T, rtol=1e-14)
     np.testing.assert_allclose(matvec(per_row, x), np.einsum("nij,nj->ni", per_row, x), rtol=1e-14)
+
+
+def test_matvec_gives_the_elementwise_sum_in_its_order_bit_for_bit():
+    """``(m0 x0 + m1 x1) + m2 x2`` as numpy evaluates it elementwise: no fused multiply-add, no reordering."""
+    rng = np.random.default_rng(1)
+    for k in range(200):
+        n = int(rng.integers(1, 9))
+        x = rng.normal(size=(n, 3)) * 10.0 ** float(rng.integers(-6, 3))
+        m = rng.normal(size=(3, 3)) if k % 2 else rng.normal(size=(n, 3, 3))
+        rows = m if m.ndim == 3 else np.broadcast_to(m, (n, 3, 3))
+        expected = rows[:, :, 0] * x[:, None, 0] + rows[:, :, 1] * x[:, None, 1] + rows[:, :, 2] * x[:, None, 2]
+        assert np.array_equal(matvec(m, x), expected)
