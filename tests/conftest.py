@@ -13,6 +13,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import pytest
 
 from drillgym import envs  # noqa: F401  (registers the ids)
+from drillgym.controllers.compiled import compile_kernels as compile_controller_kernels
 from drillgym.envs.compiled import compile_kernels
 
 
@@ -20,6 +21,7 @@ def pytest_configure(config):
     """Fill numba's cache once, before the workers start, so that no test (a real-time one least) compiles."""
     if not hasattr(config, "workerinput"):
         compile_kernels()
+        compile_controller_kernels()
 
 
 @pytest.fixture(scope="session", autouse=True)
