@@ -51,8 +51,10 @@ def scale_action(action: np.ndarray) -> tuple[np.ndarray, Any]:
     One action gives a (3,) correction and a float; a batch (N, 4) gives (N, 3) corrections and (N,) scales.
     """
     a = np.asarray(action, dtype=float)
-    if a.ndim == 1:  # a float's power, as cheap as it gets in the single env's step
-        return MAX_CORRECTION_M * a[:3], float(2.0 ** (FEED_OVERRIDE_LOG2_MAX * float(a[3])))
+    if a.ndim == 1:  # Python floats, as cheap as it gets in the single env's step (the same products as numpy's)
+        x0, x1, x2, x3 = a.tolist()
+        m = MAX_CORRECTION_M
+        return np.array([m * x0, m * x1, m * x2]), float(2.0 ** (FEED_OVERRIDE_LOG2_MAX * x3))
     return MAX_CORRECTION_M * a[:, :3], 2.0 ** (FEED_OVERRIDE_LOG2_MAX * a[:, 3])
 
 

@@ -52,9 +52,11 @@ class RewardWeights:
         Floats for one episode; for a batch (``action`` of shape (N, 4), the others of shape (N,)), arrays
         with one entry per episode.
         """
-        if action.ndim == 1:
-            d = action - prev_action
-            change = float(np.add.reduce(d * d))  # np.sum((a - b) ** 2): numpy squares as d * d
+        if action.ndim == 1:  # np.sum((a - b) ** 2) in Python floats: numpy adds four terms in order
+            a0, a1, a2, a3 = action.tolist()
+            p0, p1, p2, p3 = prev_action.tolist()
+            d0, d1, d2, d3 = a0 - p0, a1 - p1, a2 - p2, a3 - p3
+            change = d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3
             rise = max(lateral_force_n - peak_n, 0.0)
         else:
             change = np.add.reduce((action - prev_action) ** 2, axis=1)

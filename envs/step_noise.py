@@ -38,12 +38,10 @@ def draw_noise(
     The F/T's (5x6) if it is noisy, then the tracker's (3) if it is noisy and its sample is new, one after the
     other from ``noise[0]`` on, as the compiled step reads them from ``noise_at`` = 0.
     """
-    at = 0
-    if ft_noisy:
-        at = 6 * SUBSTEPS_PER_STEP
-        rng.standard_normal(out=noise[:at])
-    if tracker_noisy and tracker_new:
-        rng.standard_normal(out=noise[at : at + 3])
+    at = 6 * SUBSTEPS_PER_STEP if ft_noisy else 0
+    end = at + 3 if tracker_noisy and tracker_new else at
+    if end:  # one draw: NumPy's normals are the same however the stream is cut into draws
+        rng.standard_normal(out=noise[:end])
 
 
 def noisy_sensors(p: np.void) -> tuple[bool, bool]:
