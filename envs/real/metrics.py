@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from drillgym.envs.metrics import EpisodeRecorder, episode_metrics, moving_average
+from drillgym.envs.metrics import EpisodeRecorder, RecordedChannels, episode_metrics, moving_average
 
 CONTACT_FORCE_N = 0.3
 """Contact when the 50 ms mean F/T force magnitude exceeds this (N): 15x the Mini40's noise, well under
@@ -43,12 +43,12 @@ def contact_flags(force_n: np.ndarray, previous_force_n: np.ndarray | None = Non
     return [int(v > CONTACT_FORCE_N) for v in mean]
 
 
-def cell_metrics(rec: EpisodeRecorder, entry_depth_m: float, depth_m: float) -> dict[str, float]:
+def cell_metrics(rec: RecordedChannels, entry_depth_m: float, depth_m: float) -> dict[str, float]:
     """Metrics of ``rec`` as a real cell computes them (F/T contact, no true tip), sim or real alike."""
     observable = EpisodeRecorder(
         t_s=list(rec.t_s),
         phase=list(rec.phase),
-        stage=contact_flags(np.asarray(rec.ft_force_n)) if rec.ft_force_n else [],
+        stage=contact_flags(np.asarray(rec.ft_force_n)) if len(rec.ft_force_n) else [],
         depth_cmd_m=list(rec.depth_cmd_m),
         deviation_m=[math.nan] * len(rec.t_s),
         ft_force_n=list(rec.ft_force_n),

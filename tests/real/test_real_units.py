@@ -166,6 +166,22 @@ def test_contact_flags_online_equal_batch_and_metrics_skip_true_tip():
     assert m["drill_time_s"] < 0.4  # from F/T contact (sample 20 on), not from the recorded stage
 
 
+def test_cell_metrics_of_a_simulated_episode_read_its_record_as_the_real_cells_lists():
+    """The sim's recorder (array channels) gives the metrics its channels give as the real cell's list recorder."""
+    from drillgym.envs.drill_env import UR5BoneDrillEnv
+
+    env = UR5BoneDrillEnv(pybullet_world=False)
+    env.reset(seed=0)
+    for _ in range(120):
+        env.step(np.zeros(4, np.float32))
+    rec, sc = env.recorder, env.scenario
+    lists = EpisodeRecorder(**{k: list(v) for k, v in rec.channels().items()})
+    sim, real = (cell_metrics(r, sc.entry_depth_m, sc.depth_m) for r in (rec, lists))
+    assert sim.keys() == real.keys()
+    assert all(sim[k] == real[k] or (math.isnan(sim[k]) and math.isnan(real[k])) for k in sim)
+    assert not math.isnan(sim["thrust_max_n"])  # the F/T contact was found
+
+
 def test_rtde_package_reader_reassembles_a_split_stream():
     stream = pack(ord("V"), b"\x00\x02") + pack(ord("v")) + pack(ord("U"), b"\x01" + bytes(20))
     reader = PackageReader()
