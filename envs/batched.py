@@ -25,6 +25,7 @@ Per step, ``infos`` holds ``t_s``, ``phase``, ``deviation_m`` (the true tip's, p
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Mapping
 from types import SimpleNamespace
 from typing import Any
@@ -130,6 +131,8 @@ class BatchedDrillEnv(VectorEnv):
         self.active = np.zeros(n, dtype=bool)
         """Which episodes are running (all after :meth:`reset`; with ``autoreset=False`` an ended one drops out)."""
         self._ready = False
+        self.kernel_s = 0.0
+        """Wall seconds spent in the compiled step since construction (the physics; the rest of a step is Python)."""
 
     # ------------------------------------------------------------------ episodes
     def _reset_one(self, i: int, seed: int | None) -> None:
@@ -228,7 +231,9 @@ class BatchedDrillEnv(VectorEnv):
         st, running = self.state, self.active.copy()
         for i in np.flatnonzero(running & (st["noise_at"] > self.noise.shape[1] - NOISE_SIZE)).tolist():
             self._fill_noise(i)
+        t0 = time.perf_counter()
         sk.advance_batch(*self.arrays, self.command, self.noise, self.record, self.recorded, running)
+        self.kernel_s += time.perf_counter() - t0
         if st["singular"].any():
             i = int(np.argmax(st["singular"]))
             raise np.linalg.LinAlgError(f"episode {i}: singular TCP Jacobian at q = {st['q_motor_rad'][i]}")

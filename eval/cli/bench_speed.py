@@ -110,7 +110,9 @@ def _print(result: dict[str, Any], specs: tuple[str, ...]) -> None:
         for n, r in b["batched"].items():
             print(
                 f"  batched, N = {n:4s}  {r['episodes_per_s_median']:7.1f}   "
-                f"{r['speedup_over_single_median']:.1f}x the single env"
+                f"{r['speedup_over_single_median']:.1f}x the single env "
+                f"(compiled step {r['kernel_us_per_episode_step_median']:.1f} us per episode-step; "
+                f"{r['kernel_only_speedup_ceiling_median']:.1f}x if the rest were free)"
             )
     if "rollouts" in result:
         r = result["rollouts"]

@@ -163,21 +163,26 @@ def _single_env_steps_per_s(seconds: float) -> tuple[float, float]:
     return steps / dt, steps / episodes
 
 
-def _batched_steps_per_s(num_envs: int, seconds: float) -> float:
-    """Zero-action episode-steps per second of a :class:`~drillgym.envs.batched.BatchedDrillEnv` of ``num_envs``."""
+def _batched_steps_per_s(num_envs: int, seconds: float) -> tuple[float, float]:
+    """Zero-action episode-steps per second of a :class:`~drillgym.envs.batched.BatchedDrillEnv` of ``num_envs``.
+
+    Also the share of the wall time spent in its compiled step (:attr:`~drillgym.envs.batched.BatchedDrillEnv.kernel_s`).
+    """
     env = BatchedDrillEnv(num_envs)
     env.reset(seed=0)
     actions = np.zeros((num_envs, 4), dtype=np.float32)
     for _ in range(20):
         env.step(actions)
     steps = 0
+    kernel0 = env.kernel_s
     t0 = time.perf_counter()
     while time.perf_counter() - t0 < seconds:
         env.step(actions)
         steps += 1
     dt = time.perf_counter() - t0
+    kernel_share = (env.kernel_s - kernel0) / dt
     env.close()
-    return steps * num_envs / dt
+    return steps * num_envs / dt, kernel_share
 
 
 def batched_throughput(sizes: tuple[int, ...] = (1, 16, 64), seconds: float = 3.0, runs: int = 3) -> dict[str, Any]:
@@ -185,19 +190,25 @@ def batched_throughput(sizes: tuple[int, ...] = (1, 16, 64), seconds: float = 3.
 
     Each of ``runs`` rounds times the single env, then each batch size, for ``seconds`` each (ended
     episodes are reset inside the batch, so resets count); reported: the medians and each batch's
-    speed-up over the single env of its own round.
+    speed-up over the single env of its own round, the compiled step's time per episode-step, and the speed-up the
+    batch would reach if everything but the compiled step were free (its speed-up over the compiled step's share).
     """
     single: list[float] = []
     per_size: dict[int, list[float]] = {n: [] for n in sizes}
     ratio: dict[int, list[float]] = {n: [] for n in sizes}
+    ceiling: dict[int, list[float]] = {n: [] for n in sizes}
+    kernel_us: dict[int, list[float]] = {n: [] for n in sizes}
     steps_per_episode = 0.0
     for _ in range(runs):
         s, steps_per_episode = _single_env_steps_per_s(seconds)
         single.append(s / steps_per_episode)
         for n in sizes:
-            b = _batched_steps_per_s(n, seconds) / steps_per_episode
+            steps_per_s, kernel_share = _batched_steps_per_s(n, seconds)
+            b = steps_per_s / steps_per_episode
             per_size[n].append(b)
             ratio[n].append(b / single[-1])
+            kernel_us[n].append(kernel_share / steps_per_s * 1e6)  # compiled step's µs per episode-step
+            ceiling[n].append(ratio[n][-1] / kernel_share)  # the speed-up with the Python around it free
     return {
         "steps_per_episode": steps_per_episode,
         "single_env_episodes_per_s_median": statistics.median(single),
@@ -206,6 +217,8 @@ def batched_throughput(sizes: tuple[int, ...] = (1, 16, 64), seconds: float = 3.
                 "episodes_per_s_median": statistics.median(per_size[n]),
                 "speedup_over_single_median": statistics.median(ratio[n]),
                 "speedup_runs": ratio[n],
+                "kernel_us_per_episode_step_median": statistics.median(kernel_us[n]),
+                "kernel_only_speedup_ceiling_median": statistics.median(ceiling[n]),
             }
             for n in sizes
         },

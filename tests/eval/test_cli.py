@@ -32,6 +32,9 @@ def test_bench_speed_json_reports_a_real_time_factor(capsys):
     assert batched["single_env_episodes_per_s_median"] > 0
     assert set(batched["batched"]) == {"1", "4"}
     assert all(b["episodes_per_s_median"] > 0 for b in batched["batched"].values())
+    for b in batched["batched"].values():  # the compiled step is part of the step: its ceiling lies above the speed-up
+        assert b["kernel_us_per_episode_step_median"] > 0
+        assert b["kernel_only_speedup_ceiling_median"] > b["speedup_over_single_median"]
     rollouts = result["rollouts"]
     assert rollouts["seeds"] == 2 and len(rollouts["none"]["speedup_runs"]) == 3
     assert rollouts["none"]["batched_episodes_per_s_median"] > 0
