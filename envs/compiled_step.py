@@ -90,13 +90,23 @@ class CompiledEpisode:
         self.command = np.zeros((1, 4))
         self.active = np.ones(1, dtype=bool)
         self._tracking = np.zeros(1, dtype=bool)
+        self._reattach = False
         self.v: Any = None
         """The scalars a step reads back, after the last step, as Python numbers (:data:`StepScalars`)."""
 
     def start(self) -> None:
         """Build the records from the env's objects and let those read their fields from the state."""
-        env = self.env
-        self.arrays = episode_arrays(env)
+        self.arrays = episode_arrays(self.env)
+        self._views()
+        self._noisy = noisy_sensors(self.p)
+        self._c_tool = self.env.cell.C_tool
+        self._moves_links = bool(self.p["backlash_half_rad"] > 0.0)  # joint backlash moves the tool and the marker
+        self.v = StepScalars._make(self._step_scalars[0].item())
+        self.started = True
+        self._attach()
+
+    def _views(self) -> None:
+        """The record views the step reads (rebuilt after a copy: a pickled view is an array of its own)."""
         self.state, self.pend = self.arrays.state, self.arrays.pend[0]
         self.s, self.p = self.state[0], self.arrays.params[0]
         self._scalars = self.state.view(STATE_SCALARS)
@@ -104,11 +114,10 @@ class CompiledEpisode:
         self._noise_at = self.state["noise_at"]
         self._arr = {f.name: self.state[f.name][0] for f in STATE_FIELDS if f.shape}
         """Episode 0's array fields as plain array views (faster to read than the record's fields)."""
-        self._noisy = noisy_sensors(self.p)
-        self._c_tool = env.cell.C_tool
-        self._moves_links = bool(self.p["backlash_half_rad"] > 0.0)  # joint backlash moves the tool and the marker
-        self.v = StepScalars._make(self._step_scalars[0].item())
-        self.started = True
+
+    def _attach(self) -> None:
+        """Let the env's objects read their fields from the state."""
+        env = self.env
         self._objects: tuple[tuple[ReadThrough, Reader], ...] = (
             (env, self._reading(self._env_fields)),
             (env.path, self._reading(self._path_fields)),
@@ -121,16 +130,39 @@ class CompiledEpisode:
 
     def release(self) -> None:
         """Put every field back into the env's objects (before the next ``reset`` changes them)."""
-        if self.started:
+        if self.started and not self._reattach:  # (a restored copy's objects hold their fields already)
             for obj, _ in self._objects:
                 detach(obj)
-            self.started = False
+        self.started = self._reattach = False
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The arrays and the scalars; not the views of them nor the objects' readers (rebuilt on restore)."""
+        derived = {"state", "pend", "s", "p", "_scalars", "_step_scalars", "_noise_at", "_arr", "_objects"}
+        return {k: v for k, v in self.__dict__.items() if k not in derived}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Restore a copy: its views of its own arrays, and its objects read through once it steps again."""
+        self.__dict__.update(state)
+        if self.started:
+            self._views()
+            self._reattach = True  # the copied objects hold a snapshot of the state until then
+
+    def _restored(self) -> None:
+        """A restored copy's first step: the kernel cuts its own cell's hole again, and the objects read through."""
+        hole = self.env.cell.hole  # the copy's hole holds what the arrays held when copied
+        self.arrays = self.arrays._replace(
+            centre=hole.centre_xy_m[None], filled=hole.filled[None], bins=hole.bins[None]
+        )
+        self._reattach = False
+        self._attach()
 
     # ------------------------------------------------------------------ stepping
     def step(self, correction_base_m: np.ndarray, feed_scale: float) -> None:
         """Advance the episode by one agent step of the command; its sample rows go to the env's record."""
         if not self.started:
             self.start()
+        elif self._reattach:
+            self._restored()
         env, v = self.env, self.v
         cmd = self.command
         cmd[0, :3] = correction_base_m
@@ -152,6 +184,8 @@ class CompiledEpisode:
             raise ValueError("an open-loop call draws no noise: the episode's sensors must be noiseless")
         if not self.started:
             self.start()
+        elif self._reattach:
+            self._restored()
         n = len(commands)
         out = np.empty((SUBSTEPS_PER_STEP * n, OUT_COLUMNS))
         q = np.full((n, 6), math.nan)

@@ -35,6 +35,19 @@ class ReadThrough:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         return d[name]
 
+    def __getstate__(self) -> dict[str, Any]:
+        """A snapshot for pickle and ``copy``: every field as the state holds it now, and no reader.
+
+        Without it a deep copy would keep reading the original episode's state, and pickle would meet a closure.
+        """
+        d = dict(self.__dict__)
+        reader = d.pop("_state_reader", None)
+        d.pop("_state_read", None)
+        if reader is not None:
+            for key, value in reader().items():
+                d.setdefault(key, value)
+        return d
+
 
 def attach(obj: ReadThrough, reader: Reader) -> None:
     """From now on ``obj``'s fields (those ``reader`` returns) are read from the state."""

@@ -125,3 +125,31 @@ def test_read_through_reads_once_per_step_and_a_write_wins() -> None:
     assert vars(obj)["x"] == 9.0 and "_state_reader" not in vars(obj)
     with pytest.raises(AttributeError):
         _ = obj.missing
+
+
+@pytest.mark.parametrize("how", ["deepcopy", "pickle"])
+def test_a_copy_taken_mid_episode_goes_on_as_the_original_and_apart_from_it(how: str) -> None:
+    """A deep copy or a pickled env continues the episode exactly as the original does, each on its own state."""
+    import copy
+    import pickle
+
+    from drillgym.envs.drill_env import UR5BoneDrillEnv
+
+    env = UR5BoneDrillEnv(pybullet_world=False)
+    env.reset(seed=5)
+    actions = _random_actions(2)
+    for k in range(40):
+        env.step(actions[k])
+    held_cell = copy.deepcopy(env.cell)  # a snapshot, not a view of the live episode
+    q_then = env.cell.q_motor_rad.copy()
+    twin = copy.deepcopy(env) if how == "deepcopy" else pickle.loads(pickle.dumps(env))
+    for k in range(40, 4000):
+        out, out_twin = env.step(actions[k]), twin.step(actions[k])
+        for key in out[0]:
+            assert np.array_equal(out[0][key], out_twin[0][key]), (k, key)
+        assert out[1:4] == out_twin[1:4], k
+        if out[2] or out[3]:
+            break
+    assert out[4]["metrics"] == out_twin[4]["metrics"]
+    _assert_close(_fields(env), _fields(twin), "after the episode")
+    assert np.array_equal(held_cell.q_motor_rad, q_then) and not np.array_equal(env.cell.q_motor_rad, q_then)
