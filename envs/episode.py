@@ -139,16 +139,13 @@ class DrillEpisode(ReadThrough):
 
     def _advance(self, a: np.ndarray, caller: str) -> tuple[bool, bool]:
         """One agent step of physics for a checked action ``a``; sets ``step_deviation_m`` and ``step_lateral_n``."""
-        kernel = self._kernel
-        if kernel is not None:  # no effects, or only compiled ones (Effect.compiled): one compiled call
-            if kernel.started and kernel.ended:
-                raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
-            corr, scale = scale_action(a)
-            kernel.step(corr, scale)
-            return self._ended()
-        if self.path.phase == Phase.DONE or self.failure is not None:
+        if self._ended_already():
             raise RuntimeError(f"{caller}() called after the episode ended; call reset()")
         corr, scale = scale_action(a)
+        kernel = self._kernel
+        if kernel is not None:  # no effects, or only compiled ones (Effect.compiled): one compiled call
+            kernel.step(corr, scale)
+            return self._ended()
         return python_step.advance(self, corr, scale)
 
     def advance_open_loop(self, actions: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:

@@ -27,10 +27,7 @@ class ReadThrough:
         reader = d.get("_state_reader")
         if reader is None or name.startswith("__"):
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-        values = reader()
-        for key, value in values.items():
-            d.setdefault(key, value)  # a field written since the step keeps its value
-        d["_state_read"] = tuple(values)
+        d["_state_read"] = _fill(d, reader)
         if name not in d:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         return d[name]
@@ -44,8 +41,7 @@ class ReadThrough:
         reader = d.pop("_state_reader", None)
         d.pop("_state_read", None)
         if reader is not None:
-            for key, value in reader().items():
-                d.setdefault(key, value)
+            _fill(d, reader)
         return d
 
 
@@ -72,5 +68,12 @@ def detach(obj: ReadThrough) -> None:
     reader = d.pop("_state_reader", None)
     d.pop("_state_read", None)
     if reader is not None:
-        for key, value in reader().items():
-            d.setdefault(key, value)
+        _fill(d, reader)
+
+
+def _fill(d: dict[str, Any], reader: Reader) -> tuple[str, ...]:
+    """The fields ``reader`` returns into the instance dict ``d``, but those written since the step; their names."""
+    values = reader()
+    for key, value in values.items():
+        d.setdefault(key, value)
+    return tuple(values)

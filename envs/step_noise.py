@@ -7,7 +7,6 @@ reads them from a buffer (``noise``) that :func:`draw_noise` fills; the batched 
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -25,8 +24,6 @@ def tracker_sample_is_new(t_s: Any, stamp_s: Any) -> Any:
     """
     for _ in range(SUBSTEPS_PER_STEP):
         t_s = t_s + PHYSICS_DT_S
-    if isinstance(t_s, float):  # one episode: math's floor, the same number as numpy's, cheaper on a float
-        return math.floor(t_s * TRACKER_RATE_HZ + 1e-9) / TRACKER_RATE_HZ != stamp_s
     return np.floor(t_s * TRACKER_RATE_HZ + 1e-9) / TRACKER_RATE_HZ != stamp_s  # sensors.latest_sample_time_s
 
 
