@@ -1,7 +1,9 @@
 """Controller specs: ``name[:field=value,...]`` -> a configured controller.
 
 Every spec also takes the slow-entry fields (:data:`drillgym.controllers.feed_schedule.SCHEDULE_FIELDS`), which
-put an entry feed schedule on top of the controller, and a name may be a preset (:data:`PRESETS`): a
+put an entry feed schedule on top of the controller, and the contact-registration fields
+(:data:`drillgym.controllers.contact_registration.REGISTRATION_FIELDS`), which re-index it at the measured contact;
+a name may be a preset (:data:`PRESETS`): a
 named spec whose fields a user's own fields override.
 """
 
@@ -16,6 +18,7 @@ from types import MappingProxyType
 from typing import Any
 
 from drillgym.controllers.base import Controller
+from drillgym.controllers.contact_registration import REGISTRATION_FIELDS, ContactRegistered, ContactRegistration
 from drillgym.controllers.feed_schedule import SCHEDULE_FIELDS, EntryFeedSchedule, SlowEntry
 from drillgym.controllers.li2023 import Li2023Config, Li2023Controller
 from drillgym.controllers.li2023_cmrr import Li2023CmrrConfig, Li2023CmrrController
@@ -35,6 +38,7 @@ CONTROLLERS: dict[str, tuple[Callable[[Any], Controller], type]] = {
 PRESETS: dict[str, str] = {
     "li2023_slow_entry": "li2023:kp=3,entry_feed_scale=0.4,entry_depth_mm=1",
     "li2023_tuned": "li2023:kp=3,y_gain=1.3,entry_feed_scale=0.45,entry_depth_mm=1.25",
+    "li2023_registered": "li2023:kp=3,y_gain=1.3,entry_feed_scale=0.45,entry_depth_mm=1.25,register_contact=1",
 }
 """Named specs, each tuned on the paper and sweep suites only (``docs/controllers.md``, ``drillgym tune-entry``).
 ``li2023_slow_entry``: li2023 with a slow entry and its proportional gain tuned together (round 2).
@@ -120,11 +124,16 @@ def make_controller(spec: str) -> Controller:
         )
     cls, cfg_cls = CONTROLLERS[name]
     schedule = {k: overrides.pop(k) for k in SCHEDULE_FIELDS if k in overrides}
-    controller = cls(_build(name, cfg_cls, overrides))
+    registration = {k: overrides.pop(k) for k in REGISTRATION_FIELDS if k in overrides}
+    controller: Controller = cls(_build(name, cfg_cls, overrides))
     if schedule:
         entry = _build(name, EntryFeedSchedule, schedule)
         if entry.active:
-            return SlowEntry(controller, entry)
+            controller = SlowEntry(controller, entry)
+    if registration:
+        contact = _build(name, ContactRegistration, registration)
+        if contact.register_contact:
+            controller = ContactRegistered(controller, contact)
     return controller
 
 
@@ -134,7 +143,9 @@ def _build(name: str, cfg_cls: type, overrides: dict[str, str]) -> Any:
     kwargs = {}
     for key, raw in overrides.items():
         if key not in fields:
-            raise UserError(f"{name} has no parameter {key!r}; parameters: {sorted([*fields, *SCHEDULE_FIELDS])}")
+            raise UserError(
+                f"{name} has no parameter {key!r}; parameters: {sorted([*fields, *SCHEDULE_FIELDS, *REGISTRATION_FIELDS])}"
+            )
         try:
             kwargs[key] = convert(key, raw, fields[key].type)
         except ValueError as e:
