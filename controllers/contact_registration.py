@@ -30,13 +30,17 @@ within a few hundredths of a millimetre of contact. Registration:
   it starts afresh. A short tool's hole is Δl shallower, as without registration: reaching the planned depth
   would take an axial correction that cuts at the servo's speed.
 
-The tracker cannot see this (its marker is on the spindle) and neither can the joints. What it cannot fix: the
-drill's stiffness, which changes with the cube of the stick-out, stays the base's model of the planned tool.
+* **Re-plan** the base for the tool found (``replan_tool``): at a registered offset it is given the plan with the
+  stick-out and TCP offset + δ, so its model of the drill's bending (with the cube of the stick-out) and of the
+  arm's lever are the real tool's, and starts afresh at the contact.
+
+The tracker cannot see this (its marker is on the spindle) and neither can the joints.
 Units SI; the correction in the base frame.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -54,6 +58,7 @@ REGISTRATION_FIELDS = (
     "contact_dead_band_mm",
     "contact_backoff_mm",
     "air_feed_scale",
+    "replan_tool",
     "point_angle_deg",
 )
 """Spec fields every controller accepts (they build a :class:`ContactRegistration`)."""
@@ -78,6 +83,9 @@ class ContactRegistration:
     air_feed_scale: float = 1.0
     """Feed multiplier once the path is past the expected contact with nothing touched (a short tool drilling
     air): the base's own slow entry waits for the bone; 1 feeds at the plan's feed until contact."""
+    replan_tool: bool = True
+    """At a registered offset, give the base the plan of the tool found: stick-out and TCP offset + δ (its models
+    of the drill's bending, ``3EI/l³``, and of the arm's lever), and let it start afresh at the contact."""
     point_angle_deg: float = 118.0
     """The drill's full point angle (deg), as measured on the bench: where on the lips the tool first touches."""
 
@@ -131,7 +139,7 @@ class ContactRegistered(Controller):
         super().__init__()
         self.base = base
         self.registration = registration
-        self.config = base.config
+        self.config = getattr(base, "config", None)
 
     def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
         """The base gets the plan too; the expected contact and the drill axis come from it."""
@@ -179,11 +187,18 @@ class ContactRegistered(Controller):
         return action
 
     def _register(self, depth_m: float) -> None:
-        """The contact at nominal depth ``depth_m``: the tool's offset; a base that waited in air starts afresh."""
+        """The contact at nominal depth ``depth_m``: the tool's offset; the base starts afresh, for the tool found."""
         offset = self.expected_m - depth_m
         self.offset_m = 0.0 if abs(offset) < self.registration.contact_dead_band_mm * 1e-3 else offset
         self.contact_depth_m = depth_m
-        if self.in_air:  # what its loops saw in the air was no drilling: forget it
+        if self.registration.replan_tool and self.offset_m != 0.0 and self.plan is not None:
+            found = dataclasses.replace(
+                self.plan,
+                stickout_m=self.plan.stickout_m + self.offset_m,
+                tcp_offset_m=self.plan.tcp_offset_m + self.offset_m,
+            )
+            self.base.set_plan(found, self.num_episodes)  # its models of the drill and the arm, for the tool found
+        elif self.in_air:  # what its loops saw in the air was no drilling: forget it
             self.base.reset()
 
     def describe(self) -> dict[str, Any]:

@@ -52,7 +52,10 @@ BEST_CLASSICAL = "li2023_tuned"
 LOADER_GROUP = "drillgym.controllers"
 """Entry-point group of third-party controller loaders: ``NAME = "module:function"``, where ``function(rest)``
 builds the controller of the spec ``NAME:rest`` (the text after the colon, unparsed)."""
-BUILTIN_LOADERS: dict[str, str] = {"table": "drillgym.controllers.schedule_table:load_table_controller"}
+BUILTIN_LOADERS: dict[str, str] = {
+    "table": "drillgym.controllers.schedule_table:load_table_controller",
+    "registered": "drillgym.controllers.registry:load_registered_controller",
+}
 """Loaders of this package, ``name -> "module:function"`` (imported when a spec uses them)."""
 NEEDS_IMPORT: dict[str, str] = {"residual": "drillgym.training"}
 """Loaders that a package registers when it is imported (:func:`register_loader`), named in the error when a spec
@@ -154,3 +157,17 @@ def _build(name: str, cfg_cls: type, overrides: dict[str, str]) -> Any:
         return cfg_cls(**kwargs)
     except ValueError as e:
         raise UserError(f"{name}: {e}") from e
+
+
+def load_registered_controller(rest: str) -> ContactRegistered:
+    """``registered:SPEC`` -> the controller of ``SPEC`` with contact registration (its default fields) on top.
+
+    For the families whose spec takes no fields (``residual:PATH``, ``table:PATH``); a field spec takes
+    ``register_contact=1`` instead (:func:`drillgym.controllers.make_controller`).
+    """
+    if not rest.strip():
+        raise UserError("registered: needs the controller to register, e.g. registered:residual:shipped")
+    base = make_controller(rest)
+    if isinstance(base, ContactRegistered):
+        raise UserError(f"{rest!r} already registers its contact")
+    return ContactRegistered(base, ContactRegistration(register_contact=True))

@@ -64,8 +64,8 @@ def test_registration_estimates_the_tool_offset_and_drills_the_hole_far_closer_t
         if isinstance(controller, ContactRegistered):
             # resolution: one agent step of the path at contact (0.1 mm in the approach, 0.025 mm at the feed)
             assert controller.offset_m * 1e3 == pytest.approx(dl_mm, abs=0.1)
-    # measured on these seeds: -1 mm 0.275 -> 0.033 mm, +1 mm 0.469 -> 0.077 mm
-    assert deviation["li2023_registered"] < 0.3 * deviation["li2023_tuned"]
+    # measured on these seeds: -1 mm 0.284 -> 0.035 mm, +1 mm 0.476 -> 0.044 mm
+    assert deviation["li2023_registered"] < 0.25 * deviation["li2023_tuned"]
 
 
 def test_a_long_tool_is_held_so_the_hole_ends_at_the_planned_depth():
@@ -114,3 +114,20 @@ def test_bad_registration_fields_raise_a_clear_error(fields, message):
 def test_register_contact_off_builds_the_plain_controller():
     assert not isinstance(make_controller("li2023:register_contact=0,contact_threshold_n=1"), ContactRegistered)
     assert isinstance(make_controller("none:register_contact=1"), ContactRegistered)
+
+
+def test_registered_prefix_wraps_a_spec_that_takes_no_fields():
+    wrapped = make_controller("registered:li2023_tuned")
+    assert isinstance(wrapped, ContactRegistered)
+    assert wrapped.describe()["config"]["register_contact"] is True
+    np.testing.assert_array_equal(
+        _episode_actions("registered:li2023_tuned", SEEDS[1]), _episode_actions("li2023_registered", SEEDS[1])
+    )
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"), [("registered:", "needs the controller"), ("registered:li2023_registered", "already")]
+)
+def test_registered_prefix_refuses_nothing_or_a_registered_controller(spec, message):
+    with pytest.raises(UserError, match=message):
+        make_controller(spec)
