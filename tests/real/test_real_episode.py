@@ -100,9 +100,10 @@ def _within_sim_spread(real, spec, specimen_seed, tolerances):
 
 
 def _real_run(start_emulator, tmp_path, spec, seed=0):
+    """One episode of ``spec`` (a controller spec, or a controller) through the emulator; its cell metrics and truth."""
     emu = start_emulator(seed=seed)
     env = make_real_env(emu, safety_limits=CI_LIMITS)
-    controller = make_controller(spec)
+    controller = make_controller(spec) if isinstance(spec, str) else spec
     log = tmp_path / "real.parquet"
     logger = EpisodeLogger(env, log, build_header(env, controller.describe(), seed, source="real"))
     try:
@@ -147,6 +148,18 @@ def test_residual_policy_drills_through_the_real_backend_like_in_sim(start_emula
     slowing_s = sim["drill_time_s"] - base["drill_time_s"]
     if slowing_s > 0.5:  # a policy that slows li2023's feed in sim slows it through the real backend too
         assert real["drill_time_s"] >= base["drill_time_s"] + 0.5 * slowing_s, (real["drill_time_s"], sim)
+
+
+def test_contact_registration_finds_the_tool_where_the_plan_says_through_the_real_backend(start_emulator, tmp_path):
+    """The emulated cell's tool is the planned one: the thrust of the real F/T stream must say so (no offset, no
+    hold, no waiting in the air), and the registered controller then drills as ``li2023_tuned`` does in sim."""
+    controller = make_controller("li2023_registered")
+    real = _real_run(start_emulator, tmp_path, controller)
+    assert controller.contact and controller.offset_m == 0.0 and controller.hold_m == 0.0 and not controller.in_air
+    sim = _sim_metrics("li2023_tuned", 0)
+    for name, (rel, abs_) in RESIDUAL_TOL.items():
+        assert abs(real[name] - sim[name]) <= max(rel * abs(sim[name]), abs_), (name, real[name], sim[name])
+    assert real["truth_deviation_mean_mm"] <= 0.5 * _sim_metrics("none", 0)["truth_deviation_mean_mm"], real
 
 
 def test_dry_run_streams_nothing_and_logs_what_it_would_send(start_emulator, tmp_path):
