@@ -51,17 +51,7 @@ from drillgym.controllers.base import Controller
 from drillgym.envs.constants import FEED_OVERRIDE_LOG2_MAX, MAX_CORRECTION_M
 from drillgym.envs.errors import UserError
 from drillgym.envs.plan import DrillPlan
-
-REGISTRATION_FIELDS = (
-    "register_contact",
-    "contact_threshold_n",
-    "contact_dead_band_mm",
-    "contact_backoff_mm",
-    "air_feed_scale",
-    "replan_tool",
-    "point_angle_deg",
-)
-"""Spec fields every controller accepts (they build a :class:`ContactRegistration`)."""
+from drillgym.envs.real.metrics import CONTACT_FORCE_N
 
 
 @dataclass
@@ -70,9 +60,9 @@ class ContactRegistration:
 
     register_contact: bool = False
     """Register the contact (detect it from the thrust, hold an early tool, re-index the base)."""
-    contact_threshold_n: float = 0.3
-    """Axial force of one F/T sample that counts as contact (N): 15 times the F/T noise, reached within about a
-    tenth of a millimetre of cutting."""
+    contact_threshold_n: float = CONTACT_FORCE_N
+    """Axial force of one F/T sample that counts as contact (N): the real cell's contact force, 15 times the F/T
+    noise, reached within about a tenth of a millimetre of cutting."""
     contact_dead_band_mm: float = 0.1
     """Offsets below this are taken as none (mm): one approach step's travel, the detection's resolution, twice the
     spread of the thrust's build-up (:func:`expected_contact_depth_m`)."""
@@ -90,16 +80,22 @@ class ContactRegistration:
     """The drill's full point angle (deg), as measured on the bench: where on the lips the tool first touches."""
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.contact_threshold_n) and 0.01 <= self.contact_threshold_n <= 50.0):
-            raise UserError(f"contact_threshold_n={self.contact_threshold_n} must be in [0.01, 50] N")
-        if not (math.isfinite(self.contact_dead_band_mm) and 0.0 <= self.contact_dead_band_mm <= 2.0):
-            raise UserError(f"contact_dead_band_mm={self.contact_dead_band_mm} must be in [0, 2] mm")
-        if not (math.isfinite(self.contact_backoff_mm) and 0.0 <= self.contact_backoff_mm <= 1.0):
-            raise UserError(f"contact_backoff_mm={self.contact_backoff_mm} must be in [0, 1] mm")
-        if not (math.isfinite(self.air_feed_scale) and 0.25 <= self.air_feed_scale <= 1.0):
-            raise UserError(f"air_feed_scale={self.air_feed_scale} must be in [0.25, 1] (never faster than the plan)")
-        if not (math.isfinite(self.point_angle_deg) and 60.0 <= self.point_angle_deg <= 180.0):
-            raise UserError(f"point_angle_deg={self.point_angle_deg} must be in [60, 180] deg")
+        for name, (lo, hi, unit) in _BOUNDS.items():
+            value = getattr(self, name)
+            if not (math.isfinite(value) and lo <= value <= hi):
+                raise UserError(f"{name}={value} must be in [{lo:g}, {hi:g}] {unit}")
+
+
+_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "contact_threshold_n": (0.01, 50.0, "N"),
+    "contact_dead_band_mm": (0.0, 2.0, "mm"),
+    "contact_backoff_mm": (0.0, 1.0, "mm"),
+    "air_feed_scale": (0.25, 1.0, "(never faster than the plan)"),
+    "point_angle_deg": (60.0, 180.0, "deg"),
+}
+"""The numeric fields' allowed ranges and what the error adds after them."""
+REGISTRATION_FIELDS = tuple(f.name for f in dataclasses.fields(ContactRegistration))
+"""Spec fields every controller accepts (they build a :class:`ContactRegistration`)."""
 
 
 def first_touch_depth_m(plan: DrillPlan, point_angle_deg: float = 118.0) -> float:

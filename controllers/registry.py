@@ -35,15 +35,17 @@ CONTROLLERS: dict[str, tuple[Callable[[Any], Controller], type]] = {
 }
 """name -> (class, config dataclass)."""
 
+_TUNED = "li2023:kp=3,y_gain=1.3,entry_feed_scale=0.45,entry_depth_mm=1.25"
 PRESETS: dict[str, str] = {
     "li2023_slow_entry": "li2023:kp=3,entry_feed_scale=0.4,entry_depth_mm=1",
-    "li2023_tuned": "li2023:kp=3,y_gain=1.3,entry_feed_scale=0.45,entry_depth_mm=1.25",
-    "li2023_registered": "li2023:kp=3,y_gain=1.3,entry_feed_scale=0.45,entry_depth_mm=1.25,register_contact=1",
+    "li2023_tuned": _TUNED,
+    "li2023_registered": _TUNED + ",register_contact=1",
 }
 """Named specs, each tuned on the paper and sweep suites only (``docs/controllers.md``, ``drillgym tune-entry``).
 ``li2023_slow_entry``: li2023 with a slow entry and its proportional gain tuned together (round 2).
 ``li2023_tuned``, the strongest classical baseline: the same with a stronger correction across the plane of
-inclination (``y_gain``) tuned with the schedule (round 3)."""
+inclination (``y_gain``) tuned with the schedule (round 3). ``li2023_registered``: ``li2023_tuned`` with contact
+registration (:mod:`drillgym.controllers.contact_registration`), which tunes nothing."""
 
 BEST_CLASSICAL = "li2023_tuned"
 """The strongest classical baseline: the default a learnt policy is judged against."""

@@ -147,6 +147,13 @@ class CompiledEpisode:
             self._views()
             self._reattach = True  # the copied objects hold a snapshot of the state until then
 
+    def _ready(self) -> None:
+        """Before a step: start the episode, or let a restored copy's objects read through again."""
+        if not self.started:
+            self.start()
+        elif self._reattach:
+            self._restored()
+
     def _restored(self) -> None:
         """A restored copy's first step: the kernel cuts its own cell's hole again, and the objects read through."""
         hole = self.env.cell.hole  # the copy's hole holds what the arrays held when copied
@@ -159,10 +166,7 @@ class CompiledEpisode:
     # ------------------------------------------------------------------ stepping
     def step(self, correction_base_m: np.ndarray, feed_scale: float) -> None:
         """Advance the episode by one agent step of the command; its sample rows go to the env's record."""
-        if not self.started:
-            self.start()
-        elif self._reattach:
-            self._restored()
+        self._ready()
         env, v = self.env, self.v
         cmd = self.command
         cmd[0, :3] = correction_base_m
@@ -182,10 +186,7 @@ class CompiledEpisode:
         """
         if not self.noiseless:
             raise ValueError("an open-loop call draws no noise: the episode's sensors must be noiseless")
-        if not self.started:
-            self.start()
-        elif self._reattach:
-            self._restored()
+        self._ready()
         n = len(commands)
         out = np.empty((SUBSTEPS_PER_STEP * n, OUT_COLUMNS))
         q = np.full((n, 6), math.nan)

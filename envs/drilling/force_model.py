@@ -140,7 +140,8 @@ class EngagementTable:
         chip_tab = np.zeros((grid.size, 4))
         fraction = np.zeros(grid.size)
         lip_total = float((is_lip[:, 0] * db).sum()) * N_ANGULAR
-        for start, masks in _engagement(grid, setback, layer_depth, is_lip, db, lip_total, fraction):
+        for start, lip_engaged, masks in _engagement(grid, setback, layer_depth, is_lip, db):
+            fraction[start : start + lip_engaged.size] = lip_engaged / lip_total
             for mask, mat in zip(masks, (bone.cortical, bone.cancellous), strict=True):
                 c = mask.shape[0]
                 lip = (mask & is_lip) * db[:, None]  # (C, R, Φ): each depth's engaged lip elements
@@ -172,28 +173,21 @@ ENGAGEMENT_CHUNK = 64
 
 
 def _engagement(
-    grid: np.ndarray,
-    setback: np.ndarray,
-    layer_depth: float,
-    is_lip: np.ndarray,
-    db: np.ndarray,
-    lip_total: float,
-    fraction: np.ndarray,
-) -> Iterator[tuple[int, tuple[np.ndarray, np.ndarray]]]:
-    """Chunks of depths: the first's index and the cortical and cancellous element masks (C, R, Φ) of each depth.
+    grid: np.ndarray, setback: np.ndarray, layer_depth: float, is_lip: np.ndarray, db: np.ndarray
+) -> Iterator[tuple[int, np.ndarray, tuple[np.ndarray, np.ndarray]]]:
+    """Chunks of depths: the first's index, each depth's engaged lip length (m) and element masks.
 
-    Each depth's engaged share goes into ``fraction``. The element depths ``e = d - setback`` and the masks are
-    elementwise, and each depth's sums run over its own (R, Φ) block in the same order as for one depth alone, so
-    every number equals the one-depth-at-a-time computation's (tables compared bit for bit on 60 scenarios).
+    The masks are each depth's cortical and cancellous elements, (C, R, Φ). The element depths ``e = d - setback`` and the masks are elementwise, and each depth's sums run over its own
+    (R, Φ) block in the same order as for one depth alone, so every number equals the one-depth-at-a-time
+    computation's (tables compared bit for bit on 60 scenarios).
     """
     for start in range(0, grid.size, ENGAGEMENT_CHUNK):
         depths = grid[start : start + ENGAGEMENT_CHUNK]
         e = depths[:, None, None] - setback[None]
         engaged = e > 0.0
-        share = ((engaged & is_lip) * db[:, None]).reshape(depths.size, -1).sum(axis=1)
-        fraction[start : start + depths.size] = share / lip_total
+        lip_engaged = ((engaged & is_lip) * db[:, None]).reshape(depths.size, -1).sum(axis=1)
         cortical = engaged & (e < layer_depth)
-        yield start, (cortical, engaged & ~cortical)
+        yield start, lip_engaged, (cortical, engaged & ~cortical)
 
 
 class ForceModel:
