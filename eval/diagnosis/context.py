@@ -171,14 +171,17 @@ class Evaluator:
             out.append(base.with_sensor_effects(sensors) if sensors else base)
         return out
 
-    def terms(self, spec: Spec, indices: Sequence[int]) -> list[Terms]:
-        """Gap terms of each episode with the spec's effects on."""
+    def terms(self, spec: Spec, indices: Sequence[int], profile: bool = True) -> list[Terms]:
+        """Gap terms of each episode with the spec's effects on.
+
+        ``profile=False``: the raw gap, each specimen taken as preset (:func:`~drillgym.eval.diagnosis.gap.gap_terms`).
+        """
         d = self.data
         assert d.nulls, "add_baseline() first"
         out = []
         for i, trace in zip(indices, self.traces(spec, indices), strict=True):
             f = features(trace.lf, d.blocks[i], d.hf_masks[i])
-            out.append(gap_terms(d.real[i], f, d.blocks[i], d.nulls[i]))
+            out.append(gap_terms(d.real[i], f, d.blocks[i], d.nulls[i], profile=profile))
         return out
 
 

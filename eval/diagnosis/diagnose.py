@@ -306,6 +306,7 @@ def _best_anywhere(single: FitResult, pairs: list[FitResult]) -> FitResult:
         params=[dict(best.params[k])],
         cal_objective=best.cal_objective,
         ho_terms=best.ho_terms,
+        ho_raw_terms=best.ho_raw_terms,
         samples=list({sp: (sp, j, n) for sp, j, n in [*single.samples, *own]}.values()),
     )
 

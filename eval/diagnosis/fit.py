@@ -63,6 +63,8 @@ class FitResult:
     n_params: int
     cal_objective: float = math.nan
     ho_terms: list[Terms] = field(default_factory=list)
+    ho_raw_terms: list[Terms] = field(default_factory=list)
+    """The held-out episodes' raw terms at the fit: each specimen taken as preset (``profile=False``)."""
     evaluations: int = 0
     replays: int = 0
     wall_s: float = 0.0
@@ -165,6 +167,7 @@ class _Objective:
         result.params = [dict(p) for _, p in spec]
         result.cal_objective = self(u_best)
         result.ho_terms = self.ev.terms(spec, self.ev.data.ho)
+        result.ho_raw_terms = self.ev.terms(spec, self.ev.data.ho, profile=False)
         return result
 
     def account(self, result: FitResult, t0: float) -> FitResult:

@@ -88,6 +88,7 @@ def fit_per_episode(ev: Evaluator, name: str, seed: int = 0) -> FitResult:
         result.params = box.from_unit(mu)
         result.cal_objective = pooled([fitted[i] for i in d.cal])
         result.ho_terms = [fitted[i] for i in d.ho]
+        result.ho_raw_terms = [ev.terms(box.spec(values[i]), [i], profile=False)[0] for i in d.ho]
         result.penalty_params = 2 * k + float(sum(dof[i] for i in d.ho))
         spans = np.array([p.high - p.low for _, p in box.entries])
         keys = [p.name for _, p in box.entries]

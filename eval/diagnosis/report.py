@@ -15,7 +15,7 @@ from drillgym.eval.diagnosis.diagnose import Diagnosis
 from drillgym.eval.diagnosis.figures import plot_gap_map, plot_overlays, plot_ranking, plot_spectra
 from drillgym.eval.diagnosis.rank import NAME_CI_LOW_MIN, NAME_SHRINK_MIN
 from drillgym.eval.diagnosis.replay import Replayer, seed_for
-from drillgym.eval.diagnosis.shape import SHAPE_REMOVE_MIN, SHAPE_SHARE_MIN
+from drillgym.eval.diagnosis.shape import CREATED_DATA_MAX, CREATED_MODEL_MIN, SHAPE_REMOVE_MIN, SHAPE_SHARE_MIN
 
 OVERLAY_CHANNELS = ["fz_n", "fx_n", "tracker_x_task_m", "q1_rad"]
 
@@ -223,7 +223,8 @@ def shape_lines(res: dict[str, Any]) -> list[str]:
     lines = [
         "",
         f"Shape test (every nameable model; each region holding ≥ {SHAPE_SHARE_MIN:.0%} of the held-out excess must "
-        f"lose ≥ {SHAPE_REMOVE_MIN:.0%} of it under the model):",
+        f"lose ≥ {SHAPE_REMOVE_MIN:.0%} of it under the model; on the raw gap, a region within "
+        f"{CREATED_DATA_MAX:g}x the simulator's own level must not be left at {CREATED_MODEL_MIN:g}x it or more):",
         "",
     ]
     for e in tested:
@@ -232,7 +233,14 @@ def shape_lines(res: dict[str, Any]) -> list[str]:
             f"{r['region']}: {_pct(r['share'])} of the excess, {_pct(r['removed'])} removed" for r in sh["regions"]
         )
         verdict = "passes" if sh["passes"] else f"**refused** — {sh['reason']}"
-        lines.append(f"* `{e['name']}` {verdict} ({regions or 'no region that large'})")
+        made = sh.get("created") or []
+        raw = (
+            "; raw gap most raised at "
+            + ", ".join(f"{c['region']} ({c['before']:.2g}x → {c['after']:.3g}x)" for c in made[:1])
+            if made
+            else ""
+        )
+        lines.append(f"* `{e['name']}` {verdict} ({regions or 'no region that large'}{raw})")
     return lines
 
 

@@ -57,7 +57,7 @@ def decide(
     """
     s0 = baseline_score(before)
     for s in scores:
-        s.shape = shape_test(s, before, null) if nameable(s, s0) else None
+        s.shape = shape_test(s, before, null, data) if nameable(s, s0) else None
     best_single = next((s for s in scores if len(s.fit.names) == 1), None)
     guard: dict[str, Any] | None = None
     contradicted = False

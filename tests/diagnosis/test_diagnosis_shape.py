@@ -143,3 +143,52 @@ def test_the_reason_names_the_largest_failing_region_first_and_rounds_to_whole_p
     result = shape_test(_model({(STABLE, FZ): 60.0 - 0.1045 * 60.0, (STABLE, FY): 40.0}), before, NULL)
     assert [r["region"] for r in result["regions"]] == ["thrust, stable", "lateral force, stable"]
     assert result["reason"] == "the gap has 60 % of its excess at thrust, stable; the model removes 10 % of it"
+
+
+def _raw_data(raw: dict[tuple[int, int], float]) -> SimpleNamespace:
+    """Raw terms of one held-out episode; the simulator's own raw level is 1 per term (10 per cell of 10 terms)."""
+    own = {(s, c): 10.0 for s in range(len(STAGES)) for c in range(len(ALL_CHANNELS))}
+    return SimpleNamespace(ho=[0], raw_terms=[_terms(own | raw)], null_raw_terms=[_terms(own)])
+
+
+def _model_raw(after: dict[tuple[int, int], float], raw_after: dict[tuple[int, int], float]) -> ModelScore:
+    m = _model(after)
+    own = {(s, c): 10.0 for s in range(len(STAGES)) for c in range(len(ALL_CHANNELS))}
+    m.fit.ho_raw_terms = [_terms(own | raw_after)]
+    return m
+
+
+def test_the_second_half_bars_hold_at_their_values():
+    assert (shape.CREATED_DATA_MAX, shape.CREATED_MODEL_MIN) == (2.0, 10.0)
+
+
+@pytest.mark.parametrize(
+    ("data_fz", "model_fz", "passes"),
+    [(20.0, 100.0, False), (20.0, 99.0, True), (21.0, 1000.0, True)],
+)
+def test_a_model_that_makes_a_gap_where_the_raw_data_have_none_is_refused(data_fz, model_fz, passes):
+    """A torque gap (stable) the model removes in full, so the first half passes; on the raw gap the stable thrust is
+    at ``data_fz / 10`` times the simulator's own level in the data and ``model_fz / 10`` under the model. Refused
+    only where the data are within 2 times that level and the model leaves 10 times it or more."""
+    ty = ALL_CHANNELS.index("ty_nm")
+    before = [_terms({(STABLE, ty): 100.0})]
+    data = _raw_data({(STABLE, ty): 500.0, (STABLE, FZ): data_fz})
+    model = _model_raw({}, {(STABLE, FZ): model_fz})
+    result = shape_test(model, before, NULL, data)
+    assert result["regions"][0]["passes"]  # the first half alone would name it
+    assert result["passes"] is passes
+    top = result["created"][0]
+    assert top["region"] == "thrust, stable"
+    assert top["before"] == pytest.approx(data_fz / 10) and top["after"] == pytest.approx(model_fz / 10)
+    if not passes:
+        assert result["reason"] == (
+            "the model makes a gap 10 times the simulator's own level at thrust, stable, where the data have 2 times "
+            "it (before the per-specimen fit)"
+        )
+
+
+def test_without_the_models_raw_terms_only_the_first_half_is_judged():
+    before = [_terms({(STABLE, FZ): 100.0})]
+    data = _raw_data({(STABLE, FZ): 500.0})
+    result = shape_test(_model({}), before, NULL, data)
+    assert result["passes"] and "created" not in result
