@@ -115,17 +115,16 @@ def created_regions(model: ModelScore, data: Any) -> list[dict[str, Any]]:
     raw_null = [data.null_raw_terms[i] for i in ho]
     b = region_ratio([data.raw_terms[i] for i in ho], raw_null)
     a = region_ratio(model.fit.ho_raw_terms, raw_null) if model.fit.ho_raw_terms else b
-    rows = [
+    order = sorted(b, key=lambda k: -(a[k] / max(b[k], 1.0)))
+    return [
         {
             "region": k,
             "before": b[k],
             "after": a[k],
             "passes": not (b[k] <= CREATED_DATA_MAX and a[k] >= CREATED_MODEL_MIN),
         }
-        for k in b
+        for k in order[:3]
     ]
-    rows.sort(key=lambda r: -(r["after"] / max(r["before"], 1.0)))
-    return rows[:3]
 
 
 def shape_test(model: ModelScore, before: list[Terms], null: list[Terms], data: Any = None) -> dict[str, Any]:
