@@ -6,7 +6,8 @@ It is named over the best single (:func:`pair_beats`) when it is surely better (
 the single leaves) and its second effect is a second effect rather than a patch on the first one's form
 (:func:`second_is_real`): it removes the gap where only its physics reaches (:func:`second_on_own_cells`), or it
 explains alone at least :data:`PAIR_ALONE_MIN` of what it adds (:func:`second_stands_alone`) without worsening the
-gap where only it reaches (:func:`second_contradicted`). A single effect has the same guard before contact
+gap where only it reaches (:func:`second_contradicted`). A pair whose second effect is shown on its own cells needs
+only be surely better: what the first leaves elsewhere may be its own form's misfit. A single effect has the same guard before contact
 (:func:`single_contradicted`). Pairs whose second effect is not shown to be one are reported
 (:func:`possible_second_effects`). The scores these rules read: :mod:`drillgym.eval.diagnosis.rank`.
 """
@@ -262,9 +263,16 @@ def pair_beats(
     """Is the pair (``first``'s fit plus ``second``'s effect fitted on top) surely better than ``best``?
 
     ``best`` is the best single: the pair must :func:`pair_improves` on it, and its second effect must be
-    a second effect rather than a patch on the first one's form (:func:`second_is_real`).
+    a second effect rather than a patch on the first one's form (:func:`second_is_real`). A second effect shown on
+    its own cells (:func:`second_on_own_cells`: the first surely leaves a gap where only the second acts, and the
+    pair surely removes half of it) needs only be surely better overall (in :data:`PAIR_P_MIN` of the resamples),
+    not to remove half of everything the first leaves: the rest may be the first effect's form, in cells the second
+    cannot reach (a stick-out error whose tool also loads the sensor differently before contact, with an arm offset
+    on top that only the tracker shows before contact).
     """
-    return pair_improves(pair, best, null_gap) and second_is_real(pair, first, second, null)
+    if pair_improves(pair, best, null_gap) and second_is_real(pair, first, second, null):
+        return True
+    return null is not None and p_better(pair, best) >= PAIR_P_MIN and second_on_own_cells(pair, first, null)
 
 
 def possible_second_effects(

@@ -319,3 +319,35 @@ def test_a_second_effect_shown_on_its_own_cells_is_not_merely_possible():
     pair = _with_terms(("skid_friction", "joint_friction"), 1.0, _cells([(1.0, 1.0)] * 4, Q0), _draws(100))
     assert possible_second_effects([pair, named], named, 1.0, null) == []
     assert [x["second"] for x in possible_second_effects([pair, named], named, 1.0)] == ["joint_friction"]
+
+
+# -- a second effect shown on its own cells ---------------------------------------------------------------------------
+
+
+TRACKER_X = ALL_CHANNELS.index("tracker_x_task_m")
+
+
+@pytest.mark.parametrize(("better", "beats"), [(95, True), (94, False)])
+def test_a_second_effect_shown_on_its_own_cells_needs_the_pair_only_surely_better(better, beats):
+    """A stick-out error leaves 5 (the simulator's own level is 1) and the offset on top removes only a quarter of
+    it (5 → 4): below the bar of half. But on the tracker before contact, where only the offset acts, the first
+    leaves 5 in every episode and the pair 1: shown there, the pair is named when better in 95 % of the resamples."""
+    null = _cells([(1.0, 1.0)] * 4, (APPROACH, TRACKER_X))
+    first = _with_terms(("tool_length",), 5.0, _cells([(5.0, 1.0)] * 4, (APPROACH, TRACKER_X)))
+    pair = _with_terms(
+        ("tool_length", "kinematic_offset"), 4.0, _cells([(1.0, 1.0)] * 4, (APPROACH, TRACKER_X)), _draws(better)
+    )
+    assert not pair_improves(pair, first, 1.0)
+    assert pairs.pair_beats(pair, first, first, None, 1.0, null) is beats
+    assert not pairs.pair_beats(pair, first, first, None, 1.0)  # without the null terms: the plain rule only
+
+
+def test_a_second_effect_without_a_gap_on_its_own_cells_still_needs_half_of_what_the_first_leaves():
+    """The first leaves nothing above the simulator's level on the tracker before contact: the offset on top is
+    not shown there, and removing a quarter of the rest is not enough."""
+    null = _cells([(1.0, 1.0)] * 4, (APPROACH, TRACKER_X))
+    first = _with_terms(("tool_length",), 5.0, _cells([(1.0, 1.0)] * 4, (APPROACH, TRACKER_X)))
+    pair = _with_terms(
+        ("tool_length", "kinematic_offset"), 4.0, _cells([(1.0, 1.0)] * 4, (APPROACH, TRACKER_X)), _draws(100)
+    )
+    assert not pairs.pair_beats(pair, first, first, None, 1.0, null)
