@@ -15,7 +15,7 @@ from drillgym.eval.diagnosis.diagnose import Diagnosis
 from drillgym.eval.diagnosis.figures import plot_gap_map, plot_overlays, plot_ranking, plot_spectra
 from drillgym.eval.diagnosis.rank import NAME_CI_LOW_MIN, NAME_SHRINK_MIN
 from drillgym.eval.diagnosis.replay import Replayer, seed_for
-from drillgym.eval.diagnosis.shape import CREATED_DATA_MAX, CREATED_MODEL_MIN, SHAPE_REMOVE_MIN, SHAPE_SHARE_MIN
+from drillgym.eval.diagnosis.shape import CREATED_MODEL_MIN, CREATED_RATIO_MIN, SHAPE_REMOVE_MIN, SHAPE_SHARE_MIN
 
 OVERLAY_CHANNELS = ["fz_n", "fx_n", "tracker_x_task_m", "q1_rad"]
 
@@ -223,8 +223,8 @@ def shape_lines(res: dict[str, Any]) -> list[str]:
     lines = [
         "",
         f"Shape test (every nameable model; each region holding ≥ {SHAPE_SHARE_MIN:.0%} of the held-out excess must "
-        f"lose ≥ {SHAPE_REMOVE_MIN:.0%} of it under the model; on the raw gap, a region within "
-        f"{CREATED_DATA_MAX:g}x the simulator's own level must not be left at {CREATED_MODEL_MIN:g}x it or more):",
+        f"lose ≥ {SHAPE_REMOVE_MIN:.0%} of it under the model; on the raw gap, the model must leave no region at "
+        f"{CREATED_MODEL_MIN:g}x the simulator's own level or more and {CREATED_RATIO_MIN:g}x the data's there):",
         "",
     ]
     for e in tested:

@@ -12,13 +12,14 @@ reason. Point estimates on the held-out episodes: the rule is a check of shape, 
 :mod:`~drillgym.eval.diagnosis.rank` already judge how sure the shrink is.
 
 **Second half: no gap made where the data have none.** Read on the raw gap (each specimen taken as preset, before
-any hardness is profiled out), a region whose gap is within :data:`CREATED_DATA_MAX` times the simulator's own raw
-level (noise and a drawn specimen) must not be left at :data:`CREATED_MODEL_MIN` times it or more by the model's
-raw prediction. The first half judges only the regions that hold the gap; a wrong model can remove most of it
-while making a new one elsewhere that the per-specimen fit hides (a softer bone fitted to torques that read low
-lowers the thrust and the lateral force the sensor reads right; the specimen fit then bends every specimen to the
-torques and the thrust's gap looks like the data's own). On the benchmark's seeds as shipped, every rightly named
-model left at most 6 times the simulator's level in such a region, the models refused by this half 20 to 7,000.
+any hardness is profiled out), each region's gap over the simulator's own raw level there (noise and a drawn
+specimen): a model whose raw prediction leaves :data:`CREATED_MODEL_MIN` times that level or more in a region, and
+:data:`CREATED_RATIO_MIN` times the data's own raw gap there or more (the data's taken as at least that level), is
+refused. The first half judges only the regions that hold the gap; a wrong model can remove most of it while making
+a new one elsewhere that the per-specimen fit hides (a softer bone fitted to torques that read low lowers the thrust
+and the lateral force the sensor reads right; the specimen fit then bends every specimen to the torques and the
+thrust's gap looks like the data's own). Over four seed offsets of the benchmark no rightly named model reached a
+ratio of 3.6.
 """
 
 from __future__ import annotations
@@ -44,10 +45,10 @@ SHAPE_SHARE_MIN = 0.25
 """A region holding at least this share of the held-out excess gap must be explained in part."""
 SHAPE_REMOVE_MIN = 0.2
 """... the model must remove at least this share of that region's excess."""
-CREATED_DATA_MAX = 2.0
-"""Second half: a region whose raw gap is at most this many times the simulator's own level shows no gap ..."""
 CREATED_MODEL_MIN = 10.0
-"""... and a model whose raw prediction leaves at least this many times that level there made one: refused."""
+"""Second half: a model whose raw prediction leaves at least this many times the simulator's own level in a region ..."""
+CREATED_RATIO_MIN = 5.0
+"""... and at least this many times the data's own raw gap there (taken as at least that level) made a gap: refused."""
 STAGE_GROUPS = {
     "before contact": ("approach",),
     "entry": ("entry1", "entry2", "entry3"),
@@ -109,7 +110,7 @@ def created_regions(model: ModelScore, data: Any) -> list[dict[str, Any]]:
     ``fit.ho_raw_terms``), each region's gap over the simulator's own raw level there (``data.null_raw_terms``:
     noise and a drawn specimen). Returns the three regions with the largest ``after / before`` (``before``: the
     data's ratio, ``after``: the model's; each 1 at the simulator's own level), each with ``passes``: False when
-    ``before ≤`` :data:`CREATED_DATA_MAX` and ``after ≥`` :data:`CREATED_MODEL_MIN`.
+    ``after ≥`` :data:`CREATED_MODEL_MIN` and ``after ≥`` :data:`CREATED_RATIO_MIN` ``· max(before, 1)``.
     """
     ho = data.ho
     raw_null = [data.null_raw_terms[i] for i in ho]
@@ -121,7 +122,7 @@ def created_regions(model: ModelScore, data: Any) -> list[dict[str, Any]]:
             "region": k,
             "before": b[k],
             "after": a[k],
-            "passes": not (b[k] <= CREATED_DATA_MAX and a[k] >= CREATED_MODEL_MIN),
+            "passes": not (a[k] >= CREATED_MODEL_MIN and a[k] >= CREATED_RATIO_MIN * max(b[k], 1.0)),
         }
         for k in order[:3]
     ]
@@ -164,7 +165,7 @@ def shape_test(model: ModelScore, before: list[Terms], null: list[Terms], data: 
             c = made[0]
             out["reason"] = (
                 f"the model makes a gap {c['after']:.3g} times the simulator's own level at {c['region']}, where the "
-                f"data have {c['before']:.2g} times it (before the per-specimen fit)"
+                f"data have {c['before']:.2g} times it (raw, before the per-specimen fit)"
             )
         out["passes"] = out["passes"] and not made
     return out
