@@ -176,12 +176,19 @@ class Evaluator:
 
         ``profile=False``: the raw gap, each specimen taken as preset (:func:`~drillgym.eval.diagnosis.gap.gap_terms`).
         """
+        return self.terms_each(spec, indices, (profile,))[0]
+
+    def terms_each(
+        self, spec: Spec, indices: Sequence[int], profiles: Sequence[bool] = (True, False)
+    ) -> tuple[list[Terms], ...]:
+        """:meth:`terms` for each of ``profiles`` (default: profiled and raw), from one replay and feature pass."""
         d = self.data
         assert d.nulls, "add_baseline() first"
-        out = []
+        out: tuple[list[Terms], ...] = tuple([] for _ in profiles)
         for i, trace in zip(indices, self.traces(spec, indices), strict=True):
             f = features(trace.lf, d.blocks[i], d.hf_masks[i])
-            out.append(gap_terms(d.real[i], f, d.blocks[i], d.nulls[i], profile=profile))
+            for terms, profile in zip(out, profiles, strict=True):
+                terms.append(gap_terms(d.real[i], f, d.blocks[i], d.nulls[i], profile=profile))
         return out
 
 

@@ -166,8 +166,7 @@ class _Objective:
         spec = self.box.spec(u_best)
         result.params = [dict(p) for _, p in spec]
         result.cal_objective = self(u_best)
-        result.ho_terms = self.ev.terms(spec, self.ev.data.ho)
-        result.ho_raw_terms = self.ev.terms(spec, self.ev.data.ho, profile=False)
+        result.ho_terms, result.ho_raw_terms = self.ev.terms_each(spec, self.ev.data.ho)
         return result
 
     def account(self, result: FitResult, t0: float) -> FitResult:
@@ -261,10 +260,8 @@ def refit_jointly(
         # compared at its start. A stick-out error with a tilted arm's offset: in the forward fit's valley the
         # stick-out absorbs the offset's height; from the tracker's reading the search finds both (calibration
         # gap 378 -> 279 on the benchmark's pair, seeds as shipped).
-        ends = [
-            local_search(objective, u, budget or EVALS_PER_PARAM * box.size)
-            for u in [u0, *_read_first_starts(ev, box, objective, starts[0])]
-        ]
+        evals = budget or EVALS_PER_PARAM * box.size
+        ends = [local_search(objective, u, evals) for u in [u0, *_read_first_starts(ev, box, objective, starts[0])]]
         objective.finish(result, min(ends, key=objective))
     except Exception as e:  # a fit must not stop the diagnosis
         result.error = f"{type(e).__name__}: {e}"

@@ -270,9 +270,14 @@ def pair_beats(
     cannot reach (a stick-out error whose tool also loads the sensor differently before contact, with an arm offset
     on top that only the tracker shows before contact).
     """
-    if pair_improves(pair, best, null_gap) and second_is_real(pair, first, second, null):
-        return True
-    return null is not None and p_better(pair, best) >= PAIR_P_MIN and second_on_own_cells(pair, first, null)
+    g = None if null is None else _own_cell_gaps(pair, first, null)
+    if g is not None and g.removed():  # shown on its own cells (pair_improves implies the same p_better bar)
+        return p_better(pair, best) >= PAIR_P_MIN
+    return (
+        pair_improves(pair, best, null_gap)
+        and second_stands_alone(pair, first, second)
+        and not (g is not None and g.worsened())
+    )
 
 
 def possible_second_effects(

@@ -233,13 +233,8 @@ def shape_lines(res: dict[str, Any]) -> list[str]:
             f"{r['region']}: {_pct(r['share'])} of the excess, {_pct(r['removed'])} removed" for r in sh["regions"]
         )
         verdict = "passes" if sh["passes"] else f"**refused** — {sh['reason']}"
-        made = sh.get("created") or []
-        raw = (
-            "; raw gap most raised at "
-            + ", ".join(f"{c['region']} ({c['before']:.2g}x → {c['after']:.3g}x)" for c in made[:1])
-            if made
-            else ""
-        )
+        top = (sh.get("created") or [None])[0]
+        raw = f"; raw gap most raised at {top['region']} ({top['before']:.2g}x → {top['after']:.3g}x)" if top else ""
         lines.append(f"* `{e['name']}` {verdict} ({regions or 'no region that large'}{raw})")
     return lines
 

@@ -39,7 +39,7 @@ from drillgym.eval.diagnosis.channels import (
 )
 from drillgym.eval.diagnosis.gap import Terms
 from drillgym.eval.diagnosis.rank import ModelScore
-from drillgym.eval.diagnosis.where import excess_cells
+from drillgym.eval.diagnosis.where import excess_cells, gap_and_own_level
 
 SHAPE_SHARE_MIN = 0.25
 """A region holding at least this share of the held-out excess gap must be explained in part."""
@@ -93,14 +93,8 @@ def region_excess(terms: list[Terms], null: list[Terms]) -> dict[str, float]:
 
 def region_ratio(terms: list[Terms], null: list[Terms]) -> dict[str, float]:
     """Each region's gap over the simulator's own level there (1: the simulator's own scatter)."""
-    tot = sum(terms, Terms.zeros())
-    nul = sum(null, Terms.zeros())
-    with np.errstate(invalid="ignore", divide="ignore"):
-        null_norm = np.where(nul.cell_n > 0, nul.cell_sum / nul.cell_n, 0.0)
-    own = tot.cell_n * null_norm
-    return {
-        name: float(tot.cell_sum[m].sum() / own[m].sum()) if own[m].sum() > 0 else 1.0 for name, m in REGIONS.items()
-    }
+    gap, own = gap_and_own_level(terms, null)
+    return {name: float(gap[m].sum() / own[m].sum()) if own[m].sum() > 0 else 1.0 for name, m in REGIONS.items()}
 
 
 def created_regions(model: ModelScore, data: Any) -> list[dict[str, Any]]:

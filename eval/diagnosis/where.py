@@ -60,13 +60,19 @@ def gap_map(terms: list[Terms], null: list[Terms]) -> dict[str, Any]:
     }
 
 
-def excess_cells(terms: list[Terms], null: list[Terms]) -> np.ndarray:
-    """Excess gap of ``terms`` over the simulator's own level per (stage, channel) cell, clipped at 0, (6, 18)."""
+def gap_and_own_level(terms: list[Terms], null: list[Terms]) -> tuple[np.ndarray, np.ndarray]:
+    """Summed terms of ``terms`` per (stage, channel) cell, and what the simulator's own level (``null``) gives them."""
     tot = sum(terms, Terms.zeros())
     nul = sum(null, Terms.zeros())
     with np.errstate(invalid="ignore", divide="ignore"):
         null_norm = np.where(nul.cell_n > 0, nul.cell_sum / nul.cell_n, 0.0)
-    return np.clip(tot.cell_sum - tot.cell_n * null_norm, 0.0, None)
+    return tot.cell_sum, tot.cell_n * null_norm
+
+
+def excess_cells(terms: list[Terms], null: list[Terms]) -> np.ndarray:
+    """Excess gap of ``terms`` over the simulator's own level per (stage, channel) cell, clipped at 0, (6, 18)."""
+    gap, own = gap_and_own_level(terms, null)
+    return np.clip(gap - own, 0.0, None)
 
 
 def locate(terms: list[Terms], null: list[Terms], top: int = 3) -> list[dict[str, Any]]:

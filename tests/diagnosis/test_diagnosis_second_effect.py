@@ -138,6 +138,9 @@ class _QuadraticEvaluator:
     def terms(self, spec, indices, profile=True):
         return [_flat(self.mean_term(spec, indices))]
 
+    def terms_each(self, spec, indices, profiles=(True, False)):
+        return tuple(self.terms(spec, indices) for _ in profiles)
+
 
 def _flat(level: float) -> Terms:
     shape = (len(STAGES), len(ALL_CHANNELS))
