@@ -157,3 +157,40 @@ def test_joint_refit_separates_what_forward_selection_confounds(monkeypatch):
     assert not forward.error and not joint.error and joint.cal_objective < 0.5 * forward.cal_objective
     assert abs(joint.params[0]["dl_m"] - 0.002) < abs(forward.params[0]["dl_m"] - 0.002)
     assert joint.n_params == 4 and joint.ho_terms
+
+
+class _RuggedEvaluator(_QuadraticEvaluator):
+    """The misfit of a kinematic offset along base y: a narrow true valley beside a broad, shallower one.
+
+    The true valley (bottom 1.0 at −0.45 mm, 0.1 mm wide) is where the tracker's reading points (−0.40 mm);
+    outside it the misfit falls gently towards a broad valley at −1 mm (1.02). The tool length only adds a small
+    bowl about 0.
+    """
+
+    def mean_term(self, spec, indices) -> float:
+        p = {name: dict(values) for name, values in spec}
+        dl_mm = 1e3 * p.get("tool_length", {}).get("dl_m", 0.0)
+        dy_mm = 1e3 * p.get("kinematic_offset", {}).get("dy_base_m", 0.0)
+        self.replays += 1
+        well = 1.0 + 20.0 * (dy_mm + 0.45) ** 2 if abs(dy_mm + 0.45) < 0.1 else 1.02 + 0.01 * abs(dy_mm + 1.0)
+        return well + 1e-3 * dl_mm**2
+
+
+def _read_offset(ev, names):
+    """The tracker's reading of the offset: 0.05 mm from the truth, inside its valley."""
+    if list(names) == ["kinematic_offset"]:
+        return [{"dx_base_m": 0.0, "dy_base_m": -4.0e-4, "dz_base_m": 0.0}]
+    return None
+
+
+def test_a_joint_refit_searches_from_the_datas_reading_in_fine_steps_and_stays_in_its_valley(monkeypatch):
+    monkeypatch.setattr("drillgym.eval.diagnosis.fit._guess", _read_offset)
+    names = ("tool_length", "kinematic_offset")
+    start = [[{"dl_m": 0.0}, {"dx_base_m": 0.0, "dy_base_m": 0.0, "dz_base_m": 0.0}]]
+    joint = refit_jointly(_RuggedEvaluator(), names, start)
+    assert not joint.error
+    assert abs(joint.params[1]["dy_base_m"] + 4.5e-4) < 3e-5 and joint.cal_objective < 1.005
+    # A first step as coarse as a search from a grid point (a quarter of a mm here) leaves the reading's valley.
+    monkeypatch.setattr("drillgym.eval.diagnosis.fit.READ_START_STEP", 1 / 16)
+    coarse = refit_jointly(_RuggedEvaluator(), names, start)
+    assert abs(coarse.params[1]["dy_base_m"] + 4.5e-4) > 1e-4 and coarse.cal_objective > 1.01
