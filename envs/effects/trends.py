@@ -39,14 +39,28 @@ class KinematicOffsetTrend(KinematicOffset):
 
     @classmethod
     def initial_guess(cls, evidence: dict[str, Any]) -> dict[str, float] | None:
-        """The static offset's reading, at both ends of the series."""
+        """A straight line through each hole's tracker offset before contact, over its place in the series.
+
+        The tracker before contact reads each hole's offset itself; the line's values at the series' first and
+        last place are the start. Without two holes at different places (or their readings), the static offset's
+        reading at both ends.
+        """
         static = KinematicOffset.initial_guess(evidence)
         if static is None:
             return None
+        ends = np.array([[static[f"d{axis}_base_m"] for axis in "xyz"]] * 2)
+        offsets = np.asarray(evidence.get("tracker_offsets_task_m", np.empty((0, 3))), dtype=float)
+        positions = np.asarray(evidence.get("series_positions", np.empty(0)), dtype=float)
+        ok = np.isfinite(offsets).all(axis=1) & np.isfinite(positions) if offsets.ndim == 2 else np.zeros(0, bool)
+        if ok.sum() >= 2 and np.ptp(positions[ok]) > 0.0:
+            base = offsets[ok] @ np.asarray(evidence["R_base_task"]).T  # task -> base frame, per hole
+            slope, intercept = np.polyfit(positions[ok], base, 1)
+            ends = np.array([intercept, intercept + slope])
         out = {}
-        for axis in "xyz":
-            v = static[f"d{axis}_base_m"]
-            out[f"d{axis}_first_m"] = out[f"d{axis}_last_m"] = v
+        for k, which in enumerate(("first", "last")):
+            for axis, v in zip("xyz", ends[k], strict=True):
+                p = next(q for q in cls.params if q.name == f"d{axis}_{which}_m")
+                out[p.name] = float(np.clip(v, p.low, p.high))
         return out
 
     def offset_base_m(self) -> np.ndarray:

@@ -45,18 +45,20 @@ def evidence(d: Any) -> dict[str, Any] | None:
 
     Made once, with the baseline replays, as ``d.evidence``.
 
-    ``tracker_offset_task_m`` (mean real-minus-sim tracker position before contact, m, task frame),
+    ``tracker_offset_task_m`` (mean real-minus-sim tracker position before contact, m, task frame), per episode
+    ``tracker_offsets_task_m`` (n, 3) at ``series_positions`` (each episode's place in the series, 0 to 1),
     ``R_base_task`` (3x3), ``excess_peaks_hz`` (where the force residuals ring most above the simulator's own:
     ``all``, ``lateral``, ``axial``; Hz or None), ``contact_shift_m`` and ``beta_rad`` (each episode's contact
     shift, :func:`contact_shift_m`, and its planned surface inclination; episodes that touch in both). None
     without a tracker reading before contact.
     """
-    offsets, shifts, betas = [], [], []
+    offsets, positions, shifts, betas = [], [], [], []
     for i in d.cal:
         rows = d.blocks[i].stage == 0
         r = d.real[i].lf[rows, 6:9] - d.nominal_features[i].lf[rows, 6:9]
         if np.isfinite(r).any():
             offsets.append(np.nanmean(r, axis=0))
+            positions.append(float(d.episodes[i].series_position))
         ep = d.episodes[i]
         shift = contact_shift_m(ep.lf[:, FORCE], d.nominal[i].lf[:, FORCE], ep.depth_cmd_m)
         if shift is not None:
@@ -66,6 +68,8 @@ def evidence(d: Any) -> dict[str, Any] | None:
         return None
     return {
         "tracker_offset_task_m": np.mean(offsets, axis=0),
+        "tracker_offsets_task_m": np.asarray(offsets),
+        "series_positions": np.asarray(positions),
         "R_base_task": d.episodes[d.cal[0]].r_base_task,
         "excess_peaks_hz": d.excess_peaks_hz,
         "contact_shift_m": np.asarray(shifts),
