@@ -8,7 +8,7 @@ import numpy as np
 from diagnosis_stubs import stub_score
 
 from drillgym.eval.diagnosis.channels import ALL_CHANNELS, GROUP_OF, STAGES
-from drillgym.eval.diagnosis.fit import fit_model, refit_jointly
+from drillgym.eval.diagnosis.fit import READ_START_STEP, fit_model, local_search, refit_jointly, settle_from_reading
 from drillgym.eval.diagnosis.gap import Terms
 from drillgym.eval.diagnosis.pairs import (
     own_cells,
@@ -194,3 +194,21 @@ def test_a_joint_refit_searches_from_the_datas_reading_in_fine_steps_and_stays_i
     monkeypatch.setattr("drillgym.eval.diagnosis.fit.READ_START_STEP", 1 / 16)
     coarse = refit_jointly(_RuggedEvaluator(), names, start)
     assert abs(coarse.params[1]["dy_base_m"] + 4.5e-4) > 1e-4 and coarse.cal_objective > 1.01
+
+
+def _coupled_misfit(u: np.ndarray) -> float:
+    """Sharp along z (a contact's timing), which a shift along y can half make up for; a little cost on y's shift.
+
+    The answer is (0.5, 0.5, 0.5); along y alone the misfit falls until y = 0.3, where it stays above the answer's.
+    """
+    z_eff = u[2] + 0.05 * (u[1] - 0.5)
+    return 100.0 * (z_eff - 0.5) ** 2 + 0.001 * abs(u[1] - 0.5) + 0.001 * abs(u[0] - 0.5)
+
+
+def test_a_search_from_a_reading_takes_the_best_move_and_does_not_trade_the_sharp_parameter_for_a_shallow_one():
+    reading = np.array([0.5, 0.5, 0.51])  # 0.01 off along the sharp parameter
+    settled = settle_from_reading(_coupled_misfit, reading, 42)
+    assert abs(settled[2] - 0.5) < 3e-3 and abs(settled[1] - 0.5) < 0.05 and _coupled_misfit(settled) < 5e-5
+    # Moves taken as they are tried, in parameter order: y is followed out of the valley before z is tried.
+    in_order = local_search(_coupled_misfit, reading, 42, initial_step=READ_START_STEP)
+    assert in_order[2] == 0.51 and abs(in_order[1] - 0.5) > 0.1 and _coupled_misfit(in_order) > 1e-4
