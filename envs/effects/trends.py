@@ -49,19 +49,19 @@ class KinematicOffsetTrend(KinematicOffset):
         if static is None:
             return None
         ends = np.array([[static[f"d{axis}_base_m"] for axis in "xyz"]] * 2)
-        offsets = np.asarray(evidence.get("tracker_offsets_task_m", np.empty((0, 3))), dtype=float)
-        positions = np.asarray(evidence.get("series_positions", np.empty(0)), dtype=float)
-        ok = np.isfinite(offsets).all(axis=1) & np.isfinite(positions) if offsets.ndim == 2 else np.zeros(0, bool)
+        offsets = np.asarray(evidence.get("tracker_offsets_task_m", ()), dtype=float).reshape(-1, 3)
+        positions = np.asarray(evidence.get("series_positions", ()), dtype=float)
+        ok = np.isfinite(offsets).all(axis=1) & np.isfinite(positions)
         if ok.sum() >= 2 and np.ptp(positions[ok]) > 0.0:
             base = offsets[ok] @ np.asarray(evidence["R_base_task"]).T  # task -> base frame, per hole
             slope, intercept = np.polyfit(positions[ok], base, 1)
             ends = np.array([intercept, intercept + slope])
-        out = {}
-        for k, which in enumerate(("first", "last")):
-            for axis, v in zip("xyz", ends[k], strict=True):
-                p = next(q for q in cls.params if q.name == f"d{axis}_{which}_m")
-                out[p.name] = float(np.clip(v, p.low, p.high))
-        return out
+        limits = {p.name: (p.low, p.high) for p in cls.params}
+        return {
+            name: float(np.clip(v, *limits[name]))
+            for which, end in zip(("first", "last"), ends, strict=True)
+            for name, v in zip((f"d{axis}_{which}_m" for axis in "xyz"), end, strict=True)
+        }
 
     def offset_base_m(self) -> np.ndarray:
         """This episode's offset (m, base frame)."""

@@ -36,7 +36,7 @@ INITIAL_STEP = 1 / 16
 MIN_STEP = 1 / 1024
 """The local search stops below this step (fraction of the range)."""
 READ_START_STEP = 1 / 256
-"""First step of a joint refit's search from a start read off the data (fraction of the range)."""
+"""First step of a search from a start read off the data (:func:`settle_from_reading`; fraction of the range)."""
 REFINE_MIN_GAIN = 0.02
 """An effect whose best grid point removes less than this share of the calibration excess gap is left
 at that point (no local search): it explains nothing here."""

@@ -7,8 +7,8 @@ the single leaves) and its second effect is a second effect rather than a patch 
 (:func:`second_is_real`): it removes the gap where only its physics reaches (:func:`second_on_own_cells`), or it
 explains alone at least :data:`PAIR_ALONE_MIN` of what it adds (:func:`second_stands_alone`) without worsening the
 gap where only it reaches (:func:`second_contradicted`). A pair whose second effect is shown on its own cells needs
-only be surely better: what the first leaves elsewhere may be its own form's misfit. A single effect has the same guard before contact
-(:func:`single_contradicted`). Pairs whose second effect is not shown to be one are reported
+only be surely better: what the first leaves elsewhere may be its own form's misfit. A single effect has the same
+guard before contact (:func:`single_contradicted`). Pairs whose second effect is not shown to be one are reported
 (:func:`possible_second_effects`). The scores these rules read: :mod:`drillgym.eval.diagnosis.rank`.
 """
 
