@@ -18,6 +18,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
 from drillgym.envs.errors import UserError
+from drillgym.eval.shared_round import SharedRound, guarded
 
 Job = TypeVar("Job")
 Result = TypeVar("Result")
@@ -64,12 +65,24 @@ class WorkerPool:
     """
 
     def __init__(
-        self, workers: int, *, initializer: Callable[..., None] | None = None, initargs: tuple[Any, ...] = ()
+        self,
+        workers: int,
+        *,
+        initializer: Callable[..., None] | None = None,
+        initargs: tuple[Any, ...] = (),
+        here: bool = False,
     ) -> None:
-        """``workers`` processes at most; ``initializer(*initargs)`` runs once in each before its first job."""
+        """``workers`` processes at most; ``initializer(*initargs)`` runs once in each before its first job.
+
+        ``here``: this process is one of the ``workers``. It runs jobs beside ``workers - 1`` spawned ones, each
+        process taking the next job as it comes free (:func:`_map_here`). A process that has already imported and
+        warmed what the jobs need then starts nothing for its own share, and its first jobs run while the others
+        start. The jobs' results must not depend on the process that runs them.
+        """
         if workers < 1:
             raise UserError(f"workers={workers} must be >= 1")
         self.workers = workers
+        self._here = here
         self._initializer, self._initargs = initializer, initargs
         self._executor: ProcessPoolExecutor | None = None
         self._initialized_here = False
@@ -83,12 +96,19 @@ class WorkerPool:
     ) -> Iterator[tuple[int, Result]]:
         """Yield ``(index in jobs, fn(job))`` as each job finishes (see :func:`run_unordered` for the arguments)."""
         if self.workers == 1 or (self._executor is None and len(jobs) <= 1):
-            if not self._initialized_here:
-                self._initialized_here = True
-                if self._initializer is not None:
-                    self._initializer(*self._initargs)
+            self._init_here()
             for i, job in enumerate(jobs):
-                yield i, _guarded(functools.partial(fn, job), job, on_error)
+                yield i, guarded(functools.partial(fn, job), job, on_error)
+            return
+        if self._here:
+            self._init_here()
+            try:
+                broken = yield from SharedRound(self._start(), self.workers - 1, fn, jobs, on_error).results()
+            except BaseException:
+                self.close(cancel=True)
+                raise
+            if broken:  # a worker died: the next round starts fresh workers
+                self.close()
             return
         pool = self._start()
         futures: dict[Future, int] = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
@@ -97,17 +117,24 @@ class WorkerPool:
             for fut in as_completed(futures):
                 i = futures[fut]
                 broken = broken or isinstance(fut.exception(), BrokenProcessPool)
-                yield i, _guarded(fut.result, jobs[i], on_error)
+                yield i, guarded(fut.result, jobs[i], on_error)
         except BaseException:
             self.close(cancel=True)
             raise
         if broken:  # a worker died: the next round starts fresh workers
             self.close()
 
+    def _init_here(self) -> None:
+        """The initializer, once, before this process's first job."""
+        if not self._initialized_here:
+            self._initialized_here = True
+            if self._initializer is not None:
+                self._initializer(*self._initargs)
+
     def _start(self) -> ProcessPoolExecutor:
         if self._executor is None:
             self._executor = ProcessPoolExecutor(
-                max_workers=self.workers,
+                max_workers=self.workers - 1 if self._here else self.workers,
                 mp_context=mp.get_context("spawn"),
                 initializer=_worker_start,
                 initargs=(os.getpid(), self._initializer, self._initargs),
@@ -149,13 +176,3 @@ def run_ordered(fn: Callable[[Job], Result], jobs: Sequence[Job], workers: int, 
     """:func:`run_unordered`'s results in the order of ``jobs``."""
     out: dict[int, Result] = dict(run_unordered(fn, jobs, workers, **kwargs))
     return [out[i] for i in range(len(jobs))]
-
-
-def _guarded(get: Callable[[], Result], job: Job, on_error: Callable[[Job, Exception], Result] | None) -> Result:
-    """``get()``; with ``on_error``, a job that raised becomes ``on_error(job, error)``."""
-    if on_error is None:
-        return get()
-    try:
-        return get()
-    except Exception as e:
-        return on_error(job, e)

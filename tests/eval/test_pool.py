@@ -123,3 +123,54 @@ def test_a_worker_pool_starts_fresh_workers_after_one_died():
         out = dict(pool.map_unordered(_die, [0, 1], on_error=lambda job, e: type(e).__name__))
         assert out == {0: "BrokenProcessPool", 1: "BrokenProcessPool"}
         assert sorted(r for _, r in pool.map_unordered(math.sqrt, [4.0, 9.0])) == [2.0, 3.0]
+
+
+def _meet(job: tuple[int, str, bool]) -> int:
+    """In the process that started the pool: wait for a worker to have run a job; in a worker: say so (and die)."""
+    import os
+    import pathlib
+    import time
+
+    parent, flag, die = job
+    if os.getpid() != parent:
+        pathlib.Path(flag).touch()
+        if die:
+            os._exit(3)
+        return os.getpid()
+    deadline = time.monotonic() + 60.0
+    while not pathlib.Path(flag).exists() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return os.getpid()
+
+
+def test_a_pool_counting_this_process_runs_jobs_here_and_in_its_worker(tmp_path):
+    import os
+
+    from drillgym.eval.pool import WorkerPool
+
+    jobs = [(os.getpid(), str(tmp_path / "met"), False)] * 4
+    with WorkerPool(2, here=True) as pool:
+        out = dict(pool.map_unordered(_meet, jobs))
+        assert sorted(out) == [0, 1, 2, 3]
+        assert len(set(out.values())) == 2 and os.getpid() in out.values()  # one worker spawned, this process
+        assert sorted(r for _, r in pool.map_unordered(math.sqrt, [4.0, 9.0, 16.0])) == [2.0, 3.0, 4.0]
+
+
+def test_a_pool_counting_this_process_runs_the_rest_here_when_its_worker_dies(tmp_path):
+    import os
+
+    from drillgym.eval.pool import WorkerPool
+
+    jobs = [(os.getpid(), str(tmp_path / "met"), True)] * 5
+    with WorkerPool(2, here=True) as pool:
+        out = dict(pool.map_unordered(_meet, jobs, on_error=lambda job, e: type(e).__name__))
+        assert sorted(out) == [0, 1, 2, 3, 4]
+        assert sorted(out.values(), key=str) == [os.getpid()] * 4 + ["BrokenProcessPool"]
+        assert sorted(r for _, r in pool.map_unordered(math.sqrt, [4.0, 9.0])) == [2.0, 3.0]  # fresh workers
+
+
+def test_a_pool_counting_this_process_raises_a_failing_job_here_without_on_error():
+    from drillgym.eval.pool import WorkerPool
+
+    with WorkerPool(2, here=True) as pool, pytest.raises(ValueError):
+        list(pool.map_unordered(math.sqrt, [4.0, -1.0, 9.0, -4.0]))
