@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import multiprocessing as mp
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -18,7 +19,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
 from drillgym.envs.errors import UserError
-from drillgym.eval.shared_round import SharedRound, guarded
+from drillgym.eval.shared_round import SharedRound, guarded, started
 
 Job = TypeVar("Job")
 Result = TypeVar("Result")
@@ -133,17 +134,27 @@ class WorkerPool:
 
     def _start(self) -> ProcessPoolExecutor:
         if self._executor is None:
+            spawned = self.workers - 1 if self._here else self.workers
             self._executor = ProcessPoolExecutor(
-                max_workers=self.workers - 1 if self._here else self.workers,
+                max_workers=spawned,
                 mp_context=mp.get_context("spawn"),
                 initializer=_worker_start,
                 initargs=(os.getpid(), self._initializer, self._initargs),
             )
+            _spawn_deaf_to_ctrl_c(self._executor, spawned)
         return self._executor
 
     def close(self, cancel: bool = False) -> None:
-        """Stop the workers (after their running jobs; ``cancel``: dropping the jobs not started)."""
+        """Stop the workers: after their running jobs, or (``cancel``) at once, dropping the jobs not started.
+
+        Cancelling (an interrupt, an error here) asks each worker to stop its job (``SIGTERM``, which it turns into
+        ``SystemExit``: its job unwinds, ``finally`` blocks run) instead of waiting for it.
+        """
         if self._executor is not None:
+            if cancel:
+                for process in list(getattr(self._executor, "_processes", {}).values()):
+                    if process.is_alive():
+                        process.terminate()
             self._executor.shutdown(wait=True, cancel_futures=cancel)
             self._executor = None
 
@@ -158,11 +169,39 @@ PARENT_POLL_S = 1.0
 """How often a worker checks that the process that started it is still there (s)."""
 
 
+def _spawn_deaf_to_ctrl_c(pool: ProcessPoolExecutor, n: int) -> None:
+    """Start the pool's ``n`` workers now, ignoring ``SIGINT``; without a main thread here, on demand as they are.
+
+    Ctrl-C in a terminal signals every process of its group: each worker would print the traceback of wherever it
+    was (its imports, its job) under this process's one line. This process handles the interrupt and stops them
+    (:meth:`WorkerPool.close` with ``cancel``). A child inherits an ignored ``SIGINT`` and Python leaves it so, and
+    only the main thread may change it: the pool starts a worker for each call submitted while none is idle.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        for _ in range(n):
+            pool.submit(started)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _stop_job(signum: int, frame: object) -> None:
+    """A worker's ``SIGTERM`` (:meth:`WorkerPool.close` cancelling): unwind the job as an exit would."""
+    raise SystemExit(128 + signum)
+
+
 def _worker_start(parent_pid: int, initializer: Callable[..., None] | None, initargs: tuple[Any, ...]) -> None:
-    """In each worker: watch the parent (a daemon thread), then the caller's initializer."""
+    """In each worker: watch the parent (a daemon thread), run the caller's initializer, then stop on ``SIGTERM``.
+
+    From then on ``SIGTERM`` unwinds the running job (:func:`_stop_job`); before, it ends the worker at once (no job
+    to unwind, and an initializer's exception would be logged as a failure).
+    """
     threading.Thread(target=_exit_when_orphaned, args=(parent_pid,), daemon=True).start()
     if initializer is not None:
         initializer(*initargs)
+    signal.signal(signal.SIGTERM, _stop_job)
 
 
 def _exit_when_orphaned(parent_pid: int) -> None:

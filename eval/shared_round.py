@@ -78,9 +78,9 @@ class SharedRound(Generic[Job, Result]):
         """One worker's thread: wait for a started worker, then hand it one job at a time."""
         try:
             # A job handed to a worker still starting might end after this thread has run every other job.
-            started = self.pool.submit(_started)
-            futures_wait([started])
-            if started.exception() is not None:  # it could not start: its share runs here and in the others
+            ready = self.pool.submit(started)
+            futures_wait([ready])
+            if ready.exception() is not None:  # it could not start: its share runs here and in the others
                 self._broke.set()
                 return
             while (i := self._take()) is not None:
@@ -115,5 +115,5 @@ def guarded(get: Callable[[], Result], job: Job, on_error: Callable[[Job, Except
         return on_error(job, e)
 
 
-def _started() -> None:
-    """A worker's first call: it returns once the worker has started."""
+def started() -> None:
+    """A call that returns once a worker has started (its initializer run)."""

@@ -174,3 +174,52 @@ def test_a_pool_counting_this_process_raises_a_failing_job_here_without_on_error
 
     with WorkerPool(2, here=True) as pool, pytest.raises(ValueError):
         list(pool.map_unordered(math.sqrt, [4.0, -1.0, 9.0, -4.0]))
+
+
+def _sigint_ignored(_: object) -> bool:
+    import signal
+
+    return signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+
+
+def test_workers_ignore_ctrl_c_which_the_process_that_started_them_handles():
+    import signal
+
+    from drillgym.eval.pool import WorkerPool
+
+    before = signal.getsignal(signal.SIGINT)
+    with WorkerPool(2) as pool:
+        assert all(ignored for _, ignored in pool.map_unordered(_sigint_ignored, [0, 1, 2, 3]))
+    assert signal.getsignal(signal.SIGINT) is before
+
+
+def _wait_or_fail(job: tuple[str, str]) -> None:
+    """The long job (``"run"``): say it started, sleep, mark that it unwound; the other waits for it, then fails."""
+    import pathlib
+    import time
+
+    kind, folder = job
+    started, unwound = pathlib.Path(folder, "started"), pathlib.Path(folder, "unwound")
+    if kind == "run":
+        started.touch()
+        try:
+            time.sleep(60.0)
+        finally:
+            unwound.touch()
+        return
+    deadline = time.monotonic() + 60.0
+    while not started.exists() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    raise ValueError("the other job is running")
+
+
+def test_an_error_here_stops_the_running_jobs_at_once_and_unwinds_them(tmp_path):
+    import time
+
+    from drillgym.eval.pool import WorkerPool
+
+    t0 = time.monotonic()
+    with pytest.raises(ValueError, match="the other job is running"), WorkerPool(2) as pool:
+        list(pool.map_unordered(_wait_or_fail, [("run", str(tmp_path)), ("fail", str(tmp_path))]))
+    assert time.monotonic() - t0 < 30.0  # not the long job's 60 s
+    assert (tmp_path / "unwound").exists()  # its finally block ran
