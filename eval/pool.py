@@ -46,7 +46,8 @@ def run_unordered(
         on_error: turns a job whose worker failed (it raised, or its process died) into a result; without
             it the error is raised here.
 
-    A ``KeyboardInterrupt`` cancels the jobs that have not started and is raised again. A worker whose parent is
+    A ``KeyboardInterrupt`` (Ctrl-C reaches this process, not the workers) stops the running jobs, cancels the rest
+    and is raised again. A worker whose parent is
     gone (killed, say, by a scheduler's ``SIGTERM``, which skips the pool's shutdown) exits within a second
     instead of finishing its job for nobody. For several rounds of jobs, :class:`WorkerPool` starts the workers once.
     """
