@@ -47,9 +47,8 @@ def run_unordered(
             it the error is raised here.
 
     A ``KeyboardInterrupt`` (Ctrl-C reaches this process, not the workers) stops the running jobs, cancels the rest
-    and is raised again. A worker whose parent is
-    gone (killed, say, by a scheduler's ``SIGTERM``, which skips the pool's shutdown) exits within a second
-    instead of finishing its job for nobody. For several rounds of jobs, :class:`WorkerPool` starts the workers once.
+    and is raised again. A worker whose parent is gone (killed, say, by a scheduler's ``SIGTERM``, which skips the
+    pool's shutdown) exits within a second instead of finishing its job for nobody. For several rounds of jobs, :class:`WorkerPool` starts the workers once.
     """
     with WorkerPool(min(workers, max(len(jobs), 1)), initializer=initializer, initargs=initargs) as pool:
         yield from pool.map_unordered(fn, jobs, on_error=on_error)
