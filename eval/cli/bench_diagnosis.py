@@ -7,8 +7,14 @@ import dataclasses
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from drillgym.envs.errors import UserError
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from drillgym.eval.diagnosis.bench.cases import Case
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -25,6 +31,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=0,
         help="added to every case's seed: the same cases on other episodes and specimens (default 0)",
+    )
+    parser.add_argument(
+        "--seed-offsets",
+        default="",
+        metavar="N,N,...",
+        help="run the benchmark once per offset (into OUT/offset-N) and pool every case of every run in OUT/bench.md, "
+        "e.g. 0,1000,2000: one offset's handful of pairs and clean cases makes each figure coarse",
     )
     parser.add_argument(
         "--candidates",
@@ -56,31 +69,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print its figures."""
-    from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, parse_candidates
-    from drillgym.eval.diagnosis.bench.cases import QUICK_CANDIDATES, Case, full_cases, opt_in_candidates, quick_cases
     from drillgym.eval.diagnosis.bench.run import run_bench
 
     if args.quick and args.opt_in:
         raise UserError("--opt-in adds full-size cases; it cannot be combined with --quick")
-    cases: list[Case] = quick_cases() if args.quick else full_cases(opt_in=args.opt_in)
-    if args.only:
-        wanted = {c.strip() for c in args.only.split(",") if c.strip()}
-        unknown = sorted(wanted - {c.name for c in cases})
-        if unknown:
-            print(
-                f"drillgym bench-diagnosis: error: unknown case(s) {unknown}; cases: {', '.join(c.name for c in cases)}",
-                file=sys.stderr,
-            )
-            return 2
-        cases = [c for c in cases if c.name in wanted]
-    if args.seed_offset:
-        cases = [dataclasses.replace(c, seed=c.seed + args.seed_offset) for c in cases]
+    offsets = _offsets(args.seed_offsets)
+    if offsets and args.seed_offset:
+        raise UserError("give --seed-offset or --seed-offsets, not both")
+    cases = _cases(args)
+    if cases is None:
+        return 2
     episodes = args.episodes or (6 if args.quick else 12)
-    candidates = QUICK_CANDIDATES if args.quick else DIAGNOSIS_CANDIDATES
-    if args.opt_in and not args.candidates:
-        candidates = (*candidates, *opt_in_candidates())
-    if args.candidates:
-        candidates = parse_candidates(args.candidates)
+    candidates = _candidates(args)
     rows_of = None
     if args.ray or args.address:
         from drillgym.eval.scale.cluster import require_ray
@@ -94,17 +94,81 @@ def run(args: argparse.Namespace) -> int:
         from drillgym.eval.diagnosis.bench.pseudo_truth import load_or_compute
 
         best = load_or_compute(args.pseudo_truth, cases, args.workers)
-    result = run_bench(  # a Ray cluster that cannot be reached raises ConnectionError: the CLI's one-line error
-        cases,
-        episodes,
-        candidates,
-        args.out,
-        args.workers,
-        progress=not args.no_progress,
-        rows_of=rows_of,
-        best_equivalent=best,
-    )
+
+    def run_cases(cs: list[Case], out: Path) -> dict[str, Any]:
+        # a Ray cluster that cannot be reached raises ConnectionError: the CLI's one-line error
+        return run_bench(
+            cs,
+            episodes,
+            candidates,
+            out,
+            args.workers,
+            progress=not args.no_progress,
+            rows_of=rows_of,
+            best_equivalent=best,
+        )
+
+    if offsets:
+        return _run_offsets(cases, offsets, args.out, run_cases)
+    result = run_cases(cases, args.out)
     for k, v in result["summary"]["figures"].items():
         print(f"{k}: {v}")
     print(f"wrote {args.out / 'bench.json'} and {args.out / 'bench.md'}")
     return 0
+
+
+def _cases(args: argparse.Namespace) -> list[Case] | None:
+    """The cases asked for (``--quick``, ``--opt-in``, ``--only``, ``--seed-offset``); None after an unknown name."""
+    from drillgym.eval.diagnosis.bench.cases import full_cases, quick_cases
+
+    cases: list[Case] = quick_cases() if args.quick else full_cases(opt_in=args.opt_in)
+    if args.only:
+        wanted = {c.strip() for c in args.only.split(",") if c.strip()}
+        unknown = sorted(wanted - {c.name for c in cases})
+        if unknown:
+            print(
+                f"drillgym bench-diagnosis: error: unknown case(s) {unknown}; cases: {', '.join(c.name for c in cases)}",
+                file=sys.stderr,
+            )
+            return None
+        cases = [c for c in cases if c.name in wanted]
+    if args.seed_offset:
+        cases = [dataclasses.replace(c, seed=c.seed + args.seed_offset) for c in cases]
+    return cases
+
+
+def _candidates(args: argparse.Namespace) -> tuple[str, ...]:
+    """The candidate effects: ``--candidates``, else the defaults (quick: three; ``--opt-in``: and the opt-in ones)."""
+    from drillgym.envs.effects.registry import DIAGNOSIS_CANDIDATES, parse_candidates
+    from drillgym.eval.diagnosis.bench.cases import QUICK_CANDIDATES, opt_in_candidates
+
+    if args.candidates:
+        return tuple(parse_candidates(args.candidates))
+    candidates = QUICK_CANDIDATES if args.quick else DIAGNOSIS_CANDIDATES
+    return (*candidates, *opt_in_candidates()) if args.opt_in else tuple(candidates)
+
+
+def _run_offsets(
+    cases: list[Case], offsets: list[int], out: Path, run_cases: Callable[[list[Case], Path], dict[str, Any]]
+) -> int:
+    """Run every offset, pool and print the pooled counts."""
+    from drillgym.eval.diagnosis.bench.offsets import KINDS, run_offsets
+
+    pooled = run_offsets(cases, offsets, out, run_cases)
+    for kind in KINDS:
+        c = pooled["pooled"][kind]
+        print(f"{kind}: {c['right']}/{c['cases']} right over seed offsets {','.join(map(str, offsets))}")
+    print(f"false attributions: {len(pooled['pooled']['false_attributions'])}")
+    print(f"wrote {out / 'bench.json'} and {out / 'bench.md'} (each offset's run in {out}/offset-N)")
+    return 0
+
+
+def _offsets(text: str) -> list[int]:
+    """The seed offsets of ``--seed-offsets`` (none for ``''``)."""
+    try:
+        offsets = [int(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise UserError(f"--seed-offsets takes comma-separated integers, e.g. 0,1000,2000; got {text!r}") from None
+    if len(set(offsets)) != len(offsets):
+        raise UserError(f"--seed-offsets repeats an offset: {text!r}")
+    return offsets

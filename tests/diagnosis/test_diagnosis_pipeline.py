@@ -215,7 +215,13 @@ def test_bench_diagnosis_refuses_unknown_case_names(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     ("args", "message"),
-    [(["--candidates", "ft_drift,warp_drive"], "warp_drive"), (["--quick", "--opt-in"], "--quick")],
+    [
+        (["--candidates", "ft_drift,warp_drive"], "warp_drive"),
+        (["--quick", "--opt-in"], "--quick"),
+        (["--seed-offsets", "0,1000,0"], "repeats"),
+        (["--seed-offsets", "0,1k"], "integers"),
+        (["--seed-offsets", "0,1000", "--seed-offset", "5"], "not both"),
+    ],
 )
 def test_bench_diagnosis_refuses_unknown_candidates_and_opt_in_quick_runs(tmp_path, capsys, args, message):
     from drillgym.eval.cli import main
