@@ -110,7 +110,8 @@ def markdown(pooled: dict[str, Any]) -> str:
     met = targets_met(pooled["pooled"])
     for kind in KINDS:
         cells = " | ".join(share(t[kind]) for t in tallies)
-        lines.append(f"| {kind} | {cells} | ≥ {100 * TARGETS[kind]:.0f} % | {met[kind]} |")
+        target = f"{'' if TARGETS[kind] >= 1.0 else '≥ '}{100 * TARGETS[kind]:.0f} %"
+        lines.append(f"| {kind} | {cells} | {target} | {met[kind]} |")
     wrong = " | ".join(str(len(t["false_attributions"])) for t in tallies)
     lines.append(f"| false attributions | {wrong} | 0 | {met['false_attributions']} |")
     wrong = pooled["pooled"]["false_attributions"]
