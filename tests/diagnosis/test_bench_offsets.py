@@ -62,3 +62,13 @@ def test_a_false_attribution_is_named_physics_outside_the_truth_whatever_the_for
     ]
     assert false_attributions(rows) == ["void"]
     assert counts([{**r, "correct": False} for r in rows])["outside"] == {"right": 0, "cases": 1}
+
+
+def test_the_benchmarks_summary_holds_a_wrong_effect_named_to_none():
+    from drillgym.eval.diagnosis.bench.run import summarise
+
+    single = _case("one", "single", "stribeck_friction:static_rad=2e-4,coulomb_rad=1.5e-4", 10)
+    right = summarise([_row(single, ["joint_friction"], True)])
+    wrong = summarise([_row(single, ["density_gradient"], False)])
+    assert right["passed"]["wrong_effect_named_rate"] and not wrong["passed"]["wrong_effect_named_rate"]
+    assert wrong["acceptance_at_most"] == {"wrong_effect_named_rate": 0.0}

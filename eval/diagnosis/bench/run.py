@@ -30,13 +30,16 @@ from drillgym.eval.diagnosis.reality.generate import episode_name, make_reality
 from drillgym.eval.pool import run_unordered
 
 ACCEPTANCE = {
-    "top1_accuracy_single": 0.90,
+    "top1_accuracy_single": 0.98,
     "median_shrink_true_effect": 0.60,
-    "clean_no_effect_named": 0.95,
-    "pair_both_named": 0.70,
-    "outside_unexplained_and_located": 1.0,
+    "clean_no_effect_named": 1.0,
+    "pair_both_named": 0.90,
+    "outside_unexplained_and_located": 0.90,
 }
-"""The issue's acceptance figures."""
+"""The targets of the figures (at least), judged on the cases of several seed offsets pooled (``--seed-offsets``,
+:mod:`~drillgym.eval.diagnosis.bench.offsets`): one offset holds five pairs and six clean datasets."""
+ACCEPTANCE_AT_MOST = {"wrong_effect_named_rate": 0.0}
+"""Figures held to at most a value: no effect of the wrong physics named."""
 
 
 CaseJob = tuple[Case, int, tuple[str, ...], bool]
@@ -270,7 +273,14 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         ),
     }
     passed = {k: float(figures[k] or 0.0) >= v for k, v in ACCEPTANCE.items() if figures.get(k) is not None}
-    return {"figures": figures, "acceptance": ACCEPTANCE, "passed": passed, "cases": len(rows)}
+    passed |= {k: float(figures[k] or 0.0) <= v for k, v in ACCEPTANCE_AT_MOST.items() if figures.get(k) is not None}
+    return {
+        "figures": figures,
+        "acceptance": ACCEPTANCE,
+        "acceptance_at_most": ACCEPTANCE_AT_MOST,
+        "passed": passed,
+        "cases": len(rows),
+    }
 
 
 def _shape_refusals(rows: list[dict[str, Any]]) -> dict[str, int]:
@@ -374,8 +384,10 @@ def markdown(result: dict[str, Any]) -> str:
         "|---|---|---|---|",
     ]
     for k, v in s["figures"].items():
-        acc = s["acceptance"].get(k)
-        lines.append(f"| {k} | {fmt(v)} | {'' if acc is None else '≥ ' + fmt(acc)} | {s['passed'].get(k, '')} |")
+        acc, most = s["acceptance"].get(k), s.get("acceptance_at_most", {}).get(k)
+        target = "" if acc is None else "≥ " + fmt(acc)
+        target = target if most is None else "≤ " + fmt(most)
+        lines.append(f"| {k} | {fmt(v)} | {target} | {s['passed'].get(k, '')} |")
     lines += [
         "",
         "| case | kind | truth | verdict | named | top single | true-effect shrink | location | correct | s |",
