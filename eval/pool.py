@@ -13,7 +13,7 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Generator, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
@@ -48,7 +48,8 @@ def run_unordered(
 
     A ``KeyboardInterrupt`` (Ctrl-C reaches this process, not the workers) stops the running jobs, cancels the rest
     and is raised again. A worker whose parent is gone (killed, say, by a scheduler's ``SIGTERM``, which skips the
-    pool's shutdown) exits within a second instead of finishing its job for nobody. For several rounds of jobs, :class:`WorkerPool` starts the workers once.
+    pool's shutdown) exits within a second instead of finishing its job for nobody. For several rounds of jobs,
+    :class:`WorkerPool` starts the workers once.
     """
     with WorkerPool(min(workers, max(len(jobs), 1)), initializer=initializer, initargs=initargs) as pool:
         yield from pool.map_unordered(fn, jobs, on_error=on_error)
@@ -76,7 +77,7 @@ class WorkerPool:
         """``workers`` processes at most; ``initializer(*initargs)`` runs once in each before its first job.
 
         ``here``: this process is one of the ``workers``. It runs jobs beside ``workers - 1`` spawned ones, each
-        process taking the next job as it comes free (:func:`_map_here`). A process that has already imported and
+        process taking the next job as it comes free (:class:`~drillgym.eval.shared_round.SharedRound`). A process that has already imported and
         warmed what the jobs need then starts nothing for its own share, and its first jobs run while the others
         start. The jobs' results must not depend on the process that runs them.
         """
@@ -103,22 +104,11 @@ class WorkerPool:
             return
         if self._here:
             self._init_here()
-            try:
-                broken = yield from SharedRound(self._start(), self.workers - 1, fn, jobs, on_error).results()
-            except BaseException:
-                self.close(cancel=True)
-                raise
-            if broken:  # a worker died: the next round starts fresh workers
-                self.close()
-            return
-        pool = self._start()
-        futures: dict[Future, int] = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
-        broken = False
+            rounds = SharedRound(self._start(), self.workers - 1, fn, jobs, on_error).results()
+        else:
+            rounds = _submitted_round(self._start(), fn, jobs, on_error)
         try:
-            for fut in as_completed(futures):
-                i = futures[fut]
-                broken = broken or isinstance(fut.exception(), BrokenProcessPool)
-                yield i, guarded(fut.result, jobs[i], on_error)
+            broken = yield from rounds
         except BaseException:
             self.close(cancel=True)
             raise
@@ -151,7 +141,7 @@ class WorkerPool:
         ``SystemExit``: its job unwinds, ``finally`` blocks run) instead of waiting for it.
         """
         if self._executor is not None:
-            if cancel:
+            if cancel:  # (the executor's own processes: a private map, which Python 3.14's terminate_workers wraps)
                 for process in list(getattr(self._executor, "_processes", {}).values()):
                     if process.is_alive():
                         process.terminate()
@@ -167,6 +157,25 @@ class WorkerPool:
 
 PARENT_POLL_S = 1.0
 """How often a worker checks that the process that started it is still there (s)."""
+
+
+def _submitted_round(
+    pool: ProcessPoolExecutor,
+    fn: Callable[[Job], Result],
+    jobs: Sequence[Job],
+    on_error: Callable[[Job, Exception], Result] | None,
+) -> Generator[tuple[int, Result], None, bool]:
+    """``(index in jobs, result)`` of every job submitted to ``pool`` at once, as each finishes.
+
+    Returns whether the pool broke (a worker died).
+    """
+    futures: dict[Future, int] = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
+    broken = False
+    for fut in as_completed(futures):
+        i = futures[fut]
+        broken = broken or isinstance(fut.exception(), BrokenProcessPool)
+        yield i, guarded(fut.result, jobs[i], on_error)
+    return broken
 
 
 def _spawn_deaf_to_ctrl_c(pool: ProcessPoolExecutor, n: int) -> None:

@@ -169,6 +169,7 @@ def _offsets(text: str) -> list[int]:
         offsets = [int(t) for t in text.split(",") if t.strip()]
     except ValueError:
         raise UserError(f"--seed-offsets takes comma-separated integers, e.g. 0,1000,2000; got {text!r}") from None
-    if len(set(offsets)) != len(offsets):
-        raise UserError(f"--seed-offsets repeats an offset: {text!r}")
+    from drillgym.eval.diagnosis.bench.offsets import check_offsets
+
+    check_offsets(offsets)
     return offsets

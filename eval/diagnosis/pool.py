@@ -10,6 +10,7 @@ jobs name: a worker loads it before its first job of a round that names a new on
 from __future__ import annotations
 
 import hashlib
+import os
 import pickle
 import shutil
 import tempfile
@@ -36,8 +37,13 @@ def _init(data: DiagnosisData) -> None:
     _WORKER.update(data=data, replayer=replayer, evaluator=Evaluator(data, replayer) if data.nulls else None)
 
 
-def _warm() -> None:
-    """Load the compiled replay before a process's first job (its start, not a job, pays the fraction of a second)."""
+def _warm(owner_pid: int) -> None:
+    """Load the compiled replay before a spawned worker's first job (its start, not a job, pays the fraction of a second).
+
+    Nothing in the process running the diagnosis (``owner_pid``): it runs its first job at once, which loads it.
+    """
+    if os.getpid() == owner_pid:
+        return
     env = UR5BoneDrillEnv(pybullet_world=False, ft_noise_n=0.0, tracker_noise_mm=0.0)
     env.reset(seed=0)
     env.replay_open_loop(np.zeros((2, ACTION_DIM)))
@@ -79,7 +85,7 @@ class Runner:
 
     def __init__(self, workers: int) -> None:
         self.workers = max(1, int(workers))
-        self._pool = WorkerPool(self.workers, initializer=_warm, here=True)  # this process is a worker too
+        self._pool = WorkerPool(self.workers, initializer=_warm, initargs=(os.getpid(),), here=True)  # this one too
         self._dir: Path | None = None
         self._files: dict[str, str] = {}
 

@@ -15,9 +15,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from drillgym.envs.effects.registry import physics_of
+from drillgym.envs.errors import UserError
 from drillgym.eval.diagnosis.bench.cases import Case
-from drillgym.eval.diagnosis.bench.run import ACCEPTANCE, summarise
+from drillgym.eval.diagnosis.bench.run import ACCEPTANCE, named_wrong_physics, summarise
 
 KINDS = ("single", "pair", "clean", "outside")
 """Case kinds, in the order the tables show them."""
@@ -39,7 +39,7 @@ def false_attributions(rows: list[dict[str, Any]]) -> list[str]:
     return [
         r["case"] + (f" (offset {r['seed_offset']})" if "seed_offset" in r else "")
         for r in rows
-        if {physics_of(n) for n in r["named"]} - {physics_of(n) for n in r["truth"]}
+        if named_wrong_physics(r)
     ]
 
 
@@ -63,6 +63,12 @@ def targets_met(tally: dict[str, Any]) -> dict[str, bool | None]:
     return out
 
 
+def check_offsets(offsets: Sequence[int]) -> None:
+    """Refuse an offset given twice (its runs would share a folder and count twice)."""
+    if len(set(offsets)) != len(offsets):
+        raise UserError(f"a seed offset repeats: {list(offsets)}")
+
+
 def run_offsets(
     cases: list[Case], offsets: Sequence[int], out: Path, run: Callable[[list[Case], Path], dict[str, Any]]
 ) -> dict[str, Any]:
@@ -71,8 +77,7 @@ def run_offsets(
     Returns and writes (``out/bench.json``, ``out/bench.md``) ``{"offsets": {N: counts}, "pooled": counts, "summary":
     the pooled rows' figures}``; each offset's rows carry their ``seed_offset``.
     """
-    if len(set(offsets)) != len(offsets):
-        raise ValueError(f"seed offsets repeat: {list(offsets)}")
+    check_offsets(offsets)
     per: dict[str, Any] = {}
     rows: list[dict[str, Any]] = []
     for offset in offsets:

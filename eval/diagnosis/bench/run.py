@@ -246,11 +246,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         return sum(bool(x) for x in sel) / len(sel) if sel else None
 
     shrinks = [r["true_effect_shrink"] for r in rows if r["kind"] == "single" and r["true_effect_shrink"] is not None]
-    wrong_named = [
-        r
-        for r in rows
-        if r["kind"] in ("single", "pair") and {physics_of(n) for n in r["named"]} - {physics_of(n) for n in r["truth"]}
-    ]
+    wrong_named = [r for r in rows if r["kind"] in ("single", "pair") and named_wrong_physics(r)]
     figures = {
         "top1_accuracy_single": rate("single"),
         "top1_ranked_single": rate("single", "top1_ranked"),
@@ -281,6 +277,11 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "passed": passed,
         "cases": len(rows),
     }
+
+
+def named_wrong_physics(row: dict[str, Any]) -> bool:
+    """Whether a case named an effect of physics its truth does not hold (a form of the true physics is right)."""
+    return bool({physics_of(n) for n in row["named"]} - {physics_of(n) for n in row["truth"]})
 
 
 def _shape_refusals(rows: list[dict[str, Any]]) -> dict[str, int]:
