@@ -11,6 +11,7 @@ returned (and written by the CLI next to, not inside, the log folder).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -92,6 +93,37 @@ def episode_plan(index: int, rng: np.random.Generator) -> dict[str, Any]:
     }
 
 
+def log_episodes(
+    plans: Sequence[dict[str, Any]],
+    effects_for: Callable[[int, dict[str, Any]], list[Any]],
+    out: Path,
+    overwrite: bool = False,
+    after: Callable[[dict[str, Any], list[Any]], None] | None = None,
+) -> None:
+    """Run each plan (``scenario``, ``controller``, ``seed``) in the simulator and log it as a real cell would.
+
+    ``effects_for(i, plan)``: the effects switched on for episode ``i`` (reality effects, or candidate effects when a
+    candidate model plays the reality); ``after(plan, effects)``: called once the episode is logged. Logs are
+    ``out/episode_NNN.parquet`` (``source: "real"``, no seed in the header).
+    """
+    env = gym.make(SIM_ENV_ID)
+    try:
+        for i, plan in enumerate(plans):
+            controller = make_controller(plan["controller"])
+            effects = effects_for(i, plan)
+            env.unwrapped.set_effects(effects or None)  # type: ignore[attr-defined]
+            env.reset(seed=plan["seed"], options={"scenario": plan["scenario"]})
+            header = build_header(env, controller.describe(), seed=None, source="real")
+            logger = EpisodeLogger(env, out / f"{episode_name(i)}.parquet", header, overwrite=overwrite)
+            # no seed: the episode continues the stream seeded above; the header keeps seed null
+            run_episode(logger, controller, seed=None, keep_trace=False)
+            logger.close_log()
+            if after is not None:
+                after(plan, effects)
+    finally:
+        env.close()
+
+
 def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite: bool = False) -> dict[str, Any]:
     """Write ``episodes`` real-schema logs ``out/episode_NNN.parquet`` of a reality with ``spec`` on.
 
@@ -105,23 +137,16 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     plans = [episode_plan(i, rng) for i in range(episodes)]
-    env = gym.make(SIM_ENV_ID)
-    try:
-        for i, plan in enumerate(plans):
-            controller = make_controller(plan["controller"])
-            effects = episode_reality(spec, np.random.default_rng([seed, i, 7]), i, episodes)
-            env.unwrapped.set_effects(effects or None)  # type: ignore[attr-defined]
-            env.reset(seed=plan["seed"], options={"scenario": plan["scenario"]})
-            header = build_header(env, controller.describe(), seed=None, source="real")
-            logger = EpisodeLogger(env, out / f"{episode_name(i)}.parquet", header, overwrite=overwrite)
-            # no seed: the episode continues the stream seeded above; the header keeps seed null
-            run_episode(logger, controller, seed=None, keep_trace=False)
-            logger.close_log()
-            own = {e.explains: v for e in effects if e.explains and (v := e.episode_candidate_values()) is not None}
-            if own:  # what an effect that differs per episode was in this one, in its candidate's terms
-                plan["episode_values"] = own
-    finally:
-        env.close()
+
+    def effects_for(i: int, plan: dict[str, Any]) -> list[Any]:
+        return episode_reality(spec, np.random.default_rng([seed, i, 7]), i, episodes)
+
+    def after(plan: dict[str, Any], effects: list[Any]) -> None:
+        own = {e.explains: v for e in effects if e.explains and (v := e.episode_candidate_values()) is not None}
+        if own:  # what an effect that differs per episode was in this one, in its candidate's terms
+            plan["episode_values"] = own
+
+    log_episodes(plans, effects_for, out, overwrite=overwrite, after=after)
     return {
         "spec": spec,
         "effects": [{"name": e.name, "explains": e.explains, "params": e.values} for e in build_reality(spec)],
