@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 from drillgym.envs.effects.backlash import JointBacklash
 from drillgym.envs.effects.base import Effect, EffectStack
 from drillgym.envs.effects.bone import DensityGradient, SkidFriction, ThermalSoftening
@@ -62,6 +64,11 @@ def physics_of(name: str) -> str:
     """The physics a candidate names: itself, or the effect it is a variant of (``ft_episode_drift`` -> ``ft_drift``)."""
     cls = EFFECTS.get(name)
     return name if cls is None or cls.variant_of is None else cls.variant_of
+
+
+def physics_set(names: Iterable[str]) -> frozenset[str]:
+    """The physics a model of effects ``names`` names (:func:`physics_of` of each): what tells two models' physics apart."""
+    return frozenset(physics_of(n) for n in names)
 
 
 def parse_candidates(text: str) -> tuple[str, ...]:

@@ -76,6 +76,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "drillgym.eval.cli.diagnose",
         "Sim-to-real gap diagnosis of real episode logs: where, which unmodelled effect, how far it shrinks.",
     ),
+    "separate": (
+        "drillgym.eval.cli.separate",
+        "For a diagnosis with a model not ruled out: the feed at which simulated holes would tell it from the named one.",
+    ),
     "make-reality": (
         "drillgym.eval.cli.make_reality",
         "Write real-schema episode logs from the simulator with unmodelled effects switched on.",

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from drillgym.envs.effects.registry import EFFECTS
+from drillgym.envs.effects.registry import EFFECTS, physics_set
 from drillgym.envs.json_safe import json_safe
 from drillgym.eval.diagnosis.channels import FORCE, STAGES
 from drillgym.eval.diagnosis.context import build, make_spec
@@ -179,6 +179,23 @@ def why_not_named(effect: dict[str, Any], res: dict[str, Any]) -> str:
     return "no: the named model scores better across resamples"
 
 
+def separate_hint(res: dict[str, Any]) -> list[str]:
+    """A paragraph when a model with other physics than the named one is not ruled out: how to plan holes that decide."""
+    named = set(res.get("named") or [])
+    if not named:
+        return []
+    others = [a["name"] for a in res.get("alternatives") or [] if physics_set(a["effects"]) != physics_set(named)]
+    if not others:
+        return []
+    return [
+        "",
+        f"**Not ruled out, with other physics: {', '.join(others)}.** These logs cannot tell it from "
+        f"{'+'.join(res['named'])}; `drillgym separate --diagnosis OUT --real LOGS --out DIR` simulates some of the "
+        "logged holes at other feeds with each model as the reality and says where the next holes would tell them "
+        "apart (docs/diagnosis.md §4).",
+    ]
+
+
 def per_episode_lines(res: dict[str, Any]) -> list[str]:
     """The per-episode section: each episode's role, specimen hardness and a random effect's own parameters."""
     eps = res["episodes"]
@@ -267,6 +284,7 @@ def _markdown(res: dict[str, Any], figs: dict[str, Path]) -> str:
         "differences in units of the simulator's noise after profiling out each specimen's hardness "
         "(see docs/diagnosis.md).",
         *episode_warning(res),
+        *separate_hint(res),
         "",
         "## Which effect",
         "",

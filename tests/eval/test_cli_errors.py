@@ -27,6 +27,7 @@ BAD_INPUT = {
     "bench-rtde": ["--seconds", "-1"],
     "ft-check": ["--ft", NO_ROBOT, "--mass-kg", "-0.5"],
     "diagnose": ["--real", "no_such_folder"],
+    "separate": ["--diagnosis", "no_such_folder", "--real", "no_such_folder"],
     "make-reality": ["--effects", "no_such_effect"],
     "bench-diagnosis": ["--only", "no_such_case"],
     "import-rtde": ["no_such_session"],

@@ -1,0 +1,106 @@
+"""``drillgym separate``'s record: ``separation.json``, ``separation.md`` and a figure of the separation per feed."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+SEPARATED = 2.0
+"""A separation from this on is called one the holes would show (the other model's gap twice the true one's)."""
+
+
+def separation_line(pair: dict[str, Any]) -> str:
+    """One sentence: where the two models are furthest apart, and how far apart they are as logged."""
+    best = pair["best"]
+    logged = next((w["separation"] for w in pair["weakest"] if w["feed_factor"] == 1.0), None)
+    as_logged = "" if logged is None else f"; at the logged feeds {logged:.3g}"
+    if best["separation"] < SEPARATED:
+        return (
+            f"no feed tried separates them (at most {best['separation']:.3g}, at {best['feed_factor']:g} x the "
+            f"logged feed{as_logged})"
+        )
+    return (
+        f"furthest apart at {best['feed_factor']:g} x the logged feed: the wrong one leaves {best['separation']:.3g} "
+        f"times the right one's gap there{as_logged}"
+    )
+
+
+def write_separation(result: dict[str, Any], out: Path, figure: bool = True) -> dict[str, Path]:
+    """Write ``separation.json``, ``separation.md`` and (optionally) ``separation.png`` into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"json": out / "separation.json", "report": out / "separation.md"}
+    paths["json"].write_text(json.dumps(result, indent=2))
+    if figure:
+        paths["figure"] = plot_separation(result, out / "separation.png")
+    paths["report"].write_text(_markdown(result, "figure" in paths))
+    return paths
+
+
+def _markdown(result: dict[str, Any], figure: bool) -> str:
+    named = result["named"]
+    lines = [
+        f"# Telling {named} from the models not ruled out",
+        "",
+        f"Holes re-simulated: {', '.join(result['holes'])} (their scenario and controller), at each feed factor times "
+        "their logged feed, with each model in turn playing the reality at its fitted values. The separation is the "
+        "other model's gap on those holes over the true one's (the diagnosis's gap; about 1: the holes cannot tell "
+        f"them apart). A feed counts by the smaller of the two directions; from {SEPARATED:g} on, the holes would "
+        "show which one the cell follows. `*`: the other model's excess is beyond the holes' scatter.",
+        "",
+    ]
+    for pair in result["pairs"]:
+        other = pair["other"]
+        lines += [
+            f"## {named} against {other}",
+            "",
+            f"**{separation_line(pair)}.**",
+            "",
+            f"| feed factor | feeds (mm/s) | {other} judged, {named} true | {named} judged, {other} true |",
+            "|---|---|---|---|",
+        ]
+        for f in result["factors"]:
+            rows = {r["truth"]: r for r in pair["rows"] if r["feed_factor"] == f}
+            a, b = rows[named], rows[other]
+            feeds = ", ".join(f"{x:.3g}" for x in a["feeds_mm_s"])
+            lines.append(f"| {f:g} | {feeds} | {_cell(a)} | {_cell(b)} |")
+        lines.append("")
+    if figure:
+        lines += ["![separation per feed](separation.png)", ""]
+    return "\n".join(lines)
+
+
+def _cell(row: dict[str, Any]) -> str:
+    return f"{row['separation']:.3g}{' *' if row['significant'] else ''}"
+
+
+def plot_separation(result: dict[str, Any], path: Path) -> Path:
+    """Bars of the separation per feed factor, both directions, one panel per model pair (log scale)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    pairs = result["pairs"]
+    fig, axes = plt.subplots(1, len(pairs), figsize=(5.0 * len(pairs), 3.4), squeeze=False)
+    x = np.arange(len(result["factors"]))
+    for ax, pair in zip(axes[0], pairs, strict=True):
+        for k, (truth, colour) in enumerate(((result["named"], "#2b8cbe"), (pair["other"], "#e6550d"))):
+            values = [
+                next(r["separation"] for r in pair["rows"] if r["feed_factor"] == f and r["truth"] == truth)
+                for f in result["factors"]
+            ]
+            ax.bar(x + (k - 0.5) * 0.38, values, width=0.38, color=colour, label=f"{truth} true")
+        ax.axhline(1.0, color="0.3", lw=0.8)
+        ax.axhline(SEPARATED, color="0.3", lw=0.8, ls="--")
+        ax.set_yscale("log")
+        ax.set_xticks(x, [f"{f:g}x" for f in result["factors"]])
+        ax.set_xlabel("feed (times the logged feed)")
+        ax.set_ylabel("other model's gap / true model's")
+        ax.set_title(f"{result['named']} vs {pair['other']}", fontsize=9)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
