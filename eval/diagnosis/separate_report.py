@@ -15,6 +15,11 @@ def separation_line(pair: dict[str, Any]) -> str:
     best = pair["best"]
     logged = next((w["separation"] for w in pair["weakest"] if w["feed_factor"] == 1.0), None)
     as_logged = "" if logged is None else f"; at the logged feeds {logged:.3g}"
+    if logged is not None and logged >= SEPARATED:
+        # Either model as the cell would have ruled the other out on holes like the logged ones; the logs did not.
+        as_logged += (
+            " (already apart there: neither is the cell's own form, both miss the logs by more than they differ)"
+        )
     if best["separation"] < SEPARATED:
         return (
             f"no feed tried separates them (at most {best['separation']:.3g}, at {best['feed_factor']:g} x the "

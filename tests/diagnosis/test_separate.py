@@ -165,3 +165,16 @@ def test_the_report_points_to_separate_only_for_an_alternative_with_other_physic
     drift = {"named": ["ft_drift"], "alternatives": [{"name": "ft_episode_drift", "effects": ["ft_episode_drift"]}]}
     assert separate_hint(drift) == []
     assert separate_hint({"named": [], "alternatives": _diagnosis()["alternatives"]}) == []
+
+
+def test_a_separation_at_the_logged_feeds_says_neither_model_is_the_cells_form():
+    from drillgym.eval.diagnosis.separate_report import separation_line
+
+    def pair(logged: float, quarter: float) -> dict:
+        weakest = [{"feed_factor": 0.25, "separation": quarter}, {"feed_factor": 1.0, "separation": logged}]
+        return {"weakest": weakest, "best": max(weakest, key=lambda w: w["separation"])}
+
+    assert "neither is the cell's own form" in separation_line(pair(8.9, 12.3))
+    apart_slow = separation_line(pair(1.2, 22.7))
+    assert "0.25 x the logged feed" in apart_slow and "neither" not in apart_slow
+    assert separation_line(pair(1.1, 1.4)).startswith("no feed tried separates them")
