@@ -56,12 +56,15 @@ def models_to_separate(diagnosis: dict[str, Any]) -> tuple[Model, list[Model]]:
     Raises:
         UserError: the diagnosis named nothing, or left no alternative with other physics to separate.
     """
-    entries = {e["name"]: e for e in diagnosis.get("effects", [])}
-    named = next((e for e in entries.values() if e.get("named")), None)
-    if named is None:
-        raise UserError(f"the diagnosis named no model (verdict {diagnosis.get('verdict')!r}): nothing to separate")
-    first = _model(named)
-    others = [_model(entries[a["name"]]) for a in diagnosis.get("alternatives") or [] if a["name"] in entries]
+    try:
+        entries = {e["name"]: e for e in diagnosis.get("effects", [])}
+        named = next((e for e in entries.values() if e.get("named")), None)
+        if named is None:
+            raise UserError(f"the diagnosis named no model (verdict {diagnosis.get('verdict')!r}): nothing to separate")
+        first = _model(named)
+        others = [_model(entries[a["name"]]) for a in diagnosis.get("alternatives") or [] if a["name"] in entries]
+    except (KeyError, TypeError, AttributeError) as e:
+        raise UserError(f"not a diagnosis.json that drillgym diagnose wrote: {type(e).__name__} {e}") from e
     others = [m for m in others if m.physics != first.physics]
     if not others:
         raise UserError(

@@ -178,3 +178,17 @@ def test_a_separation_at_the_logged_feeds_says_neither_model_is_the_cells_form()
     apart_slow = separation_line(pair(1.2, 22.7))
     assert "0.25 x the logged feed" in apart_slow and "neither" not in apart_slow
     assert separation_line(pair(1.1, 1.4)).startswith("no feed tried separates them")
+
+
+@pytest.mark.parametrize(
+    "broken",
+    [
+        [],
+        {"effects": [{"name": "thermal_softening", "named": True}]},
+        {"effects": [_entry("thermal_softening", {}, named=True)]},
+        {"effects": [_entry("no_such_effect", {"no_such_effect": {}}, named=True)]},
+    ],
+)
+def test_a_diagnosis_json_of_another_shape_is_refused_with_a_clear_error(broken):
+    with pytest.raises(UserError):
+        models_to_separate(broken)
