@@ -1,7 +1,7 @@
 """``drillgym separate --diagnosis DIR --real LOGS --out OUT``: which holes would tell the named model from the rest.
 
 For a diagnosis that named a model while another with other physics was "not ruled out", simulate a few of the
-logged holes at other feeds with each model playing the reality and say at which feed the other is furthest off
+logged holes at other feeds and angles with each model playing the reality and say where the other is furthest off
 (:mod:`drillgym.eval.diagnosis.separate`). A separation is a record: an ``--out`` that holds one is refused.
 """
 
@@ -21,7 +21,7 @@ RECORD_FILES = ("separation.json", "separation.md", "separation.png")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """CLI arguments."""
-    from drillgym.eval.diagnosis.separate import FEED_FACTORS, HOLES
+    from drillgym.eval.diagnosis.separate import BETAS_DEG, FEED_FACTORS, HOLES
 
     parser.add_argument(
         "--diagnosis", required=True, type=Path, help="a diagnosis: its folder (diagnosis.json inside) or the file"
@@ -33,22 +33,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=",".join(f"{f:g}" for f in FEED_FACTORS),
         help="feeds to try, as factors of each logged hole's feed (default: %(default)s; 1 = as logged)",
     )
+    parser.add_argument(
+        "--betas-deg",
+        default=",".join(f"{b:g}" for b in BETAS_DEG),
+        help="interaction angles to try, each for every hole at its logged feed (default: %(default)s; '' for none)",
+    )
     parser.add_argument("--holes", type=int, default=HOLES, help="logged holes re-simulated per feed (default: 3)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the simulated holes' noise and specimens")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--no-figure", action="store_true", help="skip separation.png")
 
 
-def _factors(text: str) -> list[float]:
+def _numbers(text: str, option: str, example: str) -> list[float]:
     try:
-        factors = [float(x) for x in text.split(",") if x.strip()]
+        values = [float(x) for x in text.split(",") if x.strip()]
     except ValueError as e:
-        raise UserError(f"--feed-factors {text!r}: comma-separated numbers, e.g. 0.25,0.5,1,2") from e
-    if not factors:
-        raise UserError("--feed-factors: give at least one factor")
-    if len(set(factors)) != len(factors):
-        raise UserError(f"--feed-factors {text!r} repeats a factor")
-    return factors
+        raise UserError(f"{option} {text!r}: comma-separated numbers, e.g. {example}") from e
+    if len(set(values)) != len(values):
+        raise UserError(f"{option} {text!r} repeats a value")
+    return values
 
 
 def _diagnosis(path: Path) -> dict:
@@ -66,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from drillgym.eval.diagnosis.episodes import load_episodes
-    from drillgym.eval.diagnosis.separate import check_factors, models_to_separate, pick_holes, separate
+    from drillgym.eval.diagnosis.separate import changes, check_changes, models_to_separate, pick_holes, separate
     from drillgym.eval.diagnosis.separate_report import separation_line, write_separation
 
     if args.out.exists() and not args.out.is_dir():
@@ -76,16 +79,20 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"{args.out} holds a previous separation ({', '.join(found)}): pass another --out")
     if args.holes < 1:
         raise UserError(f"--holes={args.holes} must be >= 1")
-    factors = _factors(args.feed_factors)
+    grid = changes(
+        _numbers(args.feed_factors, "--feed-factors", "0.25,0.5,1,2"), _numbers(args.betas_deg, "--betas-deg", "0,40")
+    )
+    if not grid:
+        raise UserError("--feed-factors and --betas-deg are both empty: give at least one change to try")
     diagnosis = _diagnosis(args.diagnosis)
     named, others = models_to_separate(diagnosis)
     episodes, skipped = load_episodes(args.real)
     for s in skipped:
         print(f"skipped {s}", file=sys.stderr)
-    check_factors(factors, pick_holes(episodes, args.holes))
-    total = 2 * len(factors) * len(others)
-    with tqdm(total=total, desc="separate", unit="feed", disable=True if args.no_progress else None) as bar:
-        result = separate(diagnosis, episodes, factors, args.holes, args.seed, progress=lambda: bar.update(1))
+    check_changes(grid, pick_holes(episodes, args.holes))
+    total = 2 * len(grid) * len(others)
+    with tqdm(total=total, desc="separate", unit="change", disable=True if args.no_progress else None) as bar:
+        result = separate(diagnosis, episodes, grid, args.holes, args.seed, progress=lambda: bar.update(1))
     paths = write_separation(result, args.out, figure=not args.no_figure)
     for pair in result["pairs"]:
         print(f"{named.name} against {pair['other']}: {separation_line(pair)}")

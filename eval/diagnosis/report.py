@@ -191,7 +191,7 @@ def separate_hint(res: dict[str, Any]) -> list[str]:
         "",
         f"**Not ruled out, with other physics: {', '.join(others)}.** These logs cannot tell it from "
         f"{'+'.join(res['named'])}; `drillgym separate --diagnosis OUT --real LOGS --out DIR` simulates some of the "
-        "logged holes at other feeds with each model as the reality and says where the next holes would tell them "
+        "logged holes at other feeds and angles with each model as the reality and says where the next holes would tell them "
         "apart (docs/diagnosis.md §4).",
     ]
 

@@ -3,12 +3,13 @@
 A diagnosis can name a model while another, with other physics, is not ruled out by the held-out episodes
 (``alternatives`` in ``diagnosis.json``): a thermal softening and a density gradient both scale the forces as the
 hole deepens, and with a dozen holes the data may not prefer either. The way to separate them is to drill where
-their predictions part. For each feed rate of a grid, a few of the logged holes (scenario and controller) are
-simulated again at that feed with one model's effects on, at its fitted values, and logged as the real cell would
-log them (noise, a drawn specimen); the other model is replayed on those logs and scored with the diagnosis's own
-gap (:mod:`drillgym.eval.diagnosis.gap`). Its gap over the true model's own, the **separation**, says how far apart
-the two are at that feed: about 1 where the data could not tell them apart, and the larger, the fewer holes it takes.
-Both directions are run (each model playing the reality), and a feed counts by the smaller of the two.
+their predictions part. For each change of a grid (a feed rate as a factor of each hole's own, or an interaction
+angle), a few of the logged holes (scenario and controller) are simulated again with that change and one model's
+effects on, at its fitted values, and logged as the real cell would log them (noise, a drawn specimen); the other
+model is replayed on those logs and scored with the diagnosis's own gap (:mod:`drillgym.eval.diagnosis.gap`). Its
+gap over the true model's own, the **separation**, says how far apart the two are there: about 1 where the data
+could not tell them apart, and the larger, the fewer holes it takes. Both directions are run (each model playing the
+reality), and a change counts by the smaller of the two.
 """
 
 from __future__ import annotations
@@ -33,6 +34,9 @@ from drillgym.eval.diagnosis.where import gap_significance
 
 FEED_FACTORS = (0.25, 0.5, 1.0, 2.0)
 """Feeds tried, as factors of each logged hole's own feed (1.0: the holes as logged)."""
+BETAS_DEG = (0.0, 40.0)
+"""Interaction angles tried (deg), each for every hole at its logged feed: a perpendicular entry and the steepest
+the simulator takes."""
 HOLES = 3
 """Logged holes re-simulated per feed and direction (one per controller first)."""
 
@@ -95,40 +99,70 @@ def pick_holes(episodes: Sequence[EpisodeData], holes: int = HOLES) -> list[Epis
     return out
 
 
-def check_factors(factors: Sequence[float], holes: Sequence[EpisodeData]) -> None:
-    """Every feed ``factor × logged feed`` must be a feed the simulator takes (``UserError`` otherwise)."""
-    low, high, _ = RANGES["feed_mm_s"]
-    for f in factors:
-        if not np.isfinite(f) or f <= 0:
-            raise UserError(f"feed factor {f} must be a positive number")
+@dataclass(frozen=True)
+class Change:
+    """A change of the logged holes' scenarios.
+
+    ``knob`` ``"feed"``: ``value`` is a factor of each hole's feed; ``"beta"``: the interaction angle of every hole (deg).
+    """
+
+    knob: str
+    value: float
+
+    def scenario(self, logged: dict[str, Any]) -> dict[str, Any]:
+        """A hole's scenario with this change."""
+        if self.knob == "feed":
+            return dict(logged, feed_mm_s=self.value * float(logged["feed_mm_s"]))
+        return dict(logged, beta_deg=self.value)
+
+    @property
+    def as_logged(self) -> bool:
+        """The holes as they were logged (a feed factor of 1)."""
+        return self.knob == "feed" and self.value == 1.0
+
+    def label(self) -> str:
+        """Words for the report: ``0.25 x the logged feed``, ``an interaction angle of 0 deg``."""
+        if self.knob == "feed":
+            return f"{self.value:g} x the logged feed"
+        return f"an interaction angle of {self.value:g} deg"
+
+
+def changes(factors: Sequence[float] = FEED_FACTORS, betas_deg: Sequence[float] = BETAS_DEG) -> list[Change]:
+    """The feed factors, then the angles, as :class:`Change` s."""
+    return [Change("feed", float(f)) for f in factors] + [Change("beta", float(b)) for b in betas_deg]
+
+
+def check_changes(grid: Sequence[Change], holes: Sequence[EpisodeData]) -> None:
+    """Every changed hole must be a scenario the simulator takes (``UserError`` otherwise)."""
+    for c in grid:
+        if not np.isfinite(c.value) or (c.knob == "feed" and c.value <= 0):
+            raise UserError(f"{c.knob} {c.value}: a feed factor must be a positive number, an angle a finite one")
+        key = "feed_mm_s" if c.knob == "feed" else "beta_deg"
+        low, high, inclusive_low = RANGES[key]
         for ep in holes:
-            feed = f * float(ep.scenario["feed_mm_s"])
-            if not low < feed <= high:
+            v = float(c.scenario(ep.scenario)[key])
+            if not ((low <= v) if inclusive_low else (low < v)) or v > high:
                 raise UserError(
-                    f"feed factor {f} gives {feed:.3g} mm/s for {ep.name} (logged at {ep.scenario['feed_mm_s']} mm/s); "
-                    f"the simulator takes ({low}, {high}] mm/s"
+                    f"{c.label()} gives {key} = {v:.3g} for {ep.name} (logged {ep.scenario[key]}); "
+                    f"the simulator takes {'[' if inclusive_low else '('}{low}, {high}]"
                 )
 
 
 def separation_at(
-    truth: Model, other: Model, holes: Sequence[EpisodeData], factor: float, seed: int, replayer: Replayer
+    truth: Model, other: Model, holes: Sequence[EpisodeData], change: Change, seed: int, replayer: Replayer
 ) -> dict[str, Any]:
-    """``other``'s gap on holes simulated with ``truth`` on at ``factor`` × their feed, over ``truth``'s own gap.
+    """``other``'s gap on holes simulated with ``truth`` on and ``change`` made, over ``truth``'s own gap.
 
-    Returns ``{"feed_factor", "feeds_mm_s", "truth", "other", "separation", "significant", "truth_ratio"}``:
-    ``separation`` is ``other``'s pooled gap over ``truth``'s; ``significant`` whether ``other``'s excess over it is
-    beyond the holes' scatter (:func:`~drillgym.eval.diagnosis.where.gap_significance`, ``truth``'s terms as the
-    null); ``truth_ratio``: ``truth``'s own gap over the simulator's own level (≈ 1).
+    Returns ``{"knob", "value", "feeds_mm_s", "betas_deg", "truth", "other", "separation", "significant",
+    "truth_ratio"}``: ``separation`` is ``other``'s pooled gap over ``truth``'s; ``significant`` whether ``other``'s
+    excess over it is beyond the holes' scatter (:func:`~drillgym.eval.diagnosis.where.gap_significance`,
+    ``truth``'s terms as the null); ``truth_ratio``: ``truth``'s own gap over the simulator's own level (≈ 1).
     """
     rng = np.random.default_rng(seed)
-    feeds = [factor * float(ep.scenario["feed_mm_s"]) for ep in holes]
+    scenarios = [change.scenario(ep.scenario) for ep in holes]
     plans = [
-        {
-            "scenario": dict(ep.scenario, feed_mm_s=feed),
-            "controller": ep.controller,
-            "seed": int(rng.integers(2**31 - 1)),
-        }
-        for ep, feed in zip(holes, feeds, strict=True)
+        {"scenario": sc, "controller": ep.controller, "seed": int(rng.integers(2**31 - 1))}
+        for sc, ep in zip(scenarios, holes, strict=True)
     ]
     with tempfile.TemporaryDirectory(prefix="drillgym-separate-") as tmp:
         log_episodes(plans, lambda i, plan: build(truth.spec), Path(tmp))
@@ -140,8 +174,10 @@ def separation_at(
     t_truth, t_other = ev.terms(truth.spec, idx), ev.terms(other.spec, idx)
     g_truth, g_other, g_null = pooled(t_truth), pooled(t_other), pooled(data.null_terms)
     return {
-        "feed_factor": factor,
-        "feeds_mm_s": feeds,
+        "knob": change.knob,
+        "value": change.value,
+        "feeds_mm_s": [float(sc["feed_mm_s"]) for sc in scenarios],
+        "betas_deg": [float(sc["beta_deg"]) for sc in scenarios],
         "truth": truth.name,
         "other": other.name,
         "separation": float(g_other / g_truth),
@@ -153,35 +189,49 @@ def separation_at(
 def separate(
     diagnosis: dict[str, Any],
     episodes: Sequence[EpisodeData],
-    factors: Sequence[float] = FEED_FACTORS,
+    grid: Sequence[Change] | None = None,
     holes: int = HOLES,
     seed: int = 0,
     progress: Any = None,
 ) -> dict[str, Any]:
-    """For the named model against each alternative with other physics: the separation at each feed, both ways.
+    """For the named model against each alternative with other physics: the separation at each change, both ways.
 
-    Returns ``{"named", "holes", "factors", "pairs": [{"other", "rows", "weakest", "best"}]}``: ``rows`` per feed
-    factor and direction (:func:`separation_at`); ``weakest``: per feed factor, the smaller separation of the two
-    directions; ``best``: the ``weakest`` entry with the largest separation, where to drill to tell them apart.
+    ``grid``: the changes tried (default :func:`changes`: :data:`FEED_FACTORS` and :data:`BETAS_DEG`).
+
+    Returns ``{"named", "holes", "changes", "pairs": [{"other", "rows", "weakest", "best"}]}``: ``rows`` per change
+    and direction (:func:`separation_at`); ``weakest``: per change (``knob``, ``value``), the smaller separation of
+    the two directions; ``best``: the ``weakest`` entry with the largest separation, where to drill to tell them apart.
     """
+    grid = changes() if grid is None else list(grid)
     named, others = models_to_separate(diagnosis)
     chosen = pick_holes(episodes, holes)
     if not chosen:
         raise UserError("no logged episode to take the holes' scenarios from")
-    check_factors(factors, chosen)
+    if not grid:
+        raise UserError("no change to try: give at least one feed factor or angle")
+    check_changes(grid, chosen)
     replayer = Replayer()
     pairs = []
     for k, other in enumerate(others):
         rows = []
-        for j, factor in enumerate(factors):
+        for j, change in enumerate(grid):
             for truth, judged in ((named, other), (other, named)):
-                rows.append(separation_at(truth, judged, chosen, factor, seed + 1000 * k + j, replayer))
+                rows.append(separation_at(truth, judged, chosen, change, seed + 1000 * k + j, replayer))
                 if progress is not None:
                     progress()
         weakest = [
-            {"feed_factor": f, "separation": min(r["separation"] for r in rows if r["feed_factor"] == f)}
-            for f in factors
+            {
+                "knob": c.knob,
+                "value": c.value,
+                "separation": min(r["separation"] for r in rows if (r["knob"], r["value"]) == (c.knob, c.value)),
+            }
+            for c in grid
         ]
         best = max(weakest, key=lambda w: w["separation"])
         pairs.append({"other": other.name, "rows": rows, "weakest": weakest, "best": best})
-    return {"named": named.name, "holes": [ep.name for ep in chosen], "factors": list(factors), "pairs": pairs}
+    return {
+        "named": named.name,
+        "holes": [ep.name for ep in chosen],
+        "changes": [{"knob": c.knob, "value": c.value} for c in grid],
+        "pairs": pairs,
+    }

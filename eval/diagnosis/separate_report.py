@@ -10,24 +10,28 @@ SEPARATED = 2.0
 """A separation from this on is called one the holes would show (the other model's gap twice the true one's)."""
 
 
+def change_label(entry: dict[str, Any]) -> str:
+    """Words for a change (``knob``, ``value``): ``0.25 x the logged feed``, ``an interaction angle of 0 deg``."""
+    from drillgym.eval.diagnosis.separate import Change
+
+    return Change(entry["knob"], entry["value"]).label()
+
+
 def separation_line(pair: dict[str, Any]) -> str:
     """One sentence: where the two models are furthest apart, and how far apart they are as logged."""
     best = pair["best"]
-    logged = next((w["separation"] for w in pair["weakest"] if w["feed_factor"] == 1.0), None)
-    as_logged = "" if logged is None else f"; at the logged feeds {logged:.3g}"
+    logged = next((w["separation"] for w in pair["weakest"] if (w["knob"], w["value"]) == ("feed", 1.0)), None)
+    as_logged = "" if logged is None else f"; as logged {logged:.3g}"
     if logged is not None and logged >= SEPARATED:
         # Either model as the cell would have ruled the other out on holes like the logged ones; the logs did not.
         as_logged += (
             " (already apart there: neither is the cell's own form, both miss the logs by more than they differ)"
         )
     if best["separation"] < SEPARATED:
-        return (
-            f"no feed tried separates them (at most {best['separation']:.3g}, at {best['feed_factor']:g} x the "
-            f"logged feed{as_logged})"
-        )
+        return f"no change tried separates them (at most {best['separation']:.3g}, at {change_label(best)}{as_logged})"
     return (
-        f"furthest apart at {best['feed_factor']:g} x the logged feed: the wrong one leaves {best['separation']:.3g} "
-        f"times the right one's gap there{as_logged}"
+        f"furthest apart at {change_label(best)}: the wrong one leaves {best['separation']:.3g} times the right one's "
+        f"gap there{as_logged}"
     )
 
 
@@ -47,11 +51,11 @@ def _markdown(result: dict[str, Any], figure: bool) -> str:
     lines = [
         f"# Telling {named} from the models not ruled out",
         "",
-        f"Holes re-simulated: {', '.join(result['holes'])} (their scenario and controller), at each feed factor times "
-        "their logged feed, with each model in turn playing the reality at its fitted values. The separation is the "
-        "other model's gap on those holes over the true one's (the diagnosis's gap; about 1: the holes cannot tell "
-        f"them apart). A feed counts by the smaller of the two directions; from {SEPARATED:g} on, the holes would "
-        "show which one the cell follows. `*`: the other model's excess is beyond the holes' scatter.",
+        f"Holes re-simulated: {', '.join(result['holes'])} (their scenario and controller), with each change below "
+        "and each model in turn playing the reality at its fitted values. The separation is the other model's gap on "
+        "those holes over the true one's (the diagnosis's gap; about 1: the holes cannot tell them apart). A change "
+        f"counts by the smaller of the two directions; from {SEPARATED:g} on, such holes would show which one the cell "
+        "follows. `*`: the other model's excess is beyond the holes' scatter.",
         "",
     ]
     for pair in result["pairs"]:
@@ -61,14 +65,15 @@ def _markdown(result: dict[str, Any], figure: bool) -> str:
             "",
             f"**{separation_line(pair)}.**",
             "",
-            f"| feed factor | feeds (mm/s) | {other} judged, {named} true | {named} judged, {other} true |",
-            "|---|---|---|---|",
+            f"| change | feeds (mm/s) | angles (deg) | {other} judged, {named} true | {named} judged, {other} true |",
+            "|---|---|---|---|---|",
         ]
-        for f in result["factors"]:
-            rows = {r["truth"]: r for r in pair["rows"] if r["feed_factor"] == f}
+        for c in result["changes"]:
+            rows = {r["truth"]: r for r in pair["rows"] if (r["knob"], r["value"]) == (c["knob"], c["value"])}
             a, b = rows[named], rows[other]
             feeds = ", ".join(f"{x:.3g}" for x in a["feeds_mm_s"])
-            lines.append(f"| {f:g} | {feeds} | {_cell(a)} | {_cell(b)} |")
+            betas = ", ".join(f"{x:.3g}" for x in a["betas_deg"])
+            lines.append(f"| {change_label(c)} | {feeds} | {betas} | {_cell(a)} | {_cell(b)} |")
         lines.append("")
     if figure:
         lines += ["![separation per feed](separation.png)", ""]
@@ -80,7 +85,7 @@ def _cell(row: dict[str, Any]) -> str:
 
 
 def plot_separation(result: dict[str, Any], path: Path) -> Path:
-    """Bars of the separation per feed factor, both directions, one panel per model pair (log scale)."""
+    """Bars of the separation per change, both directions, one panel per model pair (log scale)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -88,20 +93,26 @@ def plot_separation(result: dict[str, Any], path: Path) -> Path:
     import numpy as np
 
     pairs = result["pairs"]
-    fig, axes = plt.subplots(1, len(pairs), figsize=(5.0 * len(pairs), 3.4), squeeze=False)
-    x = np.arange(len(result["factors"]))
+    grid = result["changes"]
+    fig, axes = plt.subplots(1, len(pairs), figsize=(max(5.0, 1.1 * len(grid)) * len(pairs), 3.6), squeeze=False)
+    x = np.arange(len(grid))
     for ax, pair in zip(axes[0], pairs, strict=True):
         for k, (truth, colour) in enumerate(((result["named"], "#2b8cbe"), (pair["other"], "#e6550d"))):
             values = [
-                next(r["separation"] for r in pair["rows"] if r["feed_factor"] == f and r["truth"] == truth)
-                for f in result["factors"]
+                next(
+                    r["separation"]
+                    for r in pair["rows"]
+                    if (r["knob"], r["value"]) == (c["knob"], c["value"]) and r["truth"] == truth
+                )
+                for c in grid
             ]
             ax.bar(x + (k - 0.5) * 0.38, values, width=0.38, color=colour, label=f"{truth} true")
         ax.axhline(1.0, color="0.3", lw=0.8)
         ax.axhline(SEPARATED, color="0.3", lw=0.8, ls="--")
         ax.set_yscale("log")
-        ax.set_xticks(x, [f"{f:g}x" for f in result["factors"]])
-        ax.set_xlabel("feed (times the logged feed)")
+        ticks = [f"{c['value']:g}x feed" if c["knob"] == "feed" else f"{c['value']:g} deg" for c in grid]
+        ax.set_xticks(x, ticks, fontsize=8)
+        ax.set_xlabel("change of the logged holes (feed factor, interaction angle)")
         ax.set_ylabel("other model's gap / true model's")
         ax.set_title(f"{result['named']} vs {pair['other']}", fontsize=9)
         ax.legend(fontsize=7)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+from typing import Any
 
 import pytest
 
@@ -20,7 +21,9 @@ from drillgym.eval.diagnosis.episodes import load_episodes
 from drillgym.eval.diagnosis.reality.generate import make_reality
 from drillgym.eval.diagnosis.replay import Replayer
 from drillgym.eval.diagnosis.separate import (
-    check_factors,
+    Change,
+    changes,
+    check_changes,
     models_to_separate,
     pick_holes,
     separate,
@@ -54,25 +57,34 @@ def heat_logs(tmp_path_factory):
 
 def test_a_thermal_softening_and_a_density_gradient_part_at_a_quarter_of_the_feed_not_at_the_logged_one(heat_logs):
     episodes, _ = load_episodes(heat_logs)
-    result = separate(_diagnosis(), episodes, factors=(0.25, 1.0), holes=2)
+    result = separate(_diagnosis(), episodes, changes((0.25, 1.0), ()), holes=2)
     (pair,) = result["pairs"]
-    weakest = {w["feed_factor"]: w["separation"] for w in pair["weakest"]}
+    weakest = {w["value"]: w["separation"] for w in pair["weakest"]}
     # Measured with 3 holes: 22.7 at a quarter of the feed, 1.19 as logged.
     assert weakest[1.0] < 2.0
     assert weakest[0.25] > 3.0 * weakest[1.0]
-    assert pair["best"]["feed_factor"] == 0.25
-    quarter = [r for r in pair["rows"] if r["feed_factor"] == 0.25]
+    assert (pair["best"]["knob"], pair["best"]["value"]) == ("feed", 0.25)
+    quarter = [r for r in pair["rows"] if r["value"] == 0.25]
     assert {r["truth"] for r in quarter} == {"thermal_softening", "density_gradient"}
     assert all(r["significant"] for r in quarter)
     for r in quarter:
-        logged = next(x for x in pair["rows"] if x["feed_factor"] == 1.0 and x["truth"] == r["truth"])
+        logged = next(x for x in pair["rows"] if x["value"] == 1.0 and x["truth"] == r["truth"])
         assert r["feeds_mm_s"] == pytest.approx([0.25 * f for f in logged["feeds_mm_s"]])
+        assert r["betas_deg"] == logged["betas_deg"]
+
+
+def test_an_angle_change_sets_every_holes_angle_and_keeps_its_feed(heat_logs):
+    episodes, _ = load_episodes(heat_logs)
+    result = separate(_diagnosis(), episodes, [Change("beta", 0.0)], holes=2)
+    rows = result["pairs"][0]["rows"]
+    assert len(rows) == 2 and all(r["betas_deg"] == [0.0, 0.0] for r in rows)
+    assert rows[0]["feeds_mm_s"] == [float(ep.scenario["feed_mm_s"]) for ep in pick_holes(episodes, 2)]
 
 
 def test_a_model_judged_on_holes_it_made_itself_is_not_separated_from_itself(heat_logs):
     episodes, _ = load_episodes(heat_logs)
     named, _ = models_to_separate(_diagnosis())
-    row = separation_at(named, named, episodes[:1], 1.0, seed=0, replayer=Replayer())
+    row = separation_at(named, named, episodes[:1], Change("feed", 1.0), seed=0, replayer=Replayer())
     assert row["separation"] == 1.0 and not row["significant"]
     assert 0.2 < row["truth_ratio"] < 5.0  # its own gap is of the simulator's own level
 
@@ -105,11 +117,14 @@ def test_holes_are_taken_one_per_controller_first(heat_logs):
     assert len(pick_holes(episodes, 10)) == len(episodes)
 
 
-@pytest.mark.parametrize("factor", [0.0, -1.0, math.nan, 10.0])
-def test_a_feed_the_simulator_does_not_take_is_refused_before_anything_runs(heat_logs, factor):
+@pytest.mark.parametrize(
+    "change",
+    [Change("feed", 0.0), Change("feed", -1.0), Change("feed", math.nan), Change("feed", 10.0), Change("beta", 60.0)],
+)
+def test_a_scenario_the_simulator_does_not_take_is_refused_before_anything_runs(heat_logs, change):
     episodes, _ = load_episodes(heat_logs)
-    with pytest.raises(UserError, match="feed factor"):
-        check_factors([0.5, factor], episodes)
+    with pytest.raises(UserError, match=r"the simulator takes|must be a positive number"):
+        check_changes([Change("feed", 0.5), change], episodes)
 
 
 def test_the_command_writes_its_record_once_and_refuses_to_overwrite_it(heat_logs, tmp_path, capsys):
@@ -118,12 +133,15 @@ def test_the_command_writes_its_record_once_and_refuses_to_overwrite_it(heat_log
     (diag / "diagnosis.json").write_text(json.dumps(_diagnosis()))
     out = tmp_path / "sep"
     argv = ["separate", "--diagnosis", str(diag), "--real", str(heat_logs), "--out", str(out), "--no-progress"]
-    assert main([*argv, "--holes", "1", "--feed-factors", "0.5,1"]) == 0
+    assert main([*argv, "--holes", "1", "--feed-factors", "0.5,1", "--betas-deg", "10"]) == 0
     printed = capsys.readouterr().out
     assert "thermal_softening against density_gradient" in printed
     record = json.loads((out / "separation.json").read_text())
-    assert record["factors"] == [0.5, 1.0] and len(record["pairs"][0]["rows"]) == 4
-    assert "| 0.5 |" in (out / "separation.md").read_text() and (out / "separation.png").stat().st_size > 0
+    assert [(c["knob"], c["value"]) for c in record["changes"]] == [("feed", 0.5), ("feed", 1.0), ("beta", 10.0)]
+    assert len(record["pairs"][0]["rows"]) == 6
+    report = (out / "separation.md").read_text()
+    assert "| 0.5 x the logged feed |" in report and "| an interaction angle of 10 deg |" in report
+    assert (out / "separation.png").stat().st_size > 0
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     assert main([*argv, "--holes", "1"]) == 2
     assert "holds a previous separation" in capsys.readouterr().err
@@ -134,7 +152,9 @@ def test_the_command_writes_its_record_once_and_refuses_to_overwrite_it(heat_log
     ("extra", "message"),
     [
         (["--feed-factors", "0.5,x"], "comma-separated numbers"),
-        (["--feed-factors", "1,1"], "repeats a factor"),
+        (["--feed-factors", "1,1"], "repeats a value"),
+        (["--feed-factors", "", "--betas-deg", ""], "both empty"),
+        (["--betas-deg", "45"], "the simulator takes"),
         (["--holes", "0"], "--holes=0"),
     ],
 )
@@ -171,13 +191,16 @@ def test_a_separation_at_the_logged_feeds_says_neither_model_is_the_cells_form()
     from drillgym.eval.diagnosis.separate_report import separation_line
 
     def pair(logged: float, quarter: float) -> dict:
-        weakest = [{"feed_factor": 0.25, "separation": quarter}, {"feed_factor": 1.0, "separation": logged}]
+        weakest: list[dict[str, Any]] = [
+            {"knob": "feed", "value": 0.25, "separation": quarter},
+            {"knob": "feed", "value": 1.0, "separation": logged},
+        ]
         return {"weakest": weakest, "best": max(weakest, key=lambda w: w["separation"])}
 
     assert "neither is the cell's own form" in separation_line(pair(8.9, 12.3))
     apart_slow = separation_line(pair(1.2, 22.7))
     assert "0.25 x the logged feed" in apart_slow and "neither" not in apart_slow
-    assert separation_line(pair(1.1, 1.4)).startswith("no feed tried separates them")
+    assert separation_line(pair(1.1, 1.4)).startswith("no change tried separates them")
 
 
 @pytest.mark.parametrize(
