@@ -25,7 +25,8 @@ def separation_line(pair: dict[str, Any]) -> str:
     if logged is not None and logged >= SEPARATED:
         # Either model as the cell would have ruled the other out on holes like the logged ones; the logs did not.
         as_logged += (
-            " (already apart there: neither is the cell's own form, both miss the logs by more than they differ)"
+            " (already apart there: neither is exactly the cell's form, the physics may still be right; both miss the "
+            "logs by more than they differ)"
         )
     if best["separation"] < SEPARATED:
         return f"no change tried separates them (at most {best['separation']:.3g}, at {change_label(best)}{as_logged})"

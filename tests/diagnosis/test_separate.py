@@ -197,7 +197,7 @@ def test_a_separation_at_the_logged_feeds_says_neither_model_is_the_cells_form()
         ]
         return {"weakest": weakest, "best": max(weakest, key=lambda w: w["separation"])}
 
-    assert "neither is the cell's own form" in separation_line(pair(8.9, 12.3))
+    assert "neither is exactly the cell's form" in separation_line(pair(8.9, 12.3))
     apart_slow = separation_line(pair(1.2, 22.7))
     assert "0.25 x the logged feed" in apart_slow and "neither" not in apart_slow
     assert separation_line(pair(1.1, 1.4)).startswith("no change tried separates them")
