@@ -72,3 +72,30 @@ def test_the_benchmarks_summary_holds_a_wrong_effect_named_to_none():
     wrong = summarise([_row(single, ["density_gradient"], False)])
     assert right["passed"]["wrong_effect_named_rate"] and not wrong["passed"]["wrong_effect_named_rate"]
     assert wrong["acceptance_at_most"] == {"wrong_effect_named_rate": 0.0}
+
+
+def test_a_false_attribution_that_listed_the_true_physics_as_not_ruled_out_says_so(tmp_path):
+    from drillgym.eval.diagnosis.bench.run import summarise, truth_not_ruled_out
+
+    alternatives = [{"name": "thermal_softening", "effects": ["thermal_softening"], "p_better": 0.06}]
+    assert truth_not_ruled_out(["thermal_softening"], alternatives)
+    assert not truth_not_ruled_out(["latency", "thermal_softening"], alternatives)  # half the truth is not it
+    assert not truth_not_ruled_out([], alternatives)  # an outside effect has no physics in the library
+    heat = _case("heat", "single", "heat_softening:softening_per_k=0.002", 10)
+    layer = _case("layer", "single", "density_layer:hardening=0.2", 20)
+    rows = [
+        {**_row(heat, ["density_gradient"], False), "truth_not_ruled_out": True},
+        {**_row(layer, ["thermal_softening"], False), "truth_not_ruled_out": False},
+    ]
+    assert false_attributions(rows) == ["heat (truth not ruled out)", "layer"]
+    assert summarise(rows)["figures"]["wrong_effect_named_truth_not_ruled_out"] == 1
+
+    def run(cs, out):
+        return {"rows": [{**rows[0], "case": cs[0].name}], "summary": {"wall_s": 1.0}}
+
+    pooled = run_offsets([heat], [0], tmp_path, run)
+    assert pooled["pooled"]["false_attributions"] == ["heat (offset 0, truth not ruled out)"]
+    assert (
+        "In 1 of 1 the diagnosis listed a model of the true physics as not ruled out"
+        in (tmp_path / "bench.md").read_text()
+    )

@@ -34,13 +34,17 @@ no false attribution at all."""
 def false_attributions(rows: list[dict[str, Any]]) -> list[str]:
     """Cases that named an effect of physics the case's truth does not hold (any kind: a clean case naming anything).
 
-    Each as ``case (offset N)`` where the row carries its ``seed_offset``.
+    Each as ``case (offset N)`` where the row carries its ``seed_offset``; ``, truth not ruled out`` where the
+    diagnosis listed a model of the truth's physics among those the data do not rule out (``truth_not_ruled_out``).
     """
-    return [
-        r["case"] + (f" (offset {r['seed_offset']})" if "seed_offset" in r else "")
-        for r in rows
-        if named_wrong_physics(r)
-    ]
+    out = []
+    for r in rows:
+        if not named_wrong_physics(r):
+            continue
+        notes = [f"offset {r['seed_offset']}"] if "seed_offset" in r else []
+        notes += ["truth not ruled out"] if r.get("truth_not_ruled_out") else []
+        out.append(r["case"] + (f" ({', '.join(notes)})" if notes else ""))
+    return out
 
 
 def counts(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -127,5 +131,12 @@ def markdown(pooled: dict[str, Any]) -> str:
     lines.append(f"| false attributions | {wrong} | 0 | {met['false_attributions']} |")
     wrong = pooled["pooled"]["false_attributions"]
     lines += ["", "False attributions (named physics the case's truth does not hold): " + (", ".join(wrong) or "none")]
+    flagged = sum("truth not ruled out" in w for w in wrong)
+    if wrong:
+        lines += [
+            "",
+            f"In {flagged} of {len(wrong)} the diagnosis listed a model of the true physics as not ruled out (its "
+            "report says so; `drillgym separate` gives the holes that would decide).",
+        ]
     lines.append("")
     return "\n".join(lines)

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from drillgym.envs.effects.registry import EFFECTS, physics_of
+from drillgym.envs.effects.registry import EFFECTS, physics_of, physics_set
 from drillgym.eval.diagnosis.bench.cases import Case
 from drillgym.eval.diagnosis.diagnose import DiagnoseOptions, run_diagnosis
 from drillgym.eval.diagnosis.episodes import load_episodes
@@ -134,6 +134,7 @@ def score_case(case: Case, res: dict[str, Any], gen_s: float = 0.0, skipped: lis
         "generate_s": gen_s,
         "skipped_logs": list(skipped or []),
         "per_episode_named": any(EFFECTS[n].per_episode for n in named if n in EFFECTS),
+        "truth_not_ruled_out": truth_not_ruled_out(truth, res.get("alternatives") or []),
     }
     row["params"] = parameter_checks(case, res)
     if case.kind == "single":
@@ -254,6 +255,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "clean_no_effect_named": rate("clean"),
         "false_alarm_rate_clean": None if rate("clean") is None else 1.0 - (rate("clean") or 0.0),
         "wrong_effect_named_rate": len(wrong_named) / max(1, sum(r["kind"] in ("single", "pair") for r in rows)),
+        "wrong_effect_named_truth_not_ruled_out": sum(bool(r.get("truth_not_ruled_out")) for r in wrong_named),
         "pair_both_named": rate("pair"),
         "outside_unexplained_and_located": rate("outside"),
         "outside_unexplained": _outside_unexplained(rows),
@@ -277,6 +279,15 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "passed": passed,
         "cases": len(rows),
     }
+
+
+def truth_not_ruled_out(truth: list[str], alternatives: list[dict[str, Any]]) -> bool:
+    """Whether the diagnosis listed a model of the truth's physics among those the held-out data do not rule out.
+
+    A wrong model named with the right one listed beside it is a false attribution the report flags itself
+    ("not ruled out: ..."), where ``drillgym separate`` says which holes would decide.
+    """
+    return bool(truth) and any(physics_set(a["effects"]) == physics_set(truth) for a in alternatives)
 
 
 def named_wrong_physics(row: dict[str, Any]) -> bool:
