@@ -38,7 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=",".join(f"{b:g}" for b in BETAS_DEG),
         help="interaction angles to try, each for every hole at its logged feed (default: %(default)s; '' for none)",
     )
-    parser.add_argument("--holes", type=int, default=HOLES, help="logged holes re-simulated per feed (default: 3)")
+    parser.add_argument(
+        "--holes", type=int, default=HOLES, help="logged holes re-simulated per change and direction (default: 3)"
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the simulated holes' noise and specimens")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--no-figure", action="store_true", help="skip separation.png")

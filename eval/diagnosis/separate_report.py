@@ -1,4 +1,4 @@
-"""``drillgym separate``'s record: ``separation.json``, ``separation.md`` and a figure of the separation per feed."""
+"""``drillgym separate``'s record: ``separation.json``, ``separation.md`` and a figure of the separation per change."""
 
 from __future__ import annotations
 
