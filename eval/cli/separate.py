@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -42,6 +43,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--holes", type=int, default=HOLES, help="logged holes re-simulated per change and direction (default: 3)"
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the simulated holes' noise and specimens")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="processes (default: all cores; the rows do not change)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--no-figure", action="store_true", help="skip separation.png")
 
@@ -81,6 +88,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"{args.out} holds a previous separation ({', '.join(found)}): pass another --out")
     if args.holes < 1:
         raise UserError(f"--holes={args.holes} must be >= 1")
+    if args.workers < 1:
+        raise UserError(f"--workers={args.workers} must be >= 1")
     grid = changes(
         _numbers(args.feed_factors, "--feed-factors", "0.25,0.5,1,2"), _numbers(args.betas_deg, "--betas-deg", "0,40")
     )
@@ -94,7 +103,9 @@ def run(args: argparse.Namespace) -> int:
     check_changes(grid, pick_holes(episodes, args.holes))
     total = 2 * len(grid) * len(others)
     with tqdm(total=total, desc="separate", unit="change", disable=True if args.no_progress else None) as bar:
-        result = separate(diagnosis, episodes, grid, args.holes, args.seed, progress=lambda: bar.update(1))
+        result = separate(
+            diagnosis, episodes, grid, args.holes, args.seed, progress=lambda: bar.update(1), workers=args.workers
+        )
     paths = write_separation(result, args.out, figure=not args.no_figure)
     for pair in result["pairs"]:
         print(f"{named.name} against {pair['other']}: {separation_line(pair)}")

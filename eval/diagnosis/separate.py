@@ -31,6 +31,7 @@ from drillgym.eval.diagnosis.gap import pooled
 from drillgym.eval.diagnosis.reality.generate import log_episodes
 from drillgym.eval.diagnosis.replay import Replayer
 from drillgym.eval.diagnosis.where import gap_significance
+from drillgym.eval.pool import WorkerPool
 
 FEED_FACTORS = (0.25, 0.5, 1.0, 2.0)
 """Feeds tried, as factors of each logged hole's own feed (1.0: the holes as logged)."""
@@ -186,6 +187,19 @@ def separation_at(
     }
 
 
+_REPLAYER: Replayer | None = None
+"""This process's replayer (its env is built once and kept between jobs)."""
+
+
+def _separation_job(job: tuple[Model, Model, Sequence[EpisodeData], Change, int]) -> dict[str, Any]:
+    """:func:`separation_at` for one ``(truth, other, holes, change, seed)``, on this process's replayer."""
+    global _REPLAYER
+    if _REPLAYER is None:
+        _REPLAYER = Replayer()
+    truth, other, holes, change, seed = job
+    return separation_at(truth, other, holes, change, seed, _REPLAYER)
+
+
 def separate(
     diagnosis: dict[str, Any],
     episodes: Sequence[EpisodeData],
@@ -193,10 +207,14 @@ def separate(
     holes: int = HOLES,
     seed: int = 0,
     progress: Any = None,
+    workers: int = 1,
 ) -> dict[str, Any]:
     """For the named model against each alternative with other physics: the separation at each change, both ways.
 
-    ``grid``: the changes tried (default :func:`changes`: :data:`FEED_FACTORS` and :data:`BETAS_DEG`).
+    ``grid``: the changes tried (default :func:`changes`: :data:`FEED_FACTORS` and :data:`BETAS_DEG`). ``workers``:
+    processes (this one and ``workers - 1`` spawned ones, :class:`~drillgym.eval.pool.WorkerPool`); each change and
+    direction is one job, seeded on its own, so the rows do not depend on how many there are. ``progress()`` is
+    called as each job ends.
 
     Returns ``{"named", "holes", "changes", "pairs": [{"other", "rows", "weakest", "best"}]}``: ``rows`` per change
     and direction (:func:`separation_at`); ``weakest``: per change (``knob``, ``value``), the smaller separation of
@@ -210,15 +228,22 @@ def separate(
     if not grid:
         raise UserError("no change to try: give at least one feed factor or angle")
     check_changes(grid, chosen)
-    replayer = Replayer()
+    jobs = [
+        (truth, judged, chosen, change, seed + 1000 * k + j)
+        for k, other in enumerate(others)
+        for j, change in enumerate(grid)
+        for truth, judged in ((named, other), (other, named))
+    ]
+    done: dict[int, dict[str, Any]] = {}
+    with WorkerPool(max(1, min(workers, len(jobs))), here=True) as pool:
+        for i, row in pool.map_unordered(_separation_job, jobs):
+            done[i] = row
+            if progress is not None:
+                progress()
+    per_pair = 2 * len(grid)
     pairs = []
     for k, other in enumerate(others):
-        rows = []
-        for j, change in enumerate(grid):
-            for truth, judged in ((named, other), (other, named)):
-                rows.append(separation_at(truth, judged, chosen, change, seed + 1000 * k + j, replayer))
-                if progress is not None:
-                    progress()
+        rows = [done[i] for i in range(k * per_pair, (k + 1) * per_pair)]
         weakest = [
             {
                 "knob": c.knob,

@@ -215,3 +215,11 @@ def test_a_separation_at_the_logged_feeds_says_neither_model_is_the_cells_form()
 def test_a_diagnosis_json_of_another_shape_is_refused_with_a_clear_error(broken):
     with pytest.raises(UserError):
         models_to_separate(broken)
+
+
+def test_the_rows_do_not_depend_on_how_many_processes_run_them(heat_logs):
+    episodes, _ = load_episodes(heat_logs)
+    grid = [Change("feed", 0.5), Change("beta", 10.0)]
+    alone = separate(_diagnosis(), episodes, grid, holes=1, workers=1)
+    shared = separate(_diagnosis(), episodes, grid, holes=1, workers=2)
+    assert alone == shared
