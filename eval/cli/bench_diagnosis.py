@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -77,8 +76,6 @@ def run(args: argparse.Namespace) -> int:
     if offsets and args.seed_offset:
         raise UserError("give --seed-offset or --seed-offsets, not both")
     cases = _cases(args)
-    if cases is None:
-        return 2
     episodes = args.episodes or (6 if args.quick else 12)
     candidates = _candidates(args)
     rows_of = None
@@ -117,8 +114,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cases(args: argparse.Namespace) -> list[Case] | None:
-    """The cases asked for (``--quick``, ``--opt-in``, ``--only``, ``--seed-offset``); None after an unknown name."""
+def _cases(args: argparse.Namespace) -> list[Case]:
+    """The cases asked for (``--quick``, ``--opt-in``, ``--only``, ``--seed-offset``); an unknown name is refused."""
     from drillgym.eval.diagnosis.bench.cases import full_cases, quick_cases
 
     cases: list[Case] = quick_cases() if args.quick else full_cases(opt_in=args.opt_in)
@@ -126,11 +123,7 @@ def _cases(args: argparse.Namespace) -> list[Case] | None:
         wanted = {c.strip() for c in args.only.split(",") if c.strip()}
         unknown = sorted(wanted - {c.name for c in cases})
         if unknown:
-            print(
-                f"drillgym bench-diagnosis: error: unknown case(s) {unknown}; cases: {', '.join(c.name for c in cases)}",
-                file=sys.stderr,
-            )
-            return None
+            raise UserError(f"unknown case(s) {unknown}; cases: {', '.join(c.name for c in cases)}")
         cases = [c for c in cases if c.name in wanted]
     if args.seed_offset:
         cases = [dataclasses.replace(c, seed=c.seed + args.seed_offset) for c in cases]

@@ -78,8 +78,9 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from drillgym.eval.diagnosis.episodes import load_episodes
-    from drillgym.eval.diagnosis.separate import changes, check_changes, models_to_separate, pick_holes, separate
+    from drillgym.eval.diagnosis.separate import changes, separate
     from drillgym.eval.diagnosis.separate_report import separation_line, write_separation
+    from drillgym.eval.progress import bar_size
 
     if args.out.exists() and not args.out.is_dir():
         raise UserError(f"--out {args.out} exists and is not a folder")
@@ -93,21 +94,20 @@ def run(args: argparse.Namespace) -> int:
     grid = changes(
         _numbers(args.feed_factors, "--feed-factors", "0.25,0.5,1,2"), _numbers(args.betas_deg, "--betas-deg", "0,40")
     )
-    if not grid:
-        raise UserError("--feed-factors and --betas-deg are both empty: give at least one change to try")
     diagnosis = _diagnosis(args.diagnosis)
-    named, others = models_to_separate(diagnosis)
     episodes, skipped = load_episodes(args.real)
     for s in skipped:
         print(f"skipped {s}", file=sys.stderr)
-    check_changes(grid, pick_holes(episodes, args.holes))
-    total = 2 * len(grid) * len(others)
-    with tqdm(total=total, desc="separate", unit="change", disable=True if args.no_progress else None) as bar:
-        result = separate(
-            diagnosis, episodes, grid, args.holes, args.seed, progress=lambda: bar.update(1), workers=args.workers
-        )
+    bar_args = {"file": sys.stderr, "disable": True if args.no_progress else None, **bar_size(sys.stderr)}
+    with tqdm(desc="separate", unit="job", **bar_args) as bar:
+
+        def tick(jobs: int) -> None:
+            bar.total = jobs
+            bar.update(1)
+
+        result = separate(diagnosis, episodes, grid, args.holes, args.seed, progress=tick, workers=args.workers)
     paths = write_separation(result, args.out, figure=not args.no_figure)
     for pair in result["pairs"]:
-        print(f"{named.name} against {pair['other']}: {separation_line(pair)}")
+        print(f"{result['named']} against {pair['other']}: {separation_line(pair)}")
     print(f"wrote {paths['json']} and {paths['report']}")
     return 0

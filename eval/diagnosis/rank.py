@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.envs.effects.registry import physics_set
 from drillgym.eval.diagnosis.fit import FitResult
 from drillgym.eval.diagnosis.gap import Terms
 
@@ -192,3 +193,12 @@ def alternatives(scores: list[ModelScore], named: ModelScore, s0: float) -> list
             sets.append(set(s.fit.names))
     minimal = [a for a, e in zip(out, sets, strict=True) if not any(o < e for o in sets)]
     return sorted(minimal, key=lambda a: -a["p_better"])
+
+
+def other_physics(named: list[str], alts: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The entries of :func:`alternatives` (``alts``) whose physics differ from the named effects' (``named``).
+
+    A per-episode and a shared F/T drift are one physics: only an alternative of other physics leaves the question
+    which one the cell follows (``drillgym separate``).
+    """
+    return [a for a in alts if physics_set(a["effects"]) != physics_set(named)]

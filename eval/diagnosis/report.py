@@ -7,13 +7,13 @@ import math
 from pathlib import Path
 from typing import Any
 
-from drillgym.envs.effects.registry import EFFECTS, physics_set
+from drillgym.envs.effects.registry import EFFECTS
 from drillgym.envs.json_safe import json_safe
 from drillgym.eval.diagnosis.channels import FORCE, STAGES
 from drillgym.eval.diagnosis.context import build, make_spec
 from drillgym.eval.diagnosis.diagnose import Diagnosis
 from drillgym.eval.diagnosis.figures import plot_gap_map, plot_overlays, plot_ranking, plot_spectra
-from drillgym.eval.diagnosis.rank import NAME_CI_LOW_MIN, NAME_SHRINK_MIN
+from drillgym.eval.diagnosis.rank import NAME_CI_LOW_MIN, NAME_SHRINK_MIN, other_physics
 from drillgym.eval.diagnosis.replay import Replayer, seed_for
 from drillgym.eval.diagnosis.shape import CREATED_MODEL_MIN, CREATED_RATIO_MIN, SHAPE_REMOVE_MIN, SHAPE_SHARE_MIN
 
@@ -181,10 +181,10 @@ def why_not_named(effect: dict[str, Any], res: dict[str, Any]) -> str:
 
 def separate_hint(res: dict[str, Any]) -> list[str]:
     """A paragraph when a model with other physics than the named one is not ruled out: how to plan holes that decide."""
-    named = set(res.get("named") or [])
+    named = list(res.get("named") or [])
     if not named:
         return []
-    others = [a["name"] for a in res.get("alternatives") or [] if physics_set(a["effects"]) != physics_set(named)]
+    others = [a["name"] for a in other_physics(named, res.get("alternatives") or [])]
     if not others:
         return []
     return [

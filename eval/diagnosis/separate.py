@@ -15,19 +15,20 @@ reality), and a change counts by the smaller of the two.
 from __future__ import annotations
 
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from drillgym.envs.effects.registry import EFFECTS, physics_set
+from drillgym.envs.effects.registry import EFFECTS
 from drillgym.envs.errors import UserError
 from drillgym.envs.scenario import RANGES
 from drillgym.eval.diagnosis.context import DiagnosisData, Evaluator, Spec, baseline_job, build, make_spec
 from drillgym.eval.diagnosis.episodes import EpisodeData, load_episodes
 from drillgym.eval.diagnosis.gap import pooled
+from drillgym.eval.diagnosis.rank import other_physics
 from drillgym.eval.diagnosis.reality.generate import log_episodes
 from drillgym.eval.diagnosis.replay import Replayer
 from drillgym.eval.diagnosis.where import gap_significance
@@ -49,11 +50,6 @@ class Model:
     name: str
     spec: Spec
 
-    @property
-    def physics(self) -> frozenset[str]:
-        """The physics it names (:func:`~drillgym.envs.effects.registry.physics_of` of each effect)."""
-        return physics_set(n for n, _ in self.spec)
-
 
 def models_to_separate(diagnosis: dict[str, Any]) -> tuple[Model, list[Model]]:
     """The named model and the alternatives with other physics that the held-out data did not rule out.
@@ -67,10 +63,10 @@ def models_to_separate(diagnosis: dict[str, Any]) -> tuple[Model, list[Model]]:
         if named is None:
             raise UserError(f"the diagnosis named no model (verdict {diagnosis.get('verdict')!r}): nothing to separate")
         first = _model(named)
-        others = [_model(entries[a["name"]]) for a in diagnosis.get("alternatives") or [] if a["name"] in entries]
+        alts = other_physics(named["effects"], diagnosis.get("alternatives") or [])
+        others = [_model(entries[a["name"]]) for a in alts if a["name"] in entries]
     except (KeyError, TypeError, AttributeError) as e:
         raise UserError(f"not a diagnosis.json that drillgym diagnose wrote: {type(e).__name__} {e}") from e
-    others = [m for m in others if m.physics != first.physics]
     if not others:
         raise UserError(
             f"the diagnosis named {first.name} and ruled out every model with other physics: nothing to separate"
@@ -121,11 +117,14 @@ class Change:
         """The holes as they were logged (a feed factor of 1)."""
         return self.knob == "feed" and self.value == 1.0
 
-    def label(self) -> str:
-        """Words for the report: ``0.25 x the logged feed``, ``an interaction angle of 0 deg``."""
+    def label(self, short: bool = False) -> str:
+        """Words for the report: ``0.25 x the logged feed``, ``an interaction angle of 0 deg``.
+
+        ``short``: ``0.25x feed``, ``0 deg`` (a figure's ticks).
+        """
         if self.knob == "feed":
-            return f"{self.value:g} x the logged feed"
-        return f"an interaction angle of {self.value:g} deg"
+            return f"{self.value:g}x feed" if short else f"{self.value:g} x the logged feed"
+        return f"{self.value:g} deg" if short else f"an interaction angle of {self.value:g} deg"
 
 
 def changes(factors: Sequence[float] = FEED_FACTORS, betas_deg: Sequence[float] = BETAS_DEG) -> list[Change]:
@@ -166,7 +165,7 @@ def separation_at(
         for sc, ep in zip(scenarios, holes, strict=True)
     ]
     with tempfile.TemporaryDirectory(prefix="drillgym-separate-") as tmp:
-        log_episodes(plans, lambda i, plan: build(truth.spec), Path(tmp))
+        log_episodes(plans, lambda i: build(truth.spec), Path(tmp))
         episodes, _ = load_episodes(Path(tmp), strict=True)
     idx = list(range(len(episodes)))
     data = DiagnosisData.from_episodes(episodes, idx, idx)
@@ -206,15 +205,15 @@ def separate(
     grid: Sequence[Change] | None = None,
     holes: int = HOLES,
     seed: int = 0,
-    progress: Any = None,
+    progress: Callable[[int], None] | None = None,
     workers: int = 1,
 ) -> dict[str, Any]:
     """For the named model against each alternative with other physics: the separation at each change, both ways.
 
     ``grid``: the changes tried (default :func:`changes`: :data:`FEED_FACTORS` and :data:`BETAS_DEG`). ``workers``:
     processes (this one and ``workers - 1`` spawned ones, :class:`~drillgym.eval.pool.WorkerPool`); each change and
-    direction is one job, seeded on its own, so the rows do not depend on how many there are. ``progress()`` is
-    called as each job ends.
+    direction is one job, seeded on its own, so the rows do not depend on how many there are. ``progress(jobs)`` is
+    called as each job ends, with the number of jobs. Every argument is checked before any hole is simulated.
 
     Returns ``{"named", "holes", "changes", "pairs": [{"other", "rows", "weakest", "best"}]}``: ``rows`` per change
     and direction (:func:`separation_at`); ``weakest``: per change (``knob``, ``value``), the smaller separation of
@@ -226,7 +225,7 @@ def separate(
     if not chosen:
         raise UserError("no logged episode to take the holes' scenarios from")
     if not grid:
-        raise UserError("no change to try: give at least one feed factor or angle")
+        raise UserError("no change to try: the feed factors and the angles are both empty")
     check_changes(grid, chosen)
     jobs = [
         (truth, judged, chosen, change, seed + 1000 * k + j)
@@ -239,18 +238,14 @@ def separate(
         for i, row in pool.map_unordered(_separation_job, jobs):
             done[i] = row
             if progress is not None:
-                progress()
+                progress(len(jobs))
     per_pair = 2 * len(grid)
     pairs = []
     for k, other in enumerate(others):
         rows = [done[i] for i in range(k * per_pair, (k + 1) * per_pair)]
-        weakest = [
-            {
-                "knob": c.knob,
-                "value": c.value,
-                "separation": min(r["separation"] for r in rows if (r["knob"], r["value"]) == (c.knob, c.value)),
-            }
-            for c in grid
+        weakest = [  # the jobs' order: each change, the named model true, then the other
+            {"knob": c.knob, "value": c.value, "separation": min(a["separation"], b["separation"])}
+            for c, a, b in zip(grid, rows[0::2], rows[1::2], strict=True)
         ]
         best = max(weakest, key=lambda w: w["separation"])
         pairs.append({"other": other.name, "rows": rows, "weakest": weakest, "best": best})

@@ -6,21 +6,31 @@ import json
 from pathlib import Path
 from typing import Any
 
+from drillgym.eval.diagnosis.separate import Change
+
 SEPARATED = 2.0
 """A separation from this on is called one the holes would show (the other model's gap twice the true one's)."""
 
 
+def change_of(entry: dict[str, Any]) -> Change:
+    """The :class:`~drillgym.eval.diagnosis.separate.Change` of a record's entry (``knob``, ``value``)."""
+    return Change(entry["knob"], entry["value"])
+
+
 def change_label(entry: dict[str, Any]) -> str:
     """Words for a change (``knob``, ``value``): ``0.25 x the logged feed``, ``an interaction angle of 0 deg``."""
-    from drillgym.eval.diagnosis.separate import Change
+    return change_of(entry).label()
 
-    return Change(entry["knob"], entry["value"]).label()
+
+def row_of(pair: dict[str, Any], change: dict[str, Any], truth: str) -> dict[str, Any]:
+    """The row of ``pair`` for ``change`` with ``truth`` playing the reality."""
+    return next(r for r in pair["rows"] if change_of(r) == change_of(change) and r["truth"] == truth)
 
 
 def separation_line(pair: dict[str, Any]) -> str:
     """One sentence: where the two models are furthest apart, and how far apart they are as logged."""
     best = pair["best"]
-    logged = next((w["separation"] for w in pair["weakest"] if (w["knob"], w["value"]) == ("feed", 1.0)), None)
+    logged = next((w["separation"] for w in pair["weakest"] if change_of(w).as_logged), None)
     as_logged = "" if logged is None else f"; as logged {logged:.3g}"
     if logged is not None and logged >= SEPARATED:
         # Either model as the cell would have ruled the other out on holes like the logged ones; the logs did not.
@@ -70,14 +80,13 @@ def _markdown(result: dict[str, Any], figure: bool) -> str:
             "|---|---|---|---|---|",
         ]
         for c in result["changes"]:
-            rows = {r["truth"]: r for r in pair["rows"] if (r["knob"], r["value"]) == (c["knob"], c["value"])}
-            a, b = rows[named], rows[other]
+            a, b = row_of(pair, c, named), row_of(pair, c, other)
             feeds = ", ".join(f"{x:.3g}" for x in a["feeds_mm_s"])
             betas = ", ".join(f"{x:.3g}" for x in a["betas_deg"])
             lines.append(f"| {change_label(c)} | {feeds} | {betas} | {_cell(a)} | {_cell(b)} |")
         lines.append("")
     if figure:
-        lines += ["![separation per feed](separation.png)", ""]
+        lines += ["![separation per change](separation.png)", ""]
     return "\n".join(lines)
 
 
@@ -99,20 +108,12 @@ def plot_separation(result: dict[str, Any], path: Path) -> Path:
     x = np.arange(len(grid))
     for ax, pair in zip(axes[0], pairs, strict=True):
         for k, (truth, colour) in enumerate(((result["named"], "#2b8cbe"), (pair["other"], "#e6550d"))):
-            values = [
-                next(
-                    r["separation"]
-                    for r in pair["rows"]
-                    if (r["knob"], r["value"]) == (c["knob"], c["value"]) and r["truth"] == truth
-                )
-                for c in grid
-            ]
+            values = [row_of(pair, c, truth)["separation"] for c in grid]
             ax.bar(x + (k - 0.5) * 0.38, values, width=0.38, color=colour, label=f"{truth} true")
         ax.axhline(1.0, color="0.3", lw=0.8)
         ax.axhline(SEPARATED, color="0.3", lw=0.8, ls="--")
         ax.set_yscale("log")
-        ticks = [f"{c['value']:g}x feed" if c["knob"] == "feed" else f"{c['value']:g} deg" for c in grid]
-        ax.set_xticks(x, ticks, fontsize=8)
+        ax.set_xticks(x, [change_of(c).label(short=True) for c in grid], fontsize=8)
         ax.set_xlabel("change of the logged holes (feed factor, interaction angle)")
         ax.set_ylabel("other model's gap / true model's")
         ax.set_title(f"{result['named']} vs {pair['other']}", fontsize=9)

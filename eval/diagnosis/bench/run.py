@@ -292,16 +292,16 @@ def truth_not_ruled_out(truth: list[str], alternatives: list[dict[str, Any]]) ->
 
 def named_wrong_physics(row: dict[str, Any]) -> bool:
     """Whether a case named an effect of physics its truth does not hold (a form of the true physics is right)."""
-    return bool({physics_of(n) for n in row["named"]} - {physics_of(n) for n in row["truth"]})
+    return bool(physics_set(row["named"]) - physics_set(row["truth"]))
 
 
 def _shape_refusals(rows: list[dict[str, Any]]) -> dict[str, int]:
     """Models refused by the shape test: of other physics than the case's truth (right) or of the truth (wrong)."""
     right = wrong = 0
     for r in rows:
-        truth = {physics_of(n) for n in r["truth"]}
+        truth = physics_set(r["truth"])
         for name in r.get("shape_refused") or {}:
-            if truth and {physics_of(n) for n in name.split("+")} <= truth:
+            if truth and physics_set(name.split("+")) <= truth:
                 wrong += 1
             else:
                 right += 1
@@ -315,9 +315,9 @@ def _trend_forms(rows: list[dict[str, Any]]) -> dict[str, int]:
     where there is none).
     """
     trend = {n for n, c in EFFECTS.items() if c.in_series}
-    physics = {physics_of(n) for n in trend}
+    physics = physics_set(trend)
     drifting = [r for r in rows if set(r["truth"]) & trend]
-    still = [r for r in rows if not set(r["truth"]) & trend and {physics_of(n) for n in r["truth"]} & physics]
+    still = [r for r in rows if not set(r["truth"]) & trend and physics_set(r["truth"]) & physics]
     return {
         "drifting_cases": len(drifting),
         "drifting_trend_named": sum(bool(set(r["named"]) & trend) for r in drifting),

@@ -95,14 +95,14 @@ def episode_plan(index: int, rng: np.random.Generator) -> dict[str, Any]:
 
 def log_episodes(
     plans: Sequence[dict[str, Any]],
-    effects_for: Callable[[int, dict[str, Any]], list[Any]],
+    effects_for: Callable[[int], list[Any]],
     out: Path,
     overwrite: bool = False,
     after: Callable[[dict[str, Any], list[Any]], None] | None = None,
 ) -> None:
     """Run each plan (``scenario``, ``controller``, ``seed``) in the simulator and log it as a real cell would.
 
-    ``effects_for(i, plan)``: the effects switched on for episode ``i`` (reality effects, or candidate effects when a
+    ``effects_for(i)``: the effects switched on for episode ``i`` (reality effects, or candidate effects when a
     candidate model plays the reality); ``after(plan, effects)``: called once the episode is logged. Logs are
     ``out/episode_NNN.parquet`` (``source: "real"``, no seed in the header).
     """
@@ -110,7 +110,7 @@ def log_episodes(
     try:
         for i, plan in enumerate(plans):
             controller = make_controller(plan["controller"])
-            effects = effects_for(i, plan)
+            effects = effects_for(i)
             env.unwrapped.set_effects(effects or None)  # type: ignore[attr-defined]
             env.reset(seed=plan["seed"], options={"scenario": plan["scenario"]})
             header = build_header(env, controller.describe(), seed=None, source="real")
@@ -138,7 +138,7 @@ def make_reality(spec: str, episodes: int, seed: int, out: str | Path, overwrite
     rng = np.random.default_rng(seed)
     plans = [episode_plan(i, rng) for i in range(episodes)]
 
-    def effects_for(i: int, plan: dict[str, Any]) -> list[Any]:
+    def effects_for(i: int) -> list[Any]:
         return episode_reality(spec, np.random.default_rng([seed, i, 7]), i, episodes)
 
     def after(plan: dict[str, Any], effects: list[Any]) -> None:
