@@ -23,13 +23,13 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
 from drillgym.envs.drilling.bone import BonePreset
+from drillgym.envs.drilling.engagement_kernel import lip_sums
 from drillgym.envs.drilling.geometry import DrillGeometry
 
 N_RADIAL = 24
@@ -128,7 +128,7 @@ class EngagementTable:
         phi = (np.arange(N_ANGULAR) + 0.5) * 2.0 * math.pi / N_ANGULAR
         cos_p, sin_p = np.cos(phi), np.sin(phi)
         setback = r[:, None] * (geometry.cot_kappa - cos_p[None, :] * math.tan(beta_rad))  # (R, Φ)
-        is_lip = (r >= w)[:, None]
+        is_lip = r >= w
         weight = geometry.n_lips / N_ANGULAR
 
         # Unit element force directions per (r, φ) for each coefficient family.
@@ -136,58 +136,29 @@ class EngagementTable:
         radial = np.stack([-cos_p, -sin_p, np.zeros_like(phi)])  # toward the axis
         thrust = np.array([0.0, 0.0, -1.0])
 
+        lip_total = float((is_lip * db).sum()) * N_ANGULAR
+        lip_engaged, lip_phi, lip_len, lip_moment, chisel_len, cuts = lip_sums(
+            grid, setback, layer_depth, is_lip, db, r
+        )
+        fraction = lip_engaged / lip_total
         edge_tab = np.zeros((grid.size, 4))
         chip_tab = np.zeros((grid.size, 4))
-        fraction = np.zeros(grid.size)
-        lip_total = float((is_lip[:, 0] * db).sum()) * N_ANGULAR
-        for start, lip_engaged, masks in _engagement(grid, setback, layer_depth, is_lip, db):
-            fraction[start : start + lip_engaged.size] = lip_engaged / lip_total
-            for mask, mat in zip(masks, (bone.cortical, bone.cancellous), strict=True):
-                c = mask.shape[0]
-                lip = (mask & is_lip) * db[:, None]  # (C, R, Φ): each depth's engaged lip elements
-                lip_phi = lip.sum(axis=1)  # engaged lip length per angle (m), one row per depth
-                lip_r_phi = (lip * r[:, None]).sum(axis=1)  # first moment for the torque (m^2)
-                chisel_len = ((mask & ~is_lip) * db[:, None]).reshape(c, -1).sum(axis=1)
-                lip_len = lip_phi.sum(axis=1)  # each row's own sum, as of one depth's vector
-                lip_moment = lip_r_phi.sum(axis=1)
-                cut = np.flatnonzero(mask.reshape(c, -1).any(axis=1))
-                along_t = np.empty((cut.size, 3))
-                along_r = np.empty((cut.size, 3))
-                for n, j in enumerate(cut.tolist()):  # per depth: a BLAS product rounds by the shapes it is given
-                    along_t[n] = tangential @ lip_phi[j]
-                    along_r[n] = radial @ lip_phi[j]
-                rows = start + cut
-                for tab, kt, kf, kr, kch in (
-                    (edge_tab, mat.k_te_n_m, mat.k_fe_n_m, mat.k_re_n_m, mat.k_chisel_n_m),
-                    (chip_tab, mat.k_tc_pa, mat.k_fc_pa, mat.k_rc_pa, 0.0),
-                ):
-                    f = kt * along_t + kr * along_r
-                    f = f + thrust * (kf * lip_len[cut] + kch * chisel_len[cut])[:, None]
-                    tab[rows, :3] += weight * f
-                    tab[rows, 3] += weight * (-kt * lip_moment[cut])  # torque opposes the +z spin
+        for m, mat in enumerate((bone.cortical, bone.cancellous)):
+            cut = np.flatnonzero(cuts[m])
+            along_t = np.empty((cut.size, 3))
+            along_r = np.empty((cut.size, 3))
+            for n, j in enumerate(cut.tolist()):  # per depth: a BLAS product rounds by the shapes it is given
+                along_t[n] = tangential @ lip_phi[m, j]
+                along_r[n] = radial @ lip_phi[m, j]
+            for tab, kt, kf, kr, kch in (
+                (edge_tab, mat.k_te_n_m, mat.k_fe_n_m, mat.k_re_n_m, mat.k_chisel_n_m),
+                (chip_tab, mat.k_tc_pa, mat.k_fc_pa, mat.k_rc_pa, 0.0),
+            ):
+                f = kt * along_t + kr * along_r
+                f = f + thrust * (kf * lip_len[m, cut] + kch * chisel_len[m, cut])[:, None]
+                tab[cut, :3] += weight * f
+                tab[cut, 3] += weight * (-kt * lip_moment[m, cut])  # torque opposes the +z spin
         return cls(depth_m=grid, edge=edge_tab, per_chip=chip_tab, engaged_fraction=fraction)
-
-
-ENGAGEMENT_CHUNK = 64
-"""Depths whose element masks and sums are computed together (the same numbers as one depth at a time)."""
-
-
-def _engagement(
-    grid: np.ndarray, setback: np.ndarray, layer_depth: float, is_lip: np.ndarray, db: np.ndarray
-) -> Iterator[tuple[int, np.ndarray, tuple[np.ndarray, np.ndarray]]]:
-    """Chunks of depths: the first's index, each depth's engaged lip length (m) and element masks.
-
-    The masks are each depth's cortical and cancellous elements, (C, R, Φ). The element depths ``e = d - setback`` and the masks are elementwise, and each depth's sums run over its own
-    (R, Φ) block in the same order as for one depth alone, so every number equals the one-depth-at-a-time
-    computation's (tables compared bit for bit on 60 scenarios).
-    """
-    for start in range(0, grid.size, ENGAGEMENT_CHUNK):
-        depths = grid[start : start + ENGAGEMENT_CHUNK]
-        e = depths[:, None, None] - setback[None]
-        engaged = e > 0.0
-        lip_engaged = ((engaged & is_lip) * db[:, None]).reshape(depths.size, -1).sum(axis=1)
-        cortical = engaged & (e < layer_depth)
-        yield start, lip_engaged, (cortical, engaged & ~cortical)
 
 
 class ForceModel:
