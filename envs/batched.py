@@ -20,6 +20,11 @@ seed continues the single env's.
 
 Per step, ``infos`` holds ``t_s``, ``phase``, ``deviation_m`` (the true tip's, privileged) and
 ``reward_terms`` as arrays; the single env's other privileged entries are in ``final_info`` at the end.
+
+The episodes need not share a scenario: ``reset(options={"scenario": [changes_0, ..., changes_N-1]})`` changes
+each slot's scenario arguments from this episode on, as the single env's ``reset(options={"scenario": ...})``
+does (one dict: every slot's), so a batch can drill N different holes (a schedule residual's training does). The
+slots must agree on whether the cell has a tracker (one observation layout).
 """
 
 from __future__ import annotations
@@ -48,6 +53,7 @@ from drillgym.envs.metrics import episode_metrics
 from drillgym.envs.observation import observation_space
 from drillgym.envs.reward import checked_action
 from drillgym.envs.sample_record import OUT_COLUMNS, record_channels
+from drillgym.envs.scenario import Scenario
 from drillgym.envs.step_noise import NOISE_SIZE, is_noisy
 from drillgym.envs.task import Phase
 from drillgym.envs.views import observation_from_state, privileged_info
@@ -99,6 +105,7 @@ class BatchedDrillEnv(VectorEnv):
         self.envs = [UR5BoneDrillEnv(pybullet_world=False, **env_kwargs) for _ in range(num_envs)]
         first = self.envs[0]
         self.scenario = first.scenario
+        """The scenario given at construction (each slot's own, after a reset that changes it: :meth:`scenario_of`)."""
         self.reward_weights = first.reward
         self.single_observation_space = observation_space()
         self.single_action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
@@ -135,19 +142,20 @@ class BatchedDrillEnv(VectorEnv):
         """Wall seconds spent in the compiled step since construction (the physics; the rest of a step is Python)."""
 
     # ------------------------------------------------------------------ episodes
-    def _reset_one(self, i: int, seed: int | None) -> None:
-        """Reset slot ``i`` (the single env's ``reset(seed=seed)``) and copy its state into the arrays."""
+    def _reset_one(self, i: int, seed: int | None, changes: Mapping[str, Any] | None = None) -> None:
+        """Reset slot ``i`` (the single env's ``reset(seed=seed)``, with ``changes`` to its scenario) into the arrays."""
         env = self.envs[i]
         if self.effects:
             env.set_effects(build_effects(self.effects))
-        env.reset(seed=seed)
+        env.reset(seed=seed, options={"scenario": dict(changes)} if changes else None)
         if env._kernel is None:
             raise UserError(f"effects {self.effects!r} do not all run in the compiled step; use UR5BoneDrillEnv")
         start = episode_arrays(env)
         for name in ("tab", "rows", "centre", "filled", "delay"):
             self._fit(name, getattr(start, name).shape[1:])
+        self._fit_record(env.max_time_s)
         arrays = self.arrays
-        for name in ("state", "params", "pend", "bins"):
+        for name in ("state", "params", "pend", "bins", "chains"):  # the chains: the slot's stick-out and marker
             getattr(arrays, name)[i] = getattr(start, name)[0]
         for name in ("tab", "centre", "filled", "delay"):  # padded to the batch's largest
             row, one = getattr(arrays, name)[i], getattr(start, name)[0]
@@ -197,24 +205,65 @@ class BatchedDrillEnv(VectorEnv):
         new[tuple(slice(0, k) for k in old.shape)] = old
         self.arrays = self.arrays._replace(**{name: new})
 
+    def _fit_record(self, max_time_s: float) -> None:
+        """Grow the record (contents kept) so that an episode of ``max_time_s`` fits in its rows."""
+        steps = min(MAX_EPISODE_STEPS, math.ceil(max_time_s / CONTROL_DT_S) + 2)
+        rows = steps * SUBSTEPS_PER_STEP
+        if rows > self.record.shape[1]:
+            grown = np.zeros((self.num_envs, rows, OUT_COLUMNS))
+            grown[:, : self.record.shape[1]] = self.record
+            self.record = grown
+
     def reset(
         self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        """Reset every episode: ``seed`` (int: episode ``i`` gets ``seed + i``; or one seed per episode)."""
-        if options:
-            raise UserError(
-                f"reset(options={options!r}): BatchedDrillEnv takes no options (one scenario; effects at construction)"
-            )
+        """Reset every episode: ``seed`` (int: episode ``i`` gets ``seed + i``; or one seed per episode).
+
+        ``options={"scenario": changes}``: scenario arguments changed from this episode on, one dict for every
+        slot or a list of one per slot (validated first: a reset that raises changes nothing).
+        """
         if seed is None or isinstance(seed, int):
             seeds: list[int | None] = [None if seed is None else seed + i for i in range(self.num_envs)]
         else:
             seeds = list(seed)
             if len(seeds) != self.num_envs:
                 raise UserError(f"{len(seeds)} seeds for {self.num_envs} episodes")
+        changes = self._scenario_changes(options)
         for i, s in enumerate(seeds):
-            self._reset_one(i, s)
+            self._reset_one(i, s, changes[i])
         self._ready = True
         return self._observation(), {}
+
+    def _scenario_changes(self, options: Mapping[str, Any] | None) -> list[dict[str, Any] | None]:
+        """Each slot's scenario changes from ``reset``'s options, every one validated before any slot resets."""
+        opts = dict(options or {})
+        unknown = sorted(set(opts) - {"scenario"})
+        if unknown:
+            raise UserError(
+                f"reset(options=...): unknown key(s) {unknown}; BatchedDrillEnv takes only 'scenario' (one dict, or a "
+                "list of one per episode); its effects are set at construction"
+            )
+        given = opts.get("scenario")
+        if given is None:
+            return [None] * self.num_envs
+        per_slot = [given] * self.num_envs if isinstance(given, Mapping) else list(given)
+        if len(per_slot) != self.num_envs or not all(c is None or isinstance(c, Mapping) for c in per_slot):
+            raise UserError(
+                f"options['scenario'] must be a dict or a list of {self.num_envs} dicts (one per episode), got {given!r}"
+            )
+        scenarios = [
+            Scenario.from_kwargs(**{**env.scenario.to_dict(), **dict(c)}) if c else env.scenario
+            for env, c in zip(self.envs, per_slot, strict=True)
+        ]
+        if any(sc.tracker != self.scenario.tracker for sc in scenarios):
+            raise UserError(
+                f"every episode of a batch has tracker={self.scenario.tracker} (its construction's): one observation"
+            )
+        return [dict(c) if c else None for c in per_slot]
+
+    def scenario_of(self, i: int) -> Scenario:
+        """Episode ``i``'s scenario (the construction's, or the last reset's changes)."""
+        return self.envs[i].scenario
 
     def step(
         self, actions: np.ndarray
@@ -305,7 +354,7 @@ class BatchedDrillEnv(VectorEnv):
 
     def episode_metrics(self, i: int) -> dict[str, float]:
         """Episode ``i``'s metrics so far (:func:`drillgym.envs.metrics.episode_metrics`)."""
-        sc = self.scenario
+        sc = self.scenario_of(i)
         centre = centre_at(self.arrays.centre[i], self.arrays.bins[i], float(self.params[i]["bin_m"]), sc.entry_depth_m)
         offset = math.hypot(centre[0], centre[1]) if centre is not None else math.nan
         return episode_metrics(self.records(i), sc.entry_depth_m, sc.depth_m, offset, feed_phase=int(Phase.FEED))

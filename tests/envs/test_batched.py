@@ -215,3 +215,63 @@ def test_noiseless_sensors_draw_nothing():
         assert batch.envs[0].np_random.bit_generator.state == before
     finally:
         batch.close()
+
+
+def test_each_episode_can_drill_its_own_scenario_as_the_single_env_does():
+    """Three holes of different angle, feed, stick-out, bone and depth in one batch: each slot's observations, rewards
+    and metrics are the single env's reset with that scenario, and the scenario stays for the slot's next episode."""
+    scenarios = [
+        {"beta_deg": 10.0, "feed_mm_s": 1.2, "bone": "porcine_femur"},
+        {},
+        {"beta_deg": 35.0, "stickout_mm": 45.0, "depth_mm": 9.0, "cortical_thickness_mm": 3.0},
+    ]
+    num_envs, seed = len(scenarios), 11
+    batch = BatchedDrillEnv(num_envs)
+    singles = [UR5BoneDrillEnv(pybullet_world=False) for _ in range(num_envs)]
+    actions = _actions(2, 3000, num_envs)
+    try:
+        obs_b, _ = batch.reset(seed=seed, options={"scenario": scenarios})
+        for i, env in enumerate(singles):
+            obs_s, _ = env.reset(seed=seed + i, options={"scenario": scenarios[i]})
+            assert largest_difference({k: v[i] for k, v in obs_b.items()}, obs_s)[0] == 0.0
+            assert batch.scenario_of(i) == env.scenario
+        ended = np.zeros(num_envs, dtype=int)
+        for step in range(3000):
+            obs_b, reward_b, term_b, trunc_b, infos = batch.step(actions[step])
+            for i, env in enumerate(singles):
+                obs_s, reward_s, term_s, trunc_s, info_s = env.step(actions[step, i])
+                assert (term_s, trunc_s) == (term_b[i], trunc_b[i]), f"step {step}, episode {i}"
+                assert abs(reward_s - reward_b[i]) <= TOLERANCE * (abs(reward_s) + 1e-9)
+                if term_s or trunc_s:
+                    metrics_b = {k: v[i] for k, v in infos["final_info"]["metrics"].items() if not k.startswith("_")}
+                    worst, where = largest_difference(metrics_b, info_s["metrics"])
+                    assert worst <= TOLERANCE, f"episode {i} metrics: {where} differs by {worst:.2e}"
+                    ended[i] += 1
+                    obs_s, _ = env.reset()  # the slot's next episode keeps its scenario
+                    assert largest_difference({k: v[i] for k, v in obs_b.items()}, obs_s)[0] <= TOLERANCE
+            if (ended >= 1).all():
+                break
+        assert (ended >= 1).all()
+        durations = {round(float(m), 3) for m in infos["t_s"]}
+        assert len(durations) > 1  # the holes differ in length: the slots are not in step
+    finally:
+        batch.close()
+        for env in singles:
+            env.close()
+
+
+def test_bad_scenario_options_change_no_episode():
+    batch = BatchedDrillEnv(2)
+    try:
+        batch.reset(seed=0)
+        before = (batch.state.tobytes(), batch.params.tobytes())
+        with pytest.raises(ValueError, match="beta_deg"):
+            batch.reset(seed=0, options={"scenario": [{"beta_deg": 10.0}, {"beta_deg": 400.0}]})
+        with pytest.raises(ValueError, match="list of 2"):
+            batch.reset(seed=0, options={"scenario": [{"beta_deg": 10.0}]})
+        with pytest.raises(ValueError, match="tracker"):
+            batch.reset(seed=0, options={"scenario": [{}, {"tracker": False}]})
+        assert before == (batch.state.tobytes(), batch.params.tobytes())
+        assert batch.scenario_of(0) == batch.scenario_of(1) == batch.scenario
+    finally:
+        batch.close()
