@@ -28,9 +28,9 @@ from drillgym.controllers.rollout import run_episode
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.effects.registry import build_effects
 from drillgym.envs.errors import UserError
-from drillgym.envs.seeds import Purpose, draw_seed, training_stream
-from drillgym.training.cell import CELL_STREAM, TrainingCell, with_cell
-from drillgym.training.domain_randomization import DR_RANGES, sample_scenario
+from drillgym.training.cell import TrainingCell, with_cell
+from drillgym.training.domain_randomization import DR_RANGES
+from drillgym.training.schedule_holes import HoleDraws
 
 
 @dataclass(frozen=True)
@@ -102,26 +102,22 @@ class ScheduleEnv(gym.Env):
         stream_keys: tuple[int, ...] = (),
         cell: TrainingCell | None = None,
     ) -> None:
-        if not 0.0 <= paper_share <= 1.0:
-            raise UserError(f"paper_share={paper_share!r} must be in [0, 1]")
         self.schedule = spec
         self.cell = cell or TrainingCell()
         self.sim = with_cell(gym.make(SIM_ENV_ID, **(env_kwargs or {})), self.cell)
         self.cell_spec = self.cell.nominal_spec()
         """The effects of the current hole (drawn at reset with the cell's ranges, in training; else the cell's own)."""
-        self._cell_rng: np.random.Generator | None = None
-        self.ranges = dict(DR_RANGES if ranges is None else ranges)
-        self.paper_share = float(paper_share)
         self.weights = reward or ScheduleReward()
-        self._paper = dict(self.sim.unwrapped.scenario.to_dict())  # type: ignore[attr-defined]
+        paper = dict(self.sim.unwrapped.scenario.to_dict())  # type: ignore[attr-defined]
+        try:
+            self.holes = HoleDraws(
+                paper, DR_RANGES if ranges is None else ranges, paper_share, self.cell, episodes, stream_keys
+            )
+        except UserError:
+            self.sim.close()
+            raise
         self.observation_space = spaces.Box(-1.0, 1.0, PLAN_HIGH.shape, np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (spec.dims,), np.float32)
-        self.episodes = None if episodes is None else [(dict(sc), int(seed)) for sc, seed in episodes]
-        if self.episodes is not None and not self.episodes:
-            raise UserError("ScheduleEnv: an empty list of episodes")
-        self._visits = 0
-        self._rng: np.random.Generator | None = None
-        self.stream_keys = tuple(int(k) for k in stream_keys)
         self.scenario: dict[str, Any] = {}
         self.episode_seed = -1
         self.base = make_controller(spec.base)
@@ -135,25 +131,9 @@ class ScheduleEnv(gym.Env):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Draw the hole's scenario and seed (``options["scenario"]`` fixes the scenario); observe its plan."""
         super().reset(seed=seed)
-        if seed is not None or self._rng is None:
-            self._rng = training_stream(self.stream_keys, seed)
-            self._cell_rng = training_stream((*self.stream_keys, CELL_STREAM), seed)
-        if self.episodes is None and self.cell.ranges:  # training holes: the cell's parameters drawn too
-            assert self._cell_rng is not None
-            self.cell_spec = self.cell.draw_spec(self._cell_rng)
-        if self.episodes is not None:
-            scenario, episode_seed = self.episodes[self._visits % len(self.episodes)]
-            self._visits += 1
-            self.scenario = {**self._paper, **scenario}
-            self.episode_seed = episode_seed
-            return self._plan(), {"scenario": dict(self.scenario), "episode_seed": self.episode_seed}
-        if options and "scenario" in options:
-            self.scenario = {**self._paper, **options["scenario"]}
-        elif self.paper_share > 0.0 and self._rng.uniform() < self.paper_share:
-            self.scenario = dict(self._paper)
-        else:
-            self.scenario = {**self._paper, **sample_scenario(self._rng, self.ranges)}
-        self.episode_seed = draw_seed(self._rng, Purpose.TRAIN)
+        self.holes.seed(seed)
+        hole = self.holes.next((options or {}).get("scenario"))
+        self.scenario, self.episode_seed, self.cell_spec = hole.scenario, hole.episode_seed, hole.cell_spec
         return self._plan(), {"scenario": dict(self.scenario), "episode_seed": self.episode_seed}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:

@@ -215,10 +215,10 @@ def test_a_schedule_run_is_evaluated_on_fixed_holes():
     kw = {"residual_mode": "schedule", "normalize_obs": False, "base": "li2023_tuned"}
     cfg = TrainConfig(**kw, eval_episodes=3, eval_scenarios="validation")
     venv = make_eval_vec_env(cfg)
-    assert venv.envs[0].unwrapped.episodes == validation_episodes(cfg)[:3]
+    assert venv.envs[0].unwrapped.holes.episodes == validation_episodes(cfg)[:3]
     venv.close()
     cfg = TrainConfig(**kw, eval_episodes=2, eval_scenarios="paper")
     venv = make_eval_vec_env(cfg)
     select = [episode_seed(Purpose.SELECT, EVAL_SEED + i) for i in range(2)]
-    assert venv.envs[0].unwrapped.episodes == [({}, select[0]), ({}, select[1])]
+    assert venv.envs[0].unwrapped.holes.episodes == [({}, select[0]), ({}, select[1])]
     venv.close()
