@@ -22,6 +22,7 @@ once per scenario as ``F(d) = A(d) + h B(d)`` and interpolated at run time.
 from __future__ import annotations
 
 import bisect
+import functools
 import math
 from dataclasses import dataclass
 
@@ -119,46 +120,91 @@ class EngagementTable:
         max_depth_m: float,
     ) -> EngagementTable:
         """Integrate the element forces over the engaged lips for every depth of the grid."""
-        layer_depth = cortical_thickness_m / math.cos(beta_rad)  # cortical thickness along the axis
-        grid = _depth_grid(geometry, beta_rad, layer_depth, max_depth_m)
-        big_r, w = geometry.radius_m, geometry.web_radius_m
-        edges = np.linspace(0.0, big_r, N_RADIAL + 1)
-        r = 0.5 * (edges[1:] + edges[:-1])
-        db = np.diff(edges) / math.sin(geometry.kappa_rad)
-        phi = (np.arange(N_ANGULAR) + 0.5) * 2.0 * math.pi / N_ANGULAR
-        cos_p, sin_p = np.cos(phi), np.sin(phi)
-        setback = r[:, None] * (geometry.cot_kappa - cos_p[None, :] * math.tan(beta_rad))  # (R, Φ)
-        is_lip = r >= w
+        lips = lip_geometry(geometry, beta_rad, cortical_thickness_m, max_depth_m)
         weight = geometry.n_lips / N_ANGULAR
-
-        # Unit element force directions per (r, φ) for each coefficient family.
-        tangential = np.stack([sin_p, -cos_p, np.zeros_like(phi)])  # opposes velocity (-sin, cos)
-        radial = np.stack([-cos_p, -sin_p, np.zeros_like(phi)])  # toward the axis
         thrust = np.array([0.0, 0.0, -1.0])
-
-        lip_total = float((is_lip * db).sum()) * N_ANGULAR
-        lip_engaged, lip_phi, lip_len, lip_moment, chisel_len, cuts = lip_sums(
-            grid, setback, layer_depth, is_lip, db, r
-        )
-        fraction = lip_engaged / lip_total
-        edge_tab = np.zeros((grid.size, 4))
-        chip_tab = np.zeros((grid.size, 4))
-        for m, mat in enumerate((bone.cortical, bone.cancellous)):
-            cut = np.flatnonzero(cuts[m])
-            along_t = np.empty((cut.size, 3))
-            along_r = np.empty((cut.size, 3))
-            for n, j in enumerate(cut.tolist()):  # per depth: a BLAS product rounds by the shapes it is given
-                along_t[n] = tangential @ lip_phi[m, j]
-                along_r[n] = radial @ lip_phi[m, j]
+        edge_tab = np.zeros((lips.depth_m.size, 4))
+        chip_tab = np.zeros((lips.depth_m.size, 4))
+        for part, mat in zip(lips.materials, (bone.cortical, bone.cancellous), strict=True):
+            cut = part.cut
             for tab, kt, kf, kr, kch in (
                 (edge_tab, mat.k_te_n_m, mat.k_fe_n_m, mat.k_re_n_m, mat.k_chisel_n_m),
                 (chip_tab, mat.k_tc_pa, mat.k_fc_pa, mat.k_rc_pa, 0.0),
             ):
-                f = kt * along_t + kr * along_r
-                f = f + thrust * (kf * lip_len[m, cut] + kch * chisel_len[m, cut])[:, None]
+                f = kt * part.along_t + kr * part.along_r
+                f = f + thrust * (kf * part.lip_len + kch * part.chisel_len)[:, None]
                 tab[cut, :3] += weight * f
-                tab[cut, 3] += weight * (-kt * lip_moment[m, cut])  # torque opposes the +z spin
-        return cls(depth_m=grid, edge=edge_tab, per_chip=chip_tab, engaged_fraction=fraction)
+                tab[cut, 3] += weight * (-kt * part.lip_moment)  # torque opposes the +z spin
+        return cls(depth_m=lips.depth_m, edge=edge_tab, per_chip=chip_tab, engaged_fraction=lips.engaged_fraction)
+
+
+@dataclass(frozen=True)
+class EngagedLips:
+    """One material's engaged lips at the depths that cut it (tool frame, per revolution of one lip's angles).
+
+    Attributes:
+        cut: the grid's indices of the depths at which some element is in this material.
+        along_t: ``Σ_φ l(φ) t(φ)``: engaged lip length times the unit tangential direction, summed (m), (C, 3).
+        along_r: the same with the unit radial direction (m), (C, 3).
+        lip_len: engaged lip length over all angles (m), (C,).
+        lip_moment: its first moment about the axis (m²), (C,).
+        chisel_len: engaged chisel-edge length over all angles (m), (C,).
+    """
+
+    cut: np.ndarray
+    along_t: np.ndarray
+    along_r: np.ndarray
+    lip_len: np.ndarray
+    lip_moment: np.ndarray
+    chisel_len: np.ndarray
+
+
+@dataclass(frozen=True)
+class LipGeometry:
+    """What the force tables need of the geometry alone: the bone's coefficients then only scale and add it."""
+
+    depth_m: np.ndarray
+    engaged_fraction: np.ndarray
+    materials: tuple[EngagedLips, EngagedLips]
+    """Cortical, cancellous."""
+
+
+@functools.lru_cache(maxsize=64)
+def lip_geometry(
+    geometry: DrillGeometry, beta_rad: float, cortical_thickness_m: float, max_depth_m: float
+) -> LipGeometry:
+    """The engaged lips of every depth of the grid, for any bone.
+
+    Cached: the env's force table and a controller's model of the same hole share it.
+    """
+    layer_depth = cortical_thickness_m / math.cos(beta_rad)  # cortical thickness along the axis
+    grid = _depth_grid(geometry, beta_rad, layer_depth, max_depth_m)
+    big_r, w = geometry.radius_m, geometry.web_radius_m
+    edges = np.linspace(0.0, big_r, N_RADIAL + 1)
+    r = 0.5 * (edges[1:] + edges[:-1])
+    db = np.diff(edges) / math.sin(geometry.kappa_rad)
+    phi = (np.arange(N_ANGULAR) + 0.5) * 2.0 * math.pi / N_ANGULAR
+    cos_p, sin_p = np.cos(phi), np.sin(phi)
+    setback = r[:, None] * (geometry.cot_kappa - cos_p[None, :] * math.tan(beta_rad))  # (R, Φ)
+    is_lip = r >= w
+    # Unit element force directions per φ for each coefficient family.
+    tangential = np.stack([sin_p, -cos_p, np.zeros_like(phi)])  # opposes velocity (-sin, cos)
+    radial = np.stack([-cos_p, -sin_p, np.zeros_like(phi)])  # toward the axis
+    lip_total = float((is_lip * db).sum()) * N_ANGULAR
+    lip_engaged, lip_phi, lip_len, lip_moment, chisel_len, cuts = lip_sums(grid, setback, layer_depth, is_lip, db, r)
+    materials = []
+    for m in range(2):
+        cut = np.flatnonzero(cuts[m])
+        along_t = np.empty((cut.size, 3))
+        along_r = np.empty((cut.size, 3))
+        for n, j in enumerate(cut.tolist()):  # per depth: a BLAS product rounds by the shapes it is given
+            along_t[n] = tangential @ lip_phi[m, j]
+            along_r[n] = radial @ lip_phi[m, j]
+        materials.append(EngagedLips(cut, along_t, along_r, lip_len[m, cut], lip_moment[m, cut], chisel_len[m, cut]))
+    fraction = lip_engaged / lip_total
+    for a in (grid, fraction, *(a for part in materials for a in vars(part).values())):
+        a.flags.writeable = False  # shared by every table of this geometry
+    return LipGeometry(grid, fraction, (materials[0], materials[1]))
 
 
 class ForceModel:
