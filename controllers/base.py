@@ -9,6 +9,7 @@ path prediction), reset at episode start.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Hashable, Sequence
 from dataclasses import asdict, is_dataclass
 from typing import Any, ClassVar
 
@@ -58,6 +59,22 @@ class Controller(ABC):
         """:meth:`act` of every episode of a batch (observations (N, k), actions (N, 4)): batchable controllers."""
         raise NotImplementedError(f"{self.name} is not batchable")
 
+    def stack_part(self) -> Controller:
+        """The controller that does the stepping (a wrapper that only chose it returns the chosen one)."""
+        return self
+
+    def stack_key(self) -> Hashable | None:
+        """What lets controllers step as one batch (:meth:`stack`); None: this one steps alone.
+
+        Controllers (each set to its own plan, one episode) whose :meth:`stack_part` keys are equal stack.
+        """
+        return None
+
+    @classmethod
+    def stack(cls, controllers: Sequence[Controller]) -> Controller:
+        """One controller stepping ``controllers`` (of equal :meth:`stack_key`) as a batch, row i the i-th's actions."""
+        raise NotImplementedError(f"{cls.name} does not stack")
+
     def predict(
         self,
         observation: dict[str, np.ndarray],
@@ -86,6 +103,28 @@ class Controller(ABC):
         """Name and configuration, JSON-ready (written into every episode log)."""
         cfg = asdict(self.config) if is_dataclass(self.config) and not isinstance(self.config, type) else {}
         return {"name": self.name, "config": {k: _jsonable(v) for k, v in cfg.items()}}
+
+
+def stack_controllers(controllers: Sequence[Any]) -> list[tuple[list[int], Any]]:
+    """Group policies that can step as one batch: ``(indices, policy)`` pairs covering every index once.
+
+    Controllers with an equal :meth:`Controller.stack_key` (of their :meth:`~Controller.stack_part`) become one
+    stacked controller over their indices, in order; any other policy (a trained model, a controller that does not
+    stack) stays alone.
+    """
+    groups: dict[Hashable, list[int]] = {}
+    alone: list[tuple[list[int], Any]] = []
+    for i, c in enumerate(controllers):
+        key = c.stack_part().stack_key() if isinstance(c, Controller) else None
+        if key is None:
+            alone.append(([i], c))
+        else:
+            groups.setdefault(key, []).append(i)
+    stacked = []
+    for idx in groups.values():
+        parts = [controllers[i].stack_part() for i in idx]
+        stacked.append((idx, type(parts[0]).stack(parts)))
+    return stacked + alone
 
 
 def _jsonable(v: Any) -> Any:

@@ -14,6 +14,7 @@ over the first 0.5 mm of nominal depth (:func:`drillgym.controllers.registry.mak
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -73,6 +74,25 @@ class SlowEntry(Controller):
         self.schedule = schedule
         self.config = base.config
         self.batchable = base.batchable
+        self._entry: tuple[Any, Any] = (schedule.entry_depth_mm * 1e-3, schedule.feed_action_offset(-math.inf))
+        """The entry's depth (m) and feed offset: floats, or one per episode once stacked ((N,) arrays)."""
+
+    def stack_key(self) -> Hashable | None:
+        """The base's key: slow entries of stackable bases stack, each with its own schedule."""
+        key = self.base.stack_part().stack_key()
+        return None if key is None else ("slow_entry", key)
+
+    @classmethod
+    def stack(cls, controllers: Sequence[Controller]) -> SlowEntry:
+        """One slow entry over the stacked bases, each episode with its own entry depth and feed."""
+        parts = [c for c in controllers if isinstance(c, SlowEntry)]
+        if len(parts) != len(controllers):
+            raise UserError("only slow entries stack with slow entries")
+        bases = [c.base.stack_part() for c in parts]
+        out = cls(type(bases[0]).stack(bases), parts[0].schedule)
+        out._entry = (np.array([c._entry[0] for c in parts]), np.array([c._entry[1] for c in parts]))
+        out.plan, out.num_episodes = parts[0].plan, len(parts)
+        return out
 
     def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
         """The base controller gets the plan too."""
@@ -93,7 +113,8 @@ class SlowEntry(Controller):
         """:meth:`act` of every episode (the base's :meth:`act_batch`; the same numbers as one episode's)."""
         actions = np.array(self.base.act_batch(obs), dtype=np.float32)
         depth = obs["path_depth_m"][:, 0].astype(float)
-        offset = np.where(depth < self.schedule.entry_depth_mm * 1e-3, self.schedule.feed_action_offset(-math.inf), 0.0)
+        entry_m, entry_offset = self._entry
+        offset = np.where(depth < entry_m, entry_offset, 0.0)
         # float32 + a float32 offset: the rounding of float32 + a Python float (one episode's)
         actions[:, 3] = np.clip(actions[:, 3] + offset.astype(np.float32), -1.0, 1.0)
         return actions

@@ -19,9 +19,12 @@ Compensation is applied across the drill axis (both lateral axes by default; Li'
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -94,6 +97,14 @@ class Li2023Config:
             raise UserError(f"y_gain={self.y_gain} must lie in [0, 3]")
 
 
+def lateral_projector(R_base_task: np.ndarray, axes: str) -> np.ndarray:
+    """Projector onto the compensated task axes (``"x"`` or ``"xy"``), in the base frame (3, 3)."""
+    if axes not in ("x", "xy"):
+        raise UserError(f"axes={axes!r} must be 'x' or 'xy'")
+    cols = [0] if axes == "x" else [0, 1]
+    return sum((np.outer(R_base_task[:, i], R_base_task[:, i]) for i in cols), np.zeros((3, 3)))
+
+
 class Li2023Controller(Controller):
     """Force-position hybrid compensation with path prediction.
 
@@ -113,16 +124,69 @@ class Li2023Controller(Controller):
 
     def set_plan(self, plan: DrillPlan, num_episodes: int = 1) -> None:
         """Build the controller's own models for this plan, then reset ``num_episodes`` episodes."""
-        self.robot = RobotComplianceModel(plan.tcp_offset_m)
-        self.C_tool = tool_compliance_m_n(plan, self.config.tool_effective_diameter_ratio)
-        self.offline_model = OfflineForceModel.for_plan(plan, self.config.model_peak_force_n)
-        self.R = plan.R_base_task
-        if self.config.axes not in ("x", "xy"):
-            raise UserError(f"axes={self.config.axes!r} must be 'x' or 'xy'")
-        cols = [0] if self.config.axes == "x" else [0, 1]
-        self.lateral: np.ndarray = sum((np.outer(self.R[:, i], self.R[:, i]) for i in cols), np.zeros((3, 3)))
-        """Projector across the drill (base frame)."""
+        robot = RobotComplianceModel(plan.tcp_offset_m)
+        self.robots: list[RobotComplianceModel] = [robot] * num_episodes
+        """Each episode's robot compliance model."""
+        self.C_tool: np.ndarray = tool_compliance_m_n(plan, self.config.tool_effective_diameter_ratio)
+        """Drill compliance at the tip (m/N, task axes): (3, 3) shared, or (N, 3, 3) per episode once stacked."""
+        self.offline_models = [OfflineForceModel.for_plan(plan, self.config.model_peak_force_n)]
+        """The offline force models: one shared, or one per episode once stacked."""
+        self.R: np.ndarray = plan.R_base_task
+        """Rotation task -> base: (3, 3) shared, or (N, 3, 3) per episode once stacked."""
+        self.lateral: np.ndarray = lateral_projector(self.R, self.config.axes)
+        """Projector across the drill (base frame): (3, 3) shared, or (N, 3, 3) per episode once stacked."""
+        cfg = self.config
+        self._gains(cfg.kp, cfg.ki, cfg.kd, np.array([cfg.y_gain]))
         super().set_plan(plan, num_episodes)
+
+    def _gains(self, kp: Any, ki: Any, kd: Any, y_gain: np.ndarray) -> None:
+        """The gains as the step uses them.
+
+        The config's floats, or one per episode once stacked ((N, 1)); the y gain (N,), or (1,) shared.
+        """
+        self.kp, self.ki, self.kd = kp, ki, kd
+        self.y_gain = y_gain
+        self._y_any = bool(np.any(y_gain != 1.0))
+        self._y_all = bool(np.all(y_gain != 1.0))
+
+    def stack_key(self) -> tuple[Any, ...] | None:
+        """Controllers with equal keys step together once stacked: the same timing, switches and limits."""
+        c = self.config
+        return (
+            type(self).__name__,
+            c.filter_samples,
+            c.point_period_s,
+            c.prediction_points,
+            c.offline,
+            c.online,
+            c.max_correction_m,
+            c.count_executed_correction,
+        )
+
+    @classmethod
+    def stack(cls, controllers: Sequence[Controller]) -> Li2023Controller:
+        """One controller stepping ``controllers`` (each set to its plan, one episode) as a batch, row i the i-th's.
+
+        Each episode keeps its own plan's models and its own gains; every operation stays elementwise, so row i's
+        actions are the i-th controller's, bit for bit.
+        """
+        parts = [c for c in controllers if isinstance(c, Li2023Controller)]
+        keys = {c.stack_key() for c in parts}
+        if len(parts) != len(controllers) or len(keys) != 1 or any(c.num_episodes != 1 for c in parts):
+            raise UserError("only li2023 controllers of one episode each, with the same timing and switches, stack")
+        first = parts[0]
+        out = cls(dataclasses.replace(first.config))
+        out.robots = [c.robots[0] for c in parts]
+        out.C_tool = np.stack([np.broadcast_to(c.C_tool, (3, 3)) for c in parts])
+        out.offline_models = [c.offline_models[0] for c in parts]
+        out.R = np.stack([c.R for c in parts])
+        out.lateral = np.stack([c.lateral for c in parts])
+        kp, ki, kd = (np.array([getattr(c.config, name) for c in parts])[:, None] for name in ("kp", "ki", "kd"))
+        out._gains(kp, ki, kd, np.array([c.config.y_gain for c in parts]))
+        out.plan = first.plan
+        out.num_episodes = len(parts)
+        out.reset()
+        return out
 
     def reset(self) -> None:
         """Empty the force filter, the PID memory and the queued corrections of every episode."""
@@ -142,7 +206,11 @@ class Li2023Controller(Controller):
         """ΔP = -k_D⁻¹ F_model at the planned depth, lateral, base frame (m): (3,) for a depth, (N, 3) for N."""
         depth = np.asarray(depth_m, dtype=float)
         f_task = np.zeros((depth.size, 3))
-        self.offline_model.lateral_into(depth.ravel(), f_task)
+        if len(self.offline_models) == 1:
+            self.offline_models[0].lateral_into(depth.ravel(), f_task)
+        else:  # one model per episode
+            for i, (model, d) in enumerate(zip(self.offline_models, depth.ravel(), strict=True)):
+                model.lateral_into(d[None], f_task[i : i + 1])
         out = -matvec(self.lateral, matvec(self.R, matvec(self.C_tool, f_task)))
         return out[0] if depth.ndim == 0 else out
 
@@ -159,7 +227,7 @@ class Li2023Controller(Controller):
         tcp = np.atleast_2d(np.asarray(tcp_error_base_m, dtype=float))
         force = np.atleast_2d(np.asarray(force_sensor_n, dtype=float))
         f_base = matvec(self.R, force)
-        c_robot = np.stack([self.robot.translational_compliance_m_n(qi) for qi in q])
+        c_robot = np.stack([robot.translational_compliance_m_n(qi) for robot, qi in zip(self.robots, q, strict=True)])
         robot = matvec(c_robot, f_base)
         tool = matvec(self.R, matvec(self.C_tool, force))
         executed = tcp if self.config.count_executed_correction else np.zeros_like(tcp)
@@ -185,10 +253,11 @@ class Li2023Controller(Controller):
         offline = self.offline_correction_base_m(obs["path_depth_m"][:, 0]) if cfg.offline else np.zeros((n, 3))
         self.step += 1
         total = offline + online
-        if cfg.y_gain != 1.0:
-            y_base = self.R[:, 1]
-            along = total[:, 0] * y_base[0] + total[:, 1] * y_base[1] + total[:, 2] * y_base[2]
-            total = total + ((cfg.y_gain - 1.0) * along)[:, None] * y_base
+        if self._y_any:
+            y_base = self.R[..., :, 1]  # (3,) shared or (N, 3)
+            along = total[:, 0] * y_base[..., 0] + total[:, 1] * y_base[..., 1] + total[:, 2] * y_base[..., 2]
+            adjusted = total + ((self.y_gain - 1.0) * along)[:, None] * y_base
+            total = adjusted if self._y_all else np.where((self.y_gain != 1.0)[:, None], adjusted, total)
         total = np.minimum(np.maximum(total, -cfg.max_correction_m), cfg.max_correction_m)  # np.clip's numbers
         return unscale_actions(total)
 
@@ -198,7 +267,7 @@ class Li2023Controller(Controller):
         dx = self.deviation_estimate_base_m(obs["q_rad"], window_mean(self.tcp_window, self.step), force)
         dd = dx - self.prev_dx
         self.sum_dd = self.sum_dd + dd
-        u = cfg.kp * dd + cfg.ki * self.sum_dd + cfg.kd * (dd - self.prev_dd)
+        u = self.kp * dd + self.ki * self.sum_dd + self.kd * (dd - self.prev_dd)
         self.prev_dx, self.prev_dd = dx, dd
         t_apply = t + cfg.prediction_points * cfg.point_period_s
         target = np.clip(-u, -cfg.max_correction_m, cfg.max_correction_m)

@@ -182,6 +182,10 @@ class PlanScheduledController(Controller):
         """Reset the tuned base controller."""
         self.inner.reset()
 
+    def stack_part(self) -> Controller:
+        """The tuned base controller: holes tuned differently step together as their bases."""
+        return self.inner.stack_part()
+
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """The tuned base controller's action."""
         return self.inner.act(obs)

@@ -17,8 +17,10 @@ import gymnasium as gym
 import numpy as np
 
 from drillgym import envs  # noqa: F401  (registers the ids)
+from drillgym.controllers.base import stack_controllers
 from drillgym.envs.batched import BatchedDrillEnv
 from drillgym.envs.constants import ACTION_DIM
+from drillgym.envs.errors import UserError
 from drillgym.envs.plan import DrillPlan
 
 
@@ -150,57 +152,98 @@ def run_episodes(
         One :class:`EpisodeResult` per seed, in order, equal to :func:`run_episode` on the single env with
         ``keep_trace=False`` (its ``info`` is the batched env's final info of the episode).
     """
-    n = len(seeds)
-    batch = BatchedDrillEnv(n, autoreset=False, effects=effects, **(env_kwargs or {}))
+    batch = BatchedDrillEnv(len(seeds), autoreset=False, effects=effects, **(env_kwargs or {}))
     try:
-        obs, _ = batch.reset(seed=[int(s) for s in seeds])
-        first = make_policy()
-        plans = [env.plan for env in batch.envs]
-        together = n > 1 and getattr(first, "batchable", False) and all(same_plan(p, plans[0]) for p in plans)
-        if together:  # one controller steps every episode (Controller.act_batch)
-            first.set_plan(plans[0], n)  # type: ignore[attr-defined]
-            policies = [first]
-        else:
-            policies = [first] + [make_policy() for _ in range(n - 1)]
-            for policy, plan in zip(policies, plans, strict=True):
-                if hasattr(policy, "set_plan"):
-                    policy.set_plan(plan)
-        states: list[Any] = [None] * n
-        start = np.ones(n, dtype=bool)
-        rewards: list[list[float]] = [[] for _ in range(n)]
-        results: list[EpisodeResult | None] = [None] * n
-        actions = np.zeros((n, ACTION_DIM), dtype=np.float32)
-        step = 0
-        while batch.active.any():
-            running = np.flatnonzero(batch.active).tolist()
-            if together:  # the ended episodes' rows too (their last observation): not sent, not stepped
-                actions[:] = first.act_batch(obs)  # type: ignore[attr-defined]
-            for i in [] if together else running:
-                one = {k: v[i] for k, v in obs.items()}
-                actions[i], states[i] = policies[i].predict(
-                    one, state=states[i], episode_start=np.array([start[i]]), deterministic=True
-                )
-            obs, reward, terminated, truncated, _ = batch.step(actions)
-            if on_step is not None:
-                on_step(batch, step, actions, obs, running, terminated | truncated)
-            step += 1
-            for i in running:
-                rewards[i].append(float(reward[i]))
-                start[i] = False
-                if terminated[i] or truncated[i]:
-                    info = batch.final_info(i)  # the slot stays as it ended (autoreset off)
-                    failure = info["failure"] or ("truncated" if truncated[i] and not terminated[i] else "")
-                    results[i] = EpisodeResult(
-                        int(seeds[i]),
-                        {k: float(v) for k, v in info["metrics"].items()},
-                        {},
-                        len(rewards[i]),
-                        float(info["t_s"]),
-                        str(failure),
-                        info,
-                        np.asarray(rewards[i]),
-                    )
-        assert all(r is not None for r in results)
-        return results  # type: ignore[return-value]
+        return run_batch(batch, make_policy, seeds, on_step=on_step)
     finally:
         batch.close()
+
+
+def run_batch(
+    batch: BatchedDrillEnv,
+    policies: Callable[[], PolicyPredictor] | Sequence[PolicyPredictor],
+    seeds: Sequence[int],
+    scenarios: Sequence[dict[str, Any] | None] | None = None,
+    on_step: StepHook | None = None,
+    started: dict[str, np.ndarray] | None = None,
+) -> list[EpisodeResult]:
+    """Run one episode in each slot of ``batch`` (built with ``autoreset=False``) to its end.
+
+    ``policies``: a factory as :func:`run_episodes` takes, or one policy per slot (each handed its slot's plan);
+    ``scenarios``: each slot's scenario changes for this reset (kept for its next ones, as the single env keeps
+    them), None for the scenario the slot has; ``started``: the observation of a reset the caller has just made
+    with these seeds and scenarios (the episodes start from it, without another reset). The rest as
+    :func:`run_episodes`.
+    """
+    n = batch.num_envs
+    if len(seeds) != n:
+        raise UserError(f"{len(seeds)} seeds for a batch of {n} episodes")
+    if started is None:
+        options = None if scenarios is None else {"scenario": list(scenarios)}
+        obs, _ = batch.reset(seed=[int(s) for s in seeds], options=options)
+    else:
+        obs = started
+    slots, batched, alone = _stepping(policies, [env.plan for env in batch.envs])
+    states: list[Any] = [None] * n
+    start = np.ones(n, dtype=bool)
+    rewards: list[list[float]] = [[] for _ in range(n)]
+    results: list[EpisodeResult | None] = [None] * n
+    actions = np.zeros((n, ACTION_DIM), dtype=np.float32)
+    step = 0
+    while batch.active.any():
+        running = np.flatnonzero(batch.active).tolist()
+        for idx, policy in batched:  # the ended episodes' rows too (their last observation): not sent, not stepped
+            actions[idx] = policy.act_batch(obs if len(idx) == n else {k: v[idx] for k, v in obs.items()})
+        for i in (i for i in alone if batch.active[i]):
+            one = {k: v[i] for k, v in obs.items()}
+            actions[i], states[i] = slots[i].predict(
+                one, state=states[i], episode_start=np.array([start[i]]), deterministic=True
+            )
+        obs, reward, terminated, truncated, _ = batch.step(actions)
+        if on_step is not None:
+            on_step(batch, step, actions, obs, running, terminated | truncated)
+        step += 1
+        for i in running:
+            rewards[i].append(float(reward[i]))
+            start[i] = False
+            if terminated[i] or truncated[i]:
+                info = batch.final_info(i)  # the slot stays as it ended (autoreset off)
+                failure = info["failure"] or ("truncated" if truncated[i] and not terminated[i] else "")
+                results[i] = EpisodeResult(
+                    int(seeds[i]),
+                    {k: float(v) for k, v in info["metrics"].items()},
+                    {},
+                    len(rewards[i]),
+                    float(info["t_s"]),
+                    str(failure),
+                    info,
+                    np.asarray(rewards[i]),
+                )
+    assert all(r is not None for r in results)
+    return results  # type: ignore[return-value]
+
+
+def _stepping(
+    policies: Callable[[], PolicyPredictor] | Sequence[PolicyPredictor], plans: list[DrillPlan]
+) -> tuple[list[Any], list[tuple[np.ndarray, Any]], list[int]]:
+    """Each slot's policy, handed its plan; the groups stepped as one batch ``(rows, controller)``; the slots alone.
+
+    A factory's batchable controller with one plan for every slot is one copy over all rows; otherwise each slot has
+    its own policy, and controllers that stack (:func:`~drillgym.controllers.base.stack_controllers`) step together.
+    """
+    n = len(plans)
+    if callable(policies):
+        first = policies()
+        if n > 1 and getattr(first, "batchable", False) and all(same_plan(p, plans[0]) for p in plans):
+            first.set_plan(plans[0], n)  # type: ignore[attr-defined]
+            return [first], [(np.arange(n), first)], []
+        slots = [first] + [policies() for _ in range(n - 1)]
+    else:
+        slots = list(policies)
+        if len(slots) != n:
+            raise UserError(f"{len(slots)} policies for a batch of {n} episodes")
+    for policy, plan in zip(slots, plans, strict=True):
+        if hasattr(policy, "set_plan"):
+            policy.set_plan(plan)
+    groups = stack_controllers(slots)
+    return slots, [(np.asarray(idx), c) for idx, c in groups if len(idx) > 1], [i[0] for i, _ in groups if len(i) == 1]
