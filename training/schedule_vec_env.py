@@ -1,0 +1,181 @@
+"""A schedule residual's holes, many at once on the batched engine: Stable-Baselines3's ``VecEnv`` API.
+
+:class:`ScheduleVecEnv` is ``n`` copies of the one-hole env (:class:`drillgym.training.schedule_env.ScheduleEnv`) in
+one process: slot ``j`` draws the holes worker ``j`` of a ``SubprocVecEnv`` of them would draw (the same
+:class:`~drillgym.training.schedule_holes.HoleDraws`, keyed by the run's seed and ``j``), and every step drills all
+``n`` holes twice, with the tuning the agent chose and with the base, as ``2n`` episodes of one
+:class:`~drillgym.envs.batched.BatchedDrillEnv`. Each episode's metrics are the single env's, so the rewards,
+observations and infos are those of the one-hole envs, bit for bit (``tests/training/test_schedule_vec_env.py``),
+and a run with ``n`` slots learns what a run with ``n`` workers learns. It runs in one process: its speed comes
+from stepping all ``2n`` episodes per compiled call, not from more cores. Wrap it in SB3's ``VecMonitor``.
+
+Cells whose effects are drawn per hole (a training cell with ranges) are not batched: their episodes would each
+need their own effects; :func:`drillgym.training.env_factory.make_train_vec_env` keeps the one-hole envs for them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
+
+from drillgym.controllers import make_controller
+from drillgym.controllers.plan_schedule import PlanScheduledController, ScheduleSpec, normalized_plan
+from drillgym.controllers.residual import PLAN_HIGH
+from drillgym.controllers.rollout import run_batch
+from drillgym.envs.batched import BatchedDrillEnv
+from drillgym.envs.errors import UserError
+from drillgym.training.cell import TrainingCell
+from drillgym.training.domain_randomization import DR_RANGES
+from drillgym.training.schedule_env import ScheduleReward, paired_schedule_reward
+from drillgym.training.schedule_holes import Hole, HoleDraws
+
+
+class ScheduleVecEnv(VecEnv):
+    """``num_envs`` one-hole envs stepped together (see the module docstring).
+
+    Args:
+        num_envs: holes per step (slots).
+        spec, env_kwargs, ranges, paper_share, reward, cell: as :class:`~drillgym.training.schedule_env.ScheduleEnv`.
+        episodes: fixed ``(scenario changes, seed)`` holes: slot ``j`` visits ``j, j + n, j + 2n, ...`` of them (with
+            ``n`` the list's length every reset visits each hole once).
+        run_seed: the run's seed: slot ``j`` draws from the stream of ``(run_seed, j)``.
+    """
+
+    def __init__(
+        self,
+        num_envs: int,
+        spec: ScheduleSpec,
+        env_kwargs: dict[str, Any] | None = None,
+        ranges: dict[str, tuple[float, float]] | None = None,
+        paper_share: float = 0.0,
+        reward: ScheduleReward | None = None,
+        episodes: list[tuple[dict[str, Any], int]] | None = None,
+        run_seed: int = 0,
+        cell: TrainingCell | None = None,
+    ) -> None:
+        if not isinstance(num_envs, int) or num_envs < 1:
+            raise UserError(f"num_envs={num_envs!r} must be an integer >= 1")
+        self.cell = cell or TrainingCell()
+        if self.cell.ranges:
+            raise UserError("a cell with ranged effects draws each hole's effects: use ScheduleEnv workers")
+        self.schedule = spec
+        self.weights = reward or ScheduleReward()
+        self.batch = BatchedDrillEnv(
+            2 * num_envs, autoreset=False, effects=self.cell.nominal_spec(), **(env_kwargs or {})
+        )
+        paper = dict(self.batch.scenario.to_dict())
+        ranges = DR_RANGES if ranges is None else ranges
+        try:
+            self.holes = [
+                HoleDraws(paper, ranges, paper_share, self.cell, episodes, (run_seed, j), first=j, stride=num_envs)
+                for j in range(num_envs)
+            ]
+        except UserError:
+            self.batch.close()
+            raise
+        self.current: list[Hole] = []
+        self.bases = [make_controller(spec.base) for _ in range(num_envs)]
+        self._started: dict[str, np.ndarray] | None = None
+        self._actions: np.ndarray | None = None
+        self.render_mode = None  # nothing to render (SB3 asks)
+        obs_space = spaces.Box(-1.0, 1.0, PLAN_HIGH.shape, np.float32)
+        super().__init__(num_envs, obs_space, spaces.Box(-1.0, 1.0, (spec.dims,), np.float32))
+
+    # ------------------------------------------------------------------ holes
+    def _start(self, seeds: Sequence[int | None] | None = None) -> np.ndarray:
+        """Draw each slot's next hole (reseeding its draws first where ``seeds`` says), reset the batch on them."""
+        for j, draws in enumerate(self.holes):
+            if seeds is not None:
+                draws.seed(seeds[j])
+        self.current = [draws.next() for draws in self.holes]
+        scenarios = [h.scenario for h in self.current] * 2
+        seeds_: list[int | None] = []
+        seeds_ += [h.episode_seed for h in self.current] * 2
+        self._started, _ = self.batch.reset(seed=seeds_, options={"scenario": scenarios})
+        support = self.schedule.plan_support
+        return np.stack([normalized_plan(self.batch.envs[j].plan, support) for j in range(self.num_envs)])
+
+    # ------------------------------------------------------------------ SB3 API
+    def reset(self) -> VecEnvObs:
+        """Draw every slot's hole (with the seeds of :meth:`seed`, if set) and observe the plans."""
+        if any(self._options):
+            raise UserError(f"ScheduleVecEnv takes no reset options, got {self._options}")
+        seeds = self._seeds if any(s is not None for s in self._seeds) else None
+        obs = self._start(seeds)
+        self.reset_infos = [{"scenario": dict(h.scenario), "episode_seed": h.episode_seed} for h in self.current]
+        self._reset_seeds()
+        self._reset_options()
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        """Remember the tunings (n, fields) for :meth:`step_wait`."""
+        self._actions = np.asarray(actions)
+
+    def step_wait(self) -> VecEnvStepReturn:
+        """Drill every hole with its tuning and with the base; the paired rewards; the next holes' plans."""
+        if self._actions is None or self._started is None:
+            raise RuntimeError("step_wait() without reset() and step_async()")
+        n = self.num_envs
+        actions = np.asarray(self._actions, dtype=np.float64).reshape(n, -1)
+        self._actions = None
+        tuned = [PlanScheduledController(self.schedule, policy=_fixed(actions[j])) for j in range(n)]
+        seeds = [h.episode_seed for h in self.current] * 2
+        results = run_batch(self.batch, [*tuned, *self.bases], seeds, started=self._started)
+        self._started = None
+        support = self.schedule.plan_support
+        ended = np.stack([normalized_plan(self.batch.envs[j].plan, support) for j in range(n)])
+        rewards = np.zeros(n)
+        infos: list[dict[str, Any]] = []
+        for j, hole in enumerate(self.current):
+            agent = results[j]
+            base = agent if np.all(np.clip(actions[j], -1.0, 1.0) == 0.0) else results[n + j]
+            rewards[j] = paired_schedule_reward(agent.metrics, base.metrics, self.weights)
+            infos.append(
+                {
+                    "scenario": dict(hole.scenario),
+                    "episode_seed": hole.episode_seed,
+                    "metrics": agent.metrics,
+                    "base": base.metrics,
+                    "tuned_spec": self.schedule.controller_spec(actions[j]),
+                    **({"cell": hole.cell_spec} if hole.cell_spec else {}),
+                    "TimeLimit.truncated": False,
+                    "terminal_observation": ended[j],
+                }
+            )
+        obs = self._start()
+        return obs, rewards, np.ones(n, dtype=bool), infos
+
+    def close(self) -> None:
+        """Close the batched env."""
+        self.batch.close()
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        """This env's attribute, once per selected slot (the slots share one env)."""
+        value = getattr(self, attr_name)
+        return [value for _ in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        """Not supported: the slots share one env."""
+        raise NotImplementedError(f"ScheduleVecEnv's slots share one env: set {attr_name} on it")
+
+    def env_method(
+        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
+    ) -> list[Any]:
+        """Call this env's method once, for every selected slot (one result each)."""
+        result = getattr(self, method_name)(*method_args, **method_kwargs)
+        return [result for _ in self._get_indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
+        """False: the slots are not single Gymnasium envs that could be wrapped (wrap this in ``VecMonitor``)."""
+        return [False for _ in self._get_indices(indices)]
+
+
+def _fixed(action: np.ndarray) -> Any:
+    """A schedule policy that returns ``action`` whatever the plan."""
+    a = np.array(action, dtype=np.float64)
+    return lambda _obs: a
