@@ -36,6 +36,7 @@ from drillgym.controllers.models import (
     RobotComplianceModel,
     tool_compliance_m_n,
 )
+from drillgym.controllers.stacked_models import StackedOfflineModels
 from drillgym.envs.constants import CONTROL_DT_S, MAX_CORRECTION_M, SUBSTEPS_PER_STEP
 from drillgym.envs.errors import UserError
 from drillgym.envs.plan import DrillPlan
@@ -131,6 +132,8 @@ class Li2023Controller(Controller):
         """Drill compliance at the tip (m/N, task axes): (3, 3) shared, or (N, 3, 3) per episode once stacked."""
         self.offline_models = [OfflineForceModel.for_plan(plan, self.config.model_peak_force_n)]
         """The offline force models: one shared, or one per episode once stacked."""
+        self._offline_stack: StackedOfflineModels | None = None
+        """The per-episode models read in one call (once stacked)."""
         self.R: np.ndarray = plan.R_base_task
         """Rotation task -> base: (3, 3) shared, or (N, 3, 3) per episode once stacked."""
         self.lateral: np.ndarray = lateral_projector(self.R, self.config.axes)
@@ -179,6 +182,7 @@ class Li2023Controller(Controller):
         out.robots = [c.robots[0] for c in parts]
         out.C_tool = np.stack([np.broadcast_to(c.C_tool, (3, 3)) for c in parts])
         out.offline_models = [c.offline_models[0] for c in parts]
+        out._offline_stack = StackedOfflineModels(out.offline_models)
         out.R = np.stack([c.R for c in parts])
         out.lateral = np.stack([c.lateral for c in parts])
         kp, ki, kd = (np.array([getattr(c.config, name) for c in parts])[:, None] for name in ("kp", "ki", "kd"))
@@ -208,9 +212,9 @@ class Li2023Controller(Controller):
         f_task = np.zeros((depth.size, 3))
         if len(self.offline_models) == 1:
             self.offline_models[0].lateral_into(depth.ravel(), f_task)
-        else:  # one model per episode
-            for i, (model, d) in enumerate(zip(self.offline_models, depth.ravel(), strict=True)):
-                model.lateral_into(d[None], f_task[i : i + 1])
+        else:  # one model per episode, read in one compiled call
+            assert self._offline_stack is not None
+            self._offline_stack.lateral_into(depth.ravel(), f_task)
         out = -matvec(self.lateral, matvec(self.R, matvec(self.C_tool, f_task)))
         return out[0] if depth.ndim == 0 else out
 
