@@ -64,6 +64,12 @@ class TrainingCell:
         spec = self.nominal_spec()
         return {name: dict(v) for name, v in parse_effect_spec(spec)} if spec else {}
 
+    @property
+    def compiled(self) -> bool:
+        """Whether the compiled step runs every effect of the cell (the batched engine takes it)."""
+        spec = self.nominal_spec()
+        return not spec or all(e.compiled for e in build_effects(spec))
+
     def nominal_spec(self) -> str:
         """The effect spec at the cell's own values (a named cell's spec)."""
         return cell_effects_spec(self.spec) if self.spec else ""

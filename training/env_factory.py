@@ -9,7 +9,7 @@ from typing import Any
 import gymnasium as gym
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.monitor import Monitor
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecMonitor
 
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.seeds import Purpose, episode_seed
@@ -26,6 +26,7 @@ from drillgym.training.domain_randomization import (
 from drillgym.training.paired_reward import PairedReward
 from drillgym.training.residual_wrapper import ResidualWrapper
 from drillgym.training.schedule_env import ScheduleEnv
+from drillgym.training.schedule_vec_env import ScheduleVecEnv
 from drillgym.training.selection import validation_episodes
 
 ENV_ID = SIM_ENV_ID
@@ -109,13 +110,47 @@ def _train_env(cfg: TrainConfig, rank: int) -> gym.Env:
     return Monitor(env)
 
 
+def batched_schedule(cfg: TrainConfig) -> bool:
+    """Whether a ``schedule`` run's holes run on the batched engine (:class:`ScheduleVecEnv`).
+
+    Always, but where the cell draws each hole's effects or has effects the compiled step does not run: those keep
+    one-hole envs. Both give the same holes, rewards and observations.
+    """
+    if not cfg.schedule:
+        return False
+    cell = cfg.training_cell()
+    return not cell.ranges and cell.compiled
+
+
+def schedule_vec_env(
+    cfg: TrainConfig, num_envs: int, episodes: list[tuple[dict[str, Any], int]] | None = None
+) -> VecEnv:
+    """``num_envs`` holes at once on the batched engine, monitored (SB3's ``VecMonitor``); see :func:`schedule_env`."""
+    paper_share = cfg.paper_share if cfg.domain_randomization else 1.0
+    env = ScheduleVecEnv(
+        num_envs,
+        cfg.schedule_spec(),
+        cfg.env_kwargs,
+        merged_ranges(cfg.dr_ranges),
+        paper_share,
+        cfg.schedule_weights(),
+        episodes=episodes,
+        run_seed=cfg.seed,
+        cell=cfg.training_cell(),
+    )
+    return VecMonitor(env)
+
+
 def make_train_vec_env(cfg: TrainConfig) -> VecEnv:
     """``cfg.n_envs`` randomised envs: SubprocVecEnv (spawned workers) when more than one.
 
     Worker ``rank`` draws its episodes from its own stream, keyed by ``(cfg.seed, rank)``
     (:mod:`drillgym.envs.seeds`): runs ``s`` and ``s + 1`` share no worker's episodes (SB3's ``make_vec_env``
-    would seed worker ``r`` with ``s + r``).
+    would seed worker ``r`` with ``s + r``). A ``schedule`` run's ``n_envs`` holes run in this process on the
+    batched engine instead (:func:`batched_schedule`), slot ``r`` drawing worker ``r``'s holes.
     """
+    if batched_schedule(cfg):
+        return schedule_vec_env(cfg, cfg.n_envs)
     factories: list[Callable[[], gym.Env]] = [functools.partial(_train_env, cfg, rank) for rank in range(cfg.n_envs)]
     if cfg.n_envs > 1:
         return SubprocVecEnv(factories, start_method="spawn")
@@ -130,6 +165,9 @@ def make_eval_vec_env(cfg: TrainConfig, scenario: dict[str, Any] | None = None) 
     evaluation episode, each with its own fixed seed (so every evaluation of ``cfg.eval_episodes``
     episodes replays the same episodes: evaluations, and the base's, differ only by the policy).
     """
+    if batched_schedule(cfg):  # every evaluation: each fixed hole once, all in one batch
+        holes = _schedule_eval_episodes(cfg, scenario)
+        return schedule_vec_env(cfg, len(holes), holes)
 
     def factory() -> gym.Env:
         if cfg.schedule:  # the same holes at every evaluation: fixed scenarios, each with its own seed

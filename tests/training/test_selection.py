@@ -96,6 +96,28 @@ def test_a_paper_episode_after_a_draw_is_scored_in_the_paper_scenario():
 
     cfg = TrainConfig()
     draw = {"beta_deg": 15.0, "feed_mm_s": 1.0, "stickout_mm": 30.0}
-    after = score(make_controller("none"), cfg, [(draw, 1), ({}, 2)])
-    alone = score(make_controller("none"), cfg, [({}, 2)])
+    after = score(lambda: make_controller("none"), cfg, [(draw, 1), ({}, 2)])
+    alone = score(lambda: make_controller("none"), cfg, [({}, 2)])
     assert after["deviation_mean_mm"][1] == alone["deviation_mean_mm"][0]
+
+
+def test_scoring_on_the_batched_engine_gives_the_single_envs_numbers():
+    """The validation episodes run as one batch; each must score as the single env drills it after the cycle's reset."""
+    import gymnasium as gym
+
+    from drillgym.controllers import make_controller
+    from drillgym.controllers.rollout import run_episode
+    from drillgym.envs import SIM_ENV_ID
+    from drillgym.training.config import TrainConfig
+    from drillgym.training.domain_randomization import ScenarioCycle
+    from drillgym.training.selection import score
+
+    cfg = TrainConfig()
+    episodes = [({"beta_deg": 15.0, "feed_mm_s": 1.0, "stickout_mm": 30.0}, 1), ({}, 2), ({"bone": "porcine_femur"}, 7)]
+    batched = score(lambda: make_controller("li2023_tuned"), cfg, episodes)
+    env = ScenarioCycle(gym.make(SIM_ENV_ID), [sc for sc, _ in episodes], [s for _, s in episodes])
+    controller = make_controller("li2023_tuned")
+    single = [run_episode(env, controller, seed=None, keep_trace=False).metrics for _ in episodes]
+    env.close()
+    for key, values in batched.items():
+        assert values == [m[key] for m in single], key
