@@ -49,13 +49,17 @@ def _block_sum(a: np.ndarray, lo: int, n: int) -> float:  # pragma: no cover (co
 
 
 @numba.njit(cache=True)
-def pairwise_sum(a: np.ndarray, lo: int, n: int) -> float:  # pragma: no cover (compiled)
+def pairwise_sum(a: np.ndarray, lo: int, n: int, first: int = 0, end: int = -1) -> float:  # pragma: no cover
     """``a[lo:lo + n].sum()`` as numpy adds a contiguous float64 row (its pairwise summation, bit for bit).
 
     Rows of at most 128 are one block (:func:`_block_sum`); a longer one is the sum of its two halves (the first
     a multiple of 8 long), each summed the same way. The recursion runs on an explicit stack (a compiled recursive
-    function does not load reliably from numba's cache).
+    function does not load reliably from numba's cache). ``a`` is known to be +0 outside ``[first, end)`` (``end``
+    -1: its length): a half that lies wholly outside sums to +0 without being read, and adding +0 to a sum leaves it
+    exactly as it is, so the result is the same.
     """
+    if end < 0:
+        end = a.size
     if n <= 128:
         return _block_sum(a, lo, n)
     depth = 64
@@ -70,7 +74,10 @@ def pairwise_sum(a: np.ndarray, lo: int, n: int) -> float:  # pragma: no cover (
         m = f_n[top]
         half = m // 2
         half -= half % 8
-        if m <= 128:
+        if f_phase[top] == 0 and (f_lo[top] + m <= first or f_lo[top] >= end):  # a half of zeros
+            value = 0.0
+            top -= 1
+        elif m <= 128:
             value = _block_sum(a, f_lo[top], m)
             top -= 1
         elif f_phase[top] == 0:  # sum the first half
@@ -120,12 +127,17 @@ def lip_sums(
     lip_moment = np.zeros((2, n_g))
     chisel_len = np.zeros((2, n_g))
     cut = np.zeros((2, n_g), dtype=np.bool_)
-    engaged_row = np.zeros(n_r * n_p)
-    chisel_rows = np.zeros((2, n_r * n_p))
+    size = n_r * n_p
+    engaged_row = np.zeros(size)
+    chisel_rows = np.zeros((2, size))
+    chisel_end = 0  # the chisel edge's radii come first (r < web radius), the lips' after them
+    while chisel_end < n_r and not is_lip[chisel_end]:
+        chisel_end += 1
+    chisel_end *= n_p
     for g in range(n_g):
         d = grid[g]
-        engaged_row[:] = 0.0
-        chisel_rows[:] = 0.0
+        engaged_row[chisel_end:] = 0.0
+        chisel_rows[:, :chisel_end] = 0.0
         cut_any = np.zeros(2, dtype=np.bool_)
         for i in range(n_r):
             row = setback[i]
@@ -144,9 +156,9 @@ def lip_sums(
                 else:
                     chisel_rows[m, base + j] = length
         cut[0, g], cut[1, g] = cut_any[0], cut_any[1]
-        lip_engaged[g] = pairwise_sum(engaged_row, 0, n_r * n_p)
+        lip_engaged[g] = pairwise_sum(engaged_row, 0, size, chisel_end, size)
         for mat in range(2):
-            chisel_len[mat, g] = pairwise_sum(chisel_rows[mat], 0, n_r * n_p)
+            chisel_len[mat, g] = pairwise_sum(chisel_rows[mat], 0, size, 0, chisel_end)
             lip_len[mat, g] = pairwise_sum(lip_phi[mat, g], 0, n_p)
             lip_moment[mat, g] = pairwise_sum(lip_r_phi[mat, g], 0, n_p)
     return lip_engaged, lip_phi, lip_len, lip_moment, chisel_len, cut

@@ -28,6 +28,16 @@ def test_pairwise_sum_is_numpys_sum_bit_for_bit(n):
             assert pairwise_sum(a, 2, n - 3) == a[2 : n - 1].sum()
 
 
+@pytest.mark.parametrize("n", [300, 2880, 4097])
+def test_pairwise_sum_skips_known_zeros_without_changing_the_sum(n):
+    rng = np.random.default_rng(n)
+    for _ in range(50):
+        first, end = sorted(rng.integers(0, n + 1, 2))
+        a = np.zeros(n)
+        a[first:end] = rng.uniform(0.0, 1.0, end - first) * 10.0 ** rng.uniform(-8, 2, end - first)
+        assert pairwise_sum(a, 0, n, first, end) == a.sum()
+
+
 def _numpy_sums(grid, setback, layer_depth, is_lip, db, r):
     """Masks and sums as numpy computes them (the reference)."""
     e = grid[:, None, None] - setback[None]
