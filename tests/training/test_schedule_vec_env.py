@@ -16,7 +16,7 @@ from drillgym.training.env_factory import schedule_env
 from drillgym.training.schedule_vec_env import ScheduleVecEnv
 
 
-def _batched(cfg, n, episodes=None):
+def _batched(cfg, n, episodes=None, workers=1):
     return ScheduleVecEnv(
         n,
         cfg.schedule_spec(),
@@ -27,6 +27,7 @@ def _batched(cfg, n, episodes=None):
         episodes=episodes,
         run_seed=cfg.seed,
         cell=cfg.training_cell(),
+        workers=workers,
     )
 
 
@@ -79,3 +80,44 @@ def test_cells_with_drawn_effects_and_bad_sizes_are_refused():
         ScheduleVecEnv(2, cfg.schedule_spec(), cell=ranged)
     with pytest.raises(UserError, match="num_envs"):
         ScheduleVecEnv(0, cfg.schedule_spec())
+
+
+def test_slots_drilled_in_a_worker_process_give_the_same_holes_and_rewards():
+    cfg = load_config("residual_schedule_sac")
+    one, two = _batched(cfg, 3), _batched(cfg, 3, workers=2)
+    try:
+        assert len(two.remotes) == 1
+        one.seed(9)
+        two.seed(9)
+        assert np.array_equal(one.reset(), two.reset())
+        assert one.reset_infos == two.reset_infos
+        actions = np.random.default_rng(1).uniform(-1.0, 1.0, (3, 4)).astype(np.float32)
+        a, b = one.step(actions), two.step(actions)
+        assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+        for x, y in zip(a[3], b[3], strict=True):
+            assert x.keys() == y.keys()
+            assert all(np.array_equal(x[k], y[k]) if k == "terminal_observation" else x[k] == y[k] for k in x)
+    finally:
+        one.close()
+        two.close()
+    assert not two.remotes[0]._process.is_alive()
+
+
+def test_an_error_in_the_worker_process_is_raised_here():
+    cfg = load_config("residual_schedule_sac")
+    env = _batched(cfg, 2, workers=2)
+    try:
+        env.reset()
+        bad = np.zeros((2, 4), dtype=np.float32)
+        bad[1, 2] = np.nan  # slot 1: the worker's
+        with pytest.raises(ValueError, match="NaN"):
+            env.step(bad)
+        bad[1, 2] = 0.0
+        bad[0, 0] = np.nan  # slot 0: this process's; the worker's answer is still collected
+        env.reset()
+        with pytest.raises(ValueError, match="NaN"):
+            env.step(bad)
+        env.reset()
+        assert env.step(np.zeros((2, 4), dtype=np.float32))[1].tolist() == [0.0, 0.0]  # still in step
+    finally:
+        env.close()
