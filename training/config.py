@@ -55,7 +55,10 @@ class TrainConfig:
     total_timesteps: int = 200_000
     """Agent steps over all environments."""
     n_envs: int = 2
-    """Parallel environments (SubprocVecEnv when > 1)."""
+    """Parallel environments (SubprocVecEnv when > 1); a schedule run's holes drilled per step (one batch)."""
+    env_workers: int = 1
+    """Processes drilling a schedule run's batched holes: this one and ``env_workers - 1`` spawned, each a share of
+    the ``n_envs`` slots (the same holes and numbers with any number; :class:`drillgym.training.schedule_vec_env.ScheduleVecEnv`)."""
     seed: int = 0
     """Seed of the policy, the envs and the scenario draws."""
     env_kwargs: dict[str, Any] = field(default_factory=dict)
@@ -147,8 +150,8 @@ class TrainConfig:
         self.training_cell()
         if not 0.0 <= self.paper_share <= 1.0:
             raise UserError(f"paper_share={self.paper_share!r} must be in [0, 1]")
-        if self.total_timesteps < 1 or self.n_envs < 1:
-            raise UserError("total_timesteps and n_envs must be >= 1")
+        if self.total_timesteps < 1 or self.n_envs < 1 or self.env_workers < 1:
+            raise UserError("total_timesteps, n_envs and env_workers must be >= 1")
 
     @property
     def schedule(self) -> bool:

@@ -137,6 +137,7 @@ def schedule_vec_env(
         episodes=episodes,
         run_seed=cfg.seed,
         cell=cfg.training_cell(),
+        workers=cfg.env_workers,
     )
     return VecMonitor(env)
 

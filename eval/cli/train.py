@@ -58,6 +58,9 @@ def _single_run_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
     parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
+    parser.add_argument(
+        "--env-workers", type=int, default=None, help="override env_workers (processes drilling a schedule run's holes)"
+    )
     parser.add_argument("--seed", type=int, default=None, help="override seed")
     parser.add_argument(
         "--cell-from-diagnosis",
@@ -132,7 +135,12 @@ def run(args: argparse.Namespace) -> int:
 
 def _overrides(args: argparse.Namespace) -> dict[str, Any]:
     """``--timesteps``, ``--n-envs``, ``--seed`` and ``--cell-from-diagnosis`` as configuration overrides (those given)."""
-    given = (("total_timesteps", args.timesteps), ("n_envs", args.n_envs), ("seed", args.seed))
+    given = (
+        ("total_timesteps", args.timesteps),
+        ("n_envs", args.n_envs),
+        ("env_workers", args.env_workers),
+        ("seed", args.seed),
+    )
     out = {k: v for k, v in given if v is not None}
     if args.cell_from_diagnosis is not None:
         from drillgym.eval.diagnosis.training_cell import cell_overrides
@@ -210,6 +218,7 @@ def seed_command(args: argparse.Namespace, seed: int, out: Path) -> list[str]:
     for flag, value in (
         ("--timesteps", args.timesteps),
         ("--n-envs", args.n_envs),
+        ("--env-workers", args.env_workers),
         ("--cell-from-diagnosis", args.cell_from_diagnosis),
     ):
         if value is not None:

@@ -214,11 +214,13 @@ def test_a_schedule_run_is_evaluated_on_fixed_holes():
 
     kw = {"residual_mode": "schedule", "normalize_obs": False, "base": "li2023_tuned"}
     cfg = TrainConfig(**kw, eval_episodes=3, eval_scenarios="validation")
-    venv = make_eval_vec_env(cfg)
-    assert venv.envs[0].unwrapped.holes.episodes == validation_episodes(cfg)[:3]
+    venv = make_eval_vec_env(cfg)  # one batch slot per hole, each visiting its own
+    assert venv.num_envs == 3
+    assert [slot.episodes for slot in venv.venv.here.holes] == [validation_episodes(cfg)[:3]] * 3
+    assert [(slot.first, slot.stride) for slot in venv.venv.here.holes] == [(0, 3), (1, 3), (2, 3)]
     venv.close()
     cfg = TrainConfig(**kw, eval_episodes=2, eval_scenarios="paper")
     venv = make_eval_vec_env(cfg)
     select = [episode_seed(Purpose.SELECT, EVAL_SEED + i) for i in range(2)]
-    assert venv.envs[0].unwrapped.holes.episodes == [({}, select[0]), ({}, select[1])]
+    assert venv.venv.here.holes[0].episodes == [({}, select[0]), ({}, select[1])]
     venv.close()
