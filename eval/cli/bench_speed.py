@@ -35,6 +35,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="episodes per controller and engine in each of 3 rounds (default 20)",
     )
     parser.add_argument(
+        "--schedule-holes",
+        type=int,
+        default=20,
+        help="schedule-residual training holes per step whose rate is measured on one-hole envs and on the batched "
+        "engine (3 interleaved steps; 0 skips; default 20)",
+    )
+    parser.add_argument(
         "--diagnosis-episodes",
         type=int,
         default=0,
@@ -48,8 +55,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym bench-speed``."""
-    if args.rollout_seeds < 1:
-        raise UserError(f"--rollout-seeds={args.rollout_seeds} must be >= 1")
+    if args.rollout_seeds < 1 or args.schedule_holes < 0:
+        raise UserError("--rollout-seeds must be >= 1 and --schedule-holes >= 0")
     if args.diagnosis_episodes and (args.diagnosis_episodes < 6 or args.diagnosis_workers < 1):
         raise UserError("--diagnosis-episodes must be 0 (skipped) or >= 6, --diagnosis-workers >= 1")
     result = measure(args.runs)
@@ -60,6 +67,10 @@ def run(args: argparse.Namespace) -> int:
     specs = tuple(s.strip() for s in args.rollout_controllers.split(",") if s.strip())
     if specs:
         result["rollouts"] = rollout_throughput(specs, args.rollout_seeds)
+    if args.schedule_holes:
+        from drillgym.eval.perf.schedule_speed import schedule_throughput  # training's imports, only when asked
+
+        result["schedule"] = schedule_throughput(args.schedule_holes)
     if args.diagnosis_episodes:
         from drillgym.eval.perf.diagnosis_speed import diagnosis_time  # the diagnosis's imports, only when asked
 
@@ -126,6 +137,16 @@ def _print(result: dict[str, Any], specs: tuple[str, ...]) -> None:
                 f"  {spec:12s} single env {t['single_env_episodes_per_s_median']:6.1f}   "
                 f"batched {t['batched_episodes_per_s_median']:6.1f}   {t['speedup_median']:.1f}x"
             )
+    if "schedule" in result:
+        s = result["schedule"]
+        print(
+            f"schedule-residual training holes per second on one core ({s['holes']} holes a step, median of "
+            f"{s['runs']} interleaved steps; the same rewards either way)"
+        )
+        print(
+            f"  one-hole envs {s['one_hole_envs_holes_per_s_median']:6.1f}   batched "
+            f"{s['batched_holes_per_s_median']:6.1f}   {s['speedup_median']:.1f}x"
+        )
     if "diagnosis" in result:
         d = result["diagnosis"]
         runs = ", ".join(f"{t:.1f}" for t in d["runs_s"])

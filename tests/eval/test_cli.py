@@ -20,6 +20,7 @@ def test_unknown_command_is_an_error_naming_it(capsys):
 
 def test_bench_speed_json_reports_a_real_time_factor(capsys):
     argv = ["--runs", "1", "--json", "--batch-sizes", "1,4", "--batch-seconds", "0.3", "--rollout-seeds", "2"]
+    argv += ["--schedule-holes", "2"]
     assert main(["bench-speed", *argv, "--rollout-controllers", "none"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["real_time_factor_median"] > 0
@@ -38,6 +39,8 @@ def test_bench_speed_json_reports_a_real_time_factor(capsys):
     rollouts = result["rollouts"]
     assert rollouts["seeds"] == 2 and len(rollouts["none"]["speedup_runs"]) == 3
     assert rollouts["none"]["batched_episodes_per_s_median"] > 0
+    schedule = result["schedule"]  # (the rewards were checked equal while measuring)
+    assert schedule["holes"] == 2 and len(schedule["speedup_runs"]) == 3 and schedule["batched_holes_per_s_median"] > 0
 
 
 def test_demo_runs_the_reproduction_and_says_where_the_results_are(tmp_path, capsys):
