@@ -1,6 +1,7 @@
 """Compile the controllers' numba kernels ahead of use, into numba's on-disk cache.
 
-:func:`drillgym.controllers.batch.matvec` is compiled on first call and cached beside its source (or in
+:func:`drillgym.controllers.batch.matvec` and the stacked offline models' interpolation
+(:mod:`drillgym.controllers.stacked_models`) are compiled on first call and cached beside its source (or in
 ``NUMBA_CACHE_DIR``); ``make install`` runs this module once, after :mod:`drillgym.envs.compiled`, so that a
 controller streaming to a robot does not stall on its first action.
 
@@ -14,6 +15,8 @@ import time
 import numpy as np
 
 from drillgym.controllers.batch import matvec
+from drillgym.controllers.models import OfflineForceModel
+from drillgym.controllers.stacked_models import StackedOfflineModels
 
 
 def compile_kernels() -> float:
@@ -23,6 +26,8 @@ def compile_kernels() -> float:
     matvec(np.eye(3), x)  # a matrix shared by the batch
     matvec(np.zeros((2, 3, 3)), x)  # one per episode
     matvec(np.eye(3), np.zeros((2, 6))[:, :3])  # a strided view
+    model = OfflineForceModel(np.linspace(0.0, 1.0, 4), np.zeros((4, 2)))  # stacked offline models, two episodes
+    StackedOfflineModels([model, model]).lateral_into(np.zeros(2), np.zeros((2, 3)))
     return time.perf_counter() - t0
 
 
