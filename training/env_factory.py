@@ -77,17 +77,19 @@ def schedule_env(
 
     Draws come from the training stream of ``(cfg.seed, rank)`` (:mod:`drillgym.envs.seeds`).
     """
-    paper_share = cfg.paper_share if cfg.domain_randomization else 1.0
-    return ScheduleEnv(
-        cfg.schedule_spec(),
-        cfg.env_kwargs,
-        merged_ranges(cfg.dr_ranges),
-        paper_share,
-        cfg.schedule_weights(),
-        episodes=episodes,
-        stream_keys=(cfg.seed, rank),
-        cell=cfg.training_cell(),
-    )
+    return ScheduleEnv(**_schedule_args(cfg), episodes=episodes, stream_keys=(cfg.seed, rank))
+
+
+def _schedule_args(cfg: TrainConfig) -> dict[str, Any]:
+    """A schedule env's arguments from the configuration: spec, env arguments, ranges, paper share, reward, cell."""
+    return {
+        "spec": cfg.schedule_spec(),
+        "env_kwargs": cfg.env_kwargs,
+        "ranges": merged_ranges(cfg.dr_ranges),
+        "paper_share": cfg.paper_share if cfg.domain_randomization else 1.0,
+        "reward": cfg.schedule_weights(),
+        "cell": cfg.training_cell(),
+    }
 
 
 def _schedule_eval_episodes(cfg: TrainConfig, scenario: dict[str, Any] | None) -> list[tuple[dict[str, Any], int]]:
@@ -126,19 +128,7 @@ def schedule_vec_env(
     cfg: TrainConfig, num_envs: int, episodes: list[tuple[dict[str, Any], int]] | None = None
 ) -> VecEnv:
     """``num_envs`` holes at once on the batched engine, monitored (SB3's ``VecMonitor``); see :func:`schedule_env`."""
-    paper_share = cfg.paper_share if cfg.domain_randomization else 1.0
-    env = ScheduleVecEnv(
-        num_envs,
-        cfg.schedule_spec(),
-        cfg.env_kwargs,
-        merged_ranges(cfg.dr_ranges),
-        paper_share,
-        cfg.schedule_weights(),
-        episodes=episodes,
-        run_seed=cfg.seed,
-        cell=cfg.training_cell(),
-        workers=cfg.env_workers,
-    )
+    env = ScheduleVecEnv(num_envs, **_schedule_args(cfg), episodes=episodes, run_seed=cfg.seed, workers=cfg.env_workers)
     return VecMonitor(env)
 
 
