@@ -55,7 +55,10 @@ class Remote:
 
     def send(self, method: str, *args: Any) -> None:
         """Ask the object to run ``method(*args)`` (the answer: :meth:`receive`)."""
-        self._conn.send((method, args))
+        try:
+            self._conn.send((method, args))
+        except OSError as exc:  # a broken pipe: the worker is gone
+            raise RuntimeError(f"the worker process ended (exit code {self._process.exitcode})") from exc
 
     def receive(self) -> Any:
         """The answer to the last :meth:`send`: its return value, or its error raised here."""
