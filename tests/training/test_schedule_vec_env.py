@@ -121,3 +121,24 @@ def test_an_error_in_the_worker_process_is_raised_here():
         assert env.step(np.zeros((2, 4), dtype=np.float32))[1].tolist() == [0.0, 0.0]  # still in step
     finally:
         env.close()
+
+
+def test_a_cell_with_compiled_effects_drills_the_same_holes_batched():
+    """The li2023-lab cell (joint friction, compiled): each slot's episodes carry the cell's effects as the env does."""
+    from drillgym.training.env_factory import batched_schedule, schedule_vec_env
+
+    cfg = load_config("residual_schedule_sac", {"cell": "li2023-lab"})
+    assert batched_schedule(cfg)
+    workers = DummyVecEnv([lambda r=r: schedule_env(cfg, rank=r) for r in range(2)])
+    batched = schedule_vec_env(cfg, 2)
+    try:
+        workers.seed(3)
+        batched.seed(3)
+        assert np.array_equal(workers.reset(), batched.reset())
+        actions = np.random.default_rng(0).uniform(-1.0, 1.0, (2, 4)).astype(np.float32)
+        (_, rew_w, _, info_w), (_, rew_b, _, info_b) = workers.step(actions), batched.step(actions)
+        assert np.array_equal(rew_w, np.asarray(rew_b, np.float32))
+        assert [i["metrics"] for i in info_w] == [i["metrics"] for i in info_b]
+    finally:
+        workers.close()
+        batched.close()
