@@ -15,6 +15,7 @@ multi-seed run is continued by running the same command.
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import time
@@ -199,7 +200,17 @@ def _check(args: argparse.Namespace) -> list[str]:
         raise UserError("--jobs and --workers must be >= 1, --eval-seeds >= 2")
     if args.config is not None:
         args.config = resolve_config(args.config)
-    load_config(args.config, _overrides(args))  # the configuration every seed will train with, checked now
+    from drillgym.training.env_factory import batched_schedule  # Stable-Baselines3's imports, only here
+
+    cfg = load_config(args.config, _overrides(args))  # the configuration every seed will train with, checked now
+    processes = args.jobs * (cfg.env_workers if batched_schedule(cfg) else max(cfg.n_envs, 1))
+    cpus = os.cpu_count() or 1
+    if processes > cpus:
+        print(
+            f"drillgym train: --jobs {args.jobs} runs of {processes // args.jobs} env process(es) each on {cpus} CPUs: "
+            "the seeds will share cores (slower, the same results)",
+            file=sys.stderr,
+        )
     baselines = split_controller_specs(args.baselines)
     named = {args.reference} | ({BEST_CLASSICAL} if args.best_baseline == "auto" else {args.best_baseline})
     for spec in {*baselines, *named}:

@@ -42,6 +42,21 @@ def test_each_seed_runs_the_single_seed_command_into_its_own_folder(tmp_path):
     ]
 
 
+def test_the_env_workers_of_each_seed_are_passed_on_and_an_oversubscription_is_said(tmp_path, monkeypatch, capsys):
+    from drillgym.eval.cli.train import _check
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    argv = ["--config", "residual_schedule_sac_fast", "--out", str(tmp_path), "--seeds", "0,1", "--jobs", "2"]
+    args = parser.parse_args([*argv, "--env-workers", "2"])
+    assert seed_command(args, 1, tmp_path / "seed1")[-4:-2] == ["--env-workers", "2"]
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
+    _check(args)  # 2 runs x 2 env processes on 2 CPUs
+    assert "the seeds will share cores" in capsys.readouterr().err
+    _check(parser.parse_args([*argv[:-1], "1"]))  # --jobs 1: 2 processes on 2 CPUs
+    assert "share cores" not in capsys.readouterr().err
+
+
 def _weights(policy_zip: Path) -> bytes:
     with zipfile.ZipFile(policy_zip) as z:
         return z.read("policy.pth")
