@@ -19,12 +19,11 @@ Compensation is applied across the drill axis (both lateral axes by default; Li'
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -130,10 +129,10 @@ class Li2023Controller(Controller):
         """Each episode's robot compliance model."""
         self.C_tool: np.ndarray = tool_compliance_m_n(plan, self.config.tool_effective_diameter_ratio)
         """Drill compliance at the tip (m/N, task axes): (3, 3) shared, or (N, 3, 3) per episode once stacked."""
-        self.offline_models = [OfflineForceModel.for_plan(plan, self.config.model_peak_force_n)]
-        """The offline force models: one shared, or one per episode once stacked."""
-        self._offline_stack: StackedOfflineModels | None = None
-        """The per-episode models read in one call (once stacked)."""
+        self.offline_model: OfflineForceModel | StackedOfflineModels = OfflineForceModel.for_plan(
+            plan, self.config.model_peak_force_n
+        )
+        """The offline force model: the plan's, or one per episode once stacked (read in one call)."""
         self.R: np.ndarray = plan.R_base_task
         """Rotation task -> base: (3, 3) shared, or (N, 3, 3) per episode once stacked."""
         self.lateral: np.ndarray = lateral_projector(self.R, self.config.axes)
@@ -178,11 +177,11 @@ class Li2023Controller(Controller):
         if len(parts) != len(controllers) or len(keys) != 1 or any(c.num_episodes != 1 for c in parts):
             raise UserError("only li2023 controllers of one episode each, with the same timing and switches, stack")
         first = parts[0]
-        out = cls(dataclasses.replace(first.config))
+        out = cls(first.config)
         out.robots = [c.robots[0] for c in parts]
         out.C_tool = np.stack([np.broadcast_to(c.C_tool, (3, 3)) for c in parts])
-        out.offline_models = [c.offline_models[0] for c in parts]
-        out._offline_stack = StackedOfflineModels(out.offline_models)
+        models = [cast(OfflineForceModel, c.offline_model) for c in parts]  # one episode each: the plan's model
+        out.offline_model = StackedOfflineModels(models)
         out.R = np.stack([c.R for c in parts])
         out.lateral = np.stack([c.lateral for c in parts])
         kp, ki, kd = (np.array([getattr(c.config, name) for c in parts])[:, None] for name in ("kp", "ki", "kd"))
@@ -210,11 +209,7 @@ class Li2023Controller(Controller):
         """ΔP = -k_D⁻¹ F_model at the planned depth, lateral, base frame (m): (3,) for a depth, (N, 3) for N."""
         depth = np.asarray(depth_m, dtype=float)
         f_task = np.zeros((depth.size, 3))
-        if len(self.offline_models) == 1:
-            self.offline_models[0].lateral_into(depth.ravel(), f_task)
-        else:  # one model per episode, read in one compiled call
-            assert self._offline_stack is not None
-            self._offline_stack.lateral_into(depth.ravel(), f_task)
+        self.offline_model.lateral_into(depth.ravel(), f_task)
         out = -matvec(self.lateral, matvec(self.R, matvec(self.C_tool, f_task)))
         return out[0] if depth.ndim == 0 else out
 

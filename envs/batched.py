@@ -114,7 +114,6 @@ class BatchedDrillEnv(VectorEnv):
         n, cells = num_envs, [e.cell for e in self.envs]
         grid = max(c.solver.grid.shape[0] for c in cells)
         bins = max(c.hole.filled.shape[0] for c in cells)
-        steps = min(MAX_EPISODE_STEPS, math.ceil(first.max_time_s / CONTROL_DT_S) + 2)
         self.arrays = sk.KernelArrays(
             state=new_state(n),
             params=new_params(n),
@@ -131,7 +130,7 @@ class BatchedDrillEnv(VectorEnv):
         self.command = np.zeros((n, 4))
         self.noise = np.zeros((n, NOISE_BLOCK))
         self._noise_from: list[Mapping[str, Any] | None] = [None] * n
-        self.record = np.zeros((n, steps * SUBSTEPS_PER_STEP, OUT_COLUMNS))
+        self.record = np.zeros((n, _record_rows(first.max_time_s), OUT_COLUMNS))
         self.recorded = np.zeros(n, dtype=np.int64)
         self.prev_action = np.zeros((n, ACTION_DIM))
         self.peak_lateral_n = np.zeros(n)
@@ -198,21 +197,11 @@ class BatchedDrillEnv(VectorEnv):
 
     def _fit(self, name: str, shape: tuple[int, ...]) -> None:
         """Grow array ``name`` (zero-padded, contents kept) so that each episode's row holds ``shape``."""
-        old = getattr(self.arrays, name)
-        if all(m <= k for m, k in zip(shape, old.shape[1:], strict=True)):
-            return
-        new = np.zeros((old.shape[0], *(max(m, k) for m, k in zip(shape, old.shape[1:], strict=True))), old.dtype)
-        new[tuple(slice(0, k) for k in old.shape)] = old
-        self.arrays = self.arrays._replace(**{name: new})
+        self.arrays = self.arrays._replace(**{name: _grown(getattr(self.arrays, name), shape)})
 
     def _fit_record(self, max_time_s: float) -> None:
         """Grow the record (contents kept) so that an episode of ``max_time_s`` fits in its rows."""
-        steps = min(MAX_EPISODE_STEPS, math.ceil(max_time_s / CONTROL_DT_S) + 2)
-        rows = steps * SUBSTEPS_PER_STEP
-        if rows > self.record.shape[1]:
-            grown = np.zeros((self.num_envs, rows, OUT_COLUMNS))
-            grown[:, : self.record.shape[1]] = self.record
-            self.record = grown
+        self.record = _grown(self.record, (_record_rows(max_time_s), OUT_COLUMNS))
 
     def reset(
         self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
@@ -358,3 +347,17 @@ class BatchedDrillEnv(VectorEnv):
         centre = centre_at(self.arrays.centre[i], self.arrays.bins[i], float(self.params[i]["bin_m"]), sc.entry_depth_m)
         offset = math.hypot(centre[0], centre[1]) if centre is not None else math.nan
         return episode_metrics(self.records(i), sc.entry_depth_m, sc.depth_m, offset, feed_phase=int(Phase.FEED))
+
+
+def _record_rows(max_time_s: float) -> int:
+    """Sample rows an episode of ``max_time_s`` can record (its steps, at most the step limit, two spare)."""
+    return min(MAX_EPISODE_STEPS, math.ceil(max_time_s / CONTROL_DT_S) + 2) * SUBSTEPS_PER_STEP
+
+
+def _grown(old: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """``old`` if each episode's row holds ``shape``, else a zero-padded copy that does, contents kept."""
+    if all(m <= k for m, k in zip(shape, old.shape[1:], strict=True)):
+        return old
+    new = np.zeros((old.shape[0], *(max(m, k) for m, k in zip(shape, old.shape[1:], strict=True))), old.dtype)
+    new[tuple(slice(0, k) for k in old.shape)] = old
+    return new

@@ -30,7 +30,7 @@ from drillgym.envs.effects.registry import build_effects
 from drillgym.envs.errors import UserError
 from drillgym.training.cell import TrainingCell, with_cell
 from drillgym.training.domain_randomization import DR_RANGES
-from drillgym.training.schedule_holes import HoleDraws
+from drillgym.training.schedule_holes import Hole, HoleDraws
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,34 @@ def paired_schedule_reward(agent: dict[str, float], base: dict[str, float], w: S
     time = max((agent["drill_time_s"] - base["drill_time_s"]) / max(base["drill_time_s"], 1e-6) - w.time_free, 0.0)
     out = -dev - w.force_weight * force - w.time_weight * time
     return float(out) if np.isfinite(out) else -10.0
+
+
+def is_base_tuning(action: np.ndarray) -> bool:
+    """Whether ``action`` (clipped to [-1, 1]) leaves every field at the base's value: the hole is the base's own."""
+    return bool(np.all(np.clip(action, -1.0, 1.0) == 0.0))
+
+
+def hole_outcome(
+    spec: ScheduleSpec,
+    weights: ScheduleReward,
+    hole: Hole,
+    action: np.ndarray,
+    agent: dict[str, float],
+    base: dict[str, float],
+) -> tuple[float, dict[str, Any]]:
+    """The paired reward and the info of ``hole`` drilled with ``action``'s tuning and by the base.
+
+    ``agent`` and ``base`` are the two episodes' metrics (the base's are the agent's when the tuning is the base's).
+    """
+    info = {
+        "scenario": dict(hole.scenario),
+        "episode_seed": hole.episode_seed,
+        "metrics": agent,
+        "base": base,
+        "tuned_spec": spec.controller_spec(action),
+        **({"cell": hole.cell_spec} if hole.cell_spec else {}),
+    }
+    return paired_schedule_reward(agent, base, weights), info
 
 
 class ScheduleEnv(gym.Env):
@@ -143,19 +171,12 @@ class ScheduleEnv(gym.Env):
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         tuned = PlanScheduledController(self.schedule, policy=lambda _obs: a)
         agent = run_episode(self.sim, tuned, self.episode_seed, keep_trace=False, options=self._options())
-        if np.all(np.clip(a, -1.0, 1.0) == 0.0):
+        if is_base_tuning(a):
             base = agent
         else:
             base = run_episode(self.sim, self.base, self.episode_seed, keep_trace=False, options=self._options())
-        reward = paired_schedule_reward(agent.metrics, base.metrics, self.weights)
-        info = {
-            "scenario": dict(self.scenario),
-            "episode_seed": self.episode_seed,
-            "metrics": agent.metrics,
-            "base": base.metrics,
-            "tuned_spec": self.schedule.controller_spec(a),
-            **({"cell": self.cell_spec} if self.cell_spec else {}),
-        }
+        hole = Hole(self.scenario, self.episode_seed, self.cell_spec)
+        reward, info = hole_outcome(self.schedule, self.weights, hole, a, agent.metrics, base.metrics)
         obs = normalized_plan(self.sim.unwrapped.plan, self.schedule.plan_support)  # type: ignore[attr-defined]
         return obs, reward, True, False, info
 

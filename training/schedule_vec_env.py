@@ -33,7 +33,7 @@ from drillgym.envs.errors import UserError
 from drillgym.training.cell import TrainingCell
 from drillgym.training.domain_randomization import DR_RANGES
 from drillgym.training.remote import Remote
-from drillgym.training.schedule_env import ScheduleReward, paired_schedule_reward
+from drillgym.training.schedule_env import ScheduleReward, hole_outcome, is_base_tuning
 from drillgym.training.schedule_holes import Hole, HoleDraws
 
 
@@ -112,20 +112,9 @@ class HoleBatch:
         infos: list[dict[str, Any]] = []
         for j, hole in enumerate(self.current):
             agent = results[j]
-            base = agent if np.all(np.clip(actions[j], -1.0, 1.0) == 0.0) else results[n + j]
-            rewards[j] = paired_schedule_reward(agent.metrics, base.metrics, self.weights)
-            infos.append(
-                {
-                    "scenario": dict(hole.scenario),
-                    "episode_seed": hole.episode_seed,
-                    "metrics": agent.metrics,
-                    "base": base.metrics,
-                    "tuned_spec": self.schedule.controller_spec(actions[j]),
-                    **({"cell": hole.cell_spec} if hole.cell_spec else {}),
-                    "TimeLimit.truncated": False,
-                    "terminal_observation": ended[j],
-                }
-            )
+            base = agent if is_base_tuning(actions[j]) else results[n + j]
+            rewards[j], info = hole_outcome(self.schedule, self.weights, hole, actions[j], agent.metrics, base.metrics)
+            infos.append({**info, "TimeLimit.truncated": False, "terminal_observation": ended[j]})
         obs, _ = self.start()
         return obs, rewards, infos
 
@@ -167,9 +156,6 @@ class ScheduleVecEnv(VecEnv):
         cell = cell or TrainingCell()
         if cell.ranges:
             raise UserError("a cell with ranged effects draws each hole's effects: use ScheduleEnv workers")
-        if not 0.0 <= paper_share <= 1.0:
-            raise UserError(f"paper_share={paper_share!r} must be in [0, 1]")
-        self.schedule = spec
         common: dict[str, Any] = {
             "total": num_envs,
             "spec": spec,

@@ -25,6 +25,7 @@ is reproduced from its files.
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import math
 import re
@@ -106,9 +107,8 @@ def score(
     cell = cfg.training_cell()
     if cell.compiled:
         batch = BatchedDrillEnv(len(episodes), autoreset=False, effects=cell.nominal_spec(), **cfg.env_kwargs)
-        initial = batch.scenario.to_dict()  # a listed scenario changes the env's own, as ScenarioCycle's
-        try:
-            results = run_batch(batch, [make() for _ in episodes], seeds, [{**initial, **sc} for sc in scenarios])
+        try:  # a fresh batch: each listed scenario changes the env's own, as ScenarioCycle's
+            results = run_batch(batch, [make() for _ in episodes], seeds, scenarios)
         finally:
             batch.close()
     else:
@@ -178,8 +178,10 @@ def select(run: Path, cfg: TrainConfig, progress: bool = True) -> dict[str, Any]
     for cand in candidates(run):
         bundle = folder / f"{cand.name}.zip"
         save_bundle(cand.model_zip, cand.normalizer, cfg, {"candidate": cand.name}, bundle)
-        scores = score(lambda: load_residual_controller(bundle), cfg, episodes)  # noqa: B023 (called at once)
-        row = {"candidate": cand.name, **judge(scores, base)}
+        row = {
+            "candidate": cand.name,
+            **judge(score(functools.partial(load_residual_controller, bundle), cfg, episodes), base),
+        }
         rows.append(row)
         if progress:
             print(

@@ -24,6 +24,34 @@ def _actions(seed: int, n: int, num_envs: int) -> np.ndarray:
     return a
 
 
+def _step_alongside(batch, singles, actions, episodes_each):
+    """Step the batch and each slot's single env on the same actions until every slot has ended ``episodes_each``
+    episodes: flags, rewards, observations and metrics equal within ``TOLERANCE``; an ended slot restarts as the
+    single env's ``reset()`` without a seed. The batch's last infos."""
+    episodes = np.zeros(len(singles), dtype=int)
+    for step in range(len(actions)):
+        obs_b, reward_b, term_b, trunc_b, infos = batch.step(actions[step])
+        for i, env in enumerate(singles):
+            obs_s, reward_s, term_s, trunc_s, info_s = env.step(actions[step, i])
+            assert (term_s, trunc_s) == (term_b[i], trunc_b[i]), f"step {step}, episode {i}"
+            assert abs(reward_s - reward_b[i]) <= TOLERANCE * (abs(reward_s) + 1e-9)
+            seen = {k: v[i] for k, v in (infos["final_obs"] if term_s or trunc_s else obs_b).items()}
+            worst, where = largest_difference(seen, obs_s)
+            assert worst <= TOLERANCE, f"step {step}, episode {i}: {where} differs by {worst:.2e}"
+            if term_s or trunc_s:
+                metrics_b = {k: v[i] for k, v in infos["final_info"]["metrics"].items() if not k.startswith("_")}
+                worst, where = largest_difference(metrics_b, info_s["metrics"])
+                assert worst <= TOLERANCE, f"episode {i} metrics: {where} differs by {worst:.2e}"
+                episodes[i] += 1
+                obs_s, _ = env.reset()  # what the batch's slot restarts as
+                worst, _ = largest_difference({k: v[i] for k, v in obs_b.items()}, obs_s)
+                assert worst <= TOLERANCE
+        if (episodes >= episodes_each).all():
+            break
+    assert (episodes >= episodes_each).all()
+    return infos
+
+
 @pytest.mark.parametrize(
     "kwargs",
     [{}, {"beta_deg": -15.0, "feed_mm_s": 1.0, "latency_s": 0.1}, {"tracker": False, "cortical_thickness_mm": 1.5}],
@@ -38,27 +66,7 @@ def test_each_batched_episode_is_the_single_envs_episode_of_its_seed(kwargs):
         for i, env in enumerate(singles):
             obs_s, _ = env.reset(seed=seed + i)
             assert largest_difference({k: v[i] for k, v in obs_b.items()}, obs_s)[0] == 0.0
-        episodes = np.zeros(num_envs, dtype=int)
-        for step in range(2000):
-            obs_b, reward_b, term_b, trunc_b, infos = batch.step(actions[step])
-            for i, env in enumerate(singles):
-                obs_s, reward_s, term_s, trunc_s, info_s = env.step(actions[step, i])
-                assert (term_s, trunc_s) == (term_b[i], trunc_b[i]), f"step {step}, episode {i}"
-                assert abs(reward_s - reward_b[i]) <= TOLERANCE * (abs(reward_s) + 1e-9)
-                seen = {k: v[i] for k, v in (infos["final_obs"] if term_s or trunc_s else obs_b).items()}
-                worst, where = largest_difference(seen, obs_s)
-                assert worst <= TOLERANCE, f"step {step}, episode {i}: {where} differs by {worst:.2e}"
-                if term_s or trunc_s:
-                    metrics_b = {k: v[i] for k, v in infos["final_info"]["metrics"].items() if not k.startswith("_")}
-                    worst, where = largest_difference(metrics_b, info_s["metrics"])
-                    assert worst <= TOLERANCE, f"episode {i} metrics: {where} differs by {worst:.2e}"
-                    episodes[i] += 1
-                    obs_s, _ = env.reset()  # what the batch's slot restarts as
-                    worst, _ = largest_difference({k: v[i] for k, v in obs_b.items()}, obs_s)
-                    assert worst <= TOLERANCE
-            if (episodes >= 2).all():
-                break
-        assert (episodes >= 2).all()
+        _step_alongside(batch, singles, actions, episodes_each=2)
     finally:
         batch.close()
         for env in singles:
@@ -235,23 +243,7 @@ def test_each_episode_can_drill_its_own_scenario_as_the_single_env_does():
             obs_s, _ = env.reset(seed=seed + i, options={"scenario": scenarios[i]})
             assert largest_difference({k: v[i] for k, v in obs_b.items()}, obs_s)[0] == 0.0
             assert batch.scenario_of(i) == env.scenario
-        ended = np.zeros(num_envs, dtype=int)
-        for step in range(3000):
-            obs_b, reward_b, term_b, trunc_b, infos = batch.step(actions[step])
-            for i, env in enumerate(singles):
-                obs_s, reward_s, term_s, trunc_s, info_s = env.step(actions[step, i])
-                assert (term_s, trunc_s) == (term_b[i], trunc_b[i]), f"step {step}, episode {i}"
-                assert abs(reward_s - reward_b[i]) <= TOLERANCE * (abs(reward_s) + 1e-9)
-                if term_s or trunc_s:
-                    metrics_b = {k: v[i] for k, v in infos["final_info"]["metrics"].items() if not k.startswith("_")}
-                    worst, where = largest_difference(metrics_b, info_s["metrics"])
-                    assert worst <= TOLERANCE, f"episode {i} metrics: {where} differs by {worst:.2e}"
-                    ended[i] += 1
-                    obs_s, _ = env.reset()  # the slot's next episode keeps its scenario
-                    assert largest_difference({k: v[i] for k, v in obs_b.items()}, obs_s)[0] <= TOLERANCE
-            if (ended >= 1).all():
-                break
-        assert (ended >= 1).all()
+        infos = _step_alongside(batch, singles, actions, episodes_each=1)  # the slot's next episode keeps its scenario
         durations = {round(float(m), 3) for m in infos["t_s"]}
         assert len(durations) > 1  # the holes differ in length: the slots are not in step
     finally:
