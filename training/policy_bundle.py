@@ -1,7 +1,8 @@
 """A trained residual policy as files: ``NAME.zip`` (SB3 model), ``NAME.vecnormalize.pkl``, ``NAME.json``.
 
 The JSON holds the training configuration (base controller, residual scale) and the training summary;
-the benchmark and the real-robot runner load the bundle through :func:`load_bundle`.
+the benchmark and the real-robot runner load the bundle through :func:`load_bundle`, which builds the saved
+model's SB3 policy alone (:func:`load_policy`): what ``predict`` needs, without the algorithm's optimisers.
 """
 
 from __future__ import annotations
@@ -14,12 +15,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
 from stable_baselines3.common.running_mean_std import RunningMeanStd
+from stable_baselines3.common.save_util import load_from_zip_file
 
-from drillgym.envs.errors import read_json
+from drillgym.envs.errors import UserError, read_json
 from drillgym.training.config import TrainConfig
-from drillgym.training.model import ALGO_CLASSES
 
 POLICY_DIR = Path(__file__).resolve().parent / "policies"
 """The policies shipped with the package."""
@@ -63,7 +64,8 @@ class ObsNormalizer:
 class PolicyBundle:
     """A loaded residual policy."""
 
-    model: BaseAlgorithm
+    policy: BasePolicy
+    """The saved model's SB3 policy (``predict`` as the model's own), in evaluation mode on the CPU."""
     normalizer: ObsNormalizer | None
     config: TrainConfig
     meta: dict[str, Any]
@@ -98,10 +100,48 @@ def load_bundle(path: Path | str) -> PolicyBundle:
         raise FileNotFoundError(f"residual policy {zip_path} has no {json_path.name} (config and summary) beside it")
     meta = read_json(json_path)
     cfg = TrainConfig(**meta["config"])
-    model = ALGO_CLASSES[cfg.algo].load(zip_path, device="cpu")
+    policy = load_policy(zip_path)
     normalizer = None
     if pkl_path.exists():
         with open(pkl_path, "rb") as f:
             vn = pickle.load(f)
         normalizer = ObsNormalizer(vn.obs_rms, float(vn.clip_obs), float(vn.epsilon))
-    return PolicyBundle(model, normalizer, cfg, meta)
+    return PolicyBundle(policy, normalizer, cfg, meta)
+
+
+class _NoOptimizer:
+    """Stands in for a policy's optimiser when it is built to predict only.
+
+    An SB3 policy builds its optimisers in its constructor; the first torch optimiser of a process imports
+    ``torch._dynamo`` (about 1.5 s), which inference never uses.
+    """
+
+    def __init__(self, params: Any, **kwargs: Any) -> None:
+        del params, kwargs
+
+
+def _no_schedule(progress_remaining: float) -> float:
+    """The learning-rate schedule a policy built to predict only is given (never read)."""
+    return 0.0
+
+
+def load_policy(zip_path: Path) -> BasePolicy:
+    """The SB3 policy of a model saved by ``model.save`` (SAC, TD3 or PPO), on the CPU, in evaluation mode.
+
+    It is built as ``Algorithm.load`` builds it (the saved policy class, spaces and ``policy_kwargs``; PPO's
+    ``use_sde`` as its algorithm passes it) and holds the saved weights, so its ``predict`` is the model's
+    ``predict`` bit for bit (``tests/training/test_policy_bundle.py``); the optimisers, replay buffer and
+    entropy coefficient are not built.
+    """
+    data, params, _ = load_from_zip_file(zip_path, device="cpu")
+    if data is None or "policy" not in params:
+        raise UserError(f"{zip_path} holds no SB3 policy (saved by model.save?)")
+    kwargs = {k: v for k, v in data.get("policy_kwargs", {}).items() if k != "device"}
+    kwargs["optimizer_class"] = _NoOptimizer
+    policy_class = data["policy_class"]
+    if issubclass(policy_class, ActorCriticPolicy):
+        kwargs.setdefault("use_sde", bool(data.get("use_sde", False)))
+    policy = policy_class(data["observation_space"], data["action_space"], _no_schedule, **kwargs)
+    policy.load_state_dict(params["policy"])
+    policy.set_training_mode(False)
+    return policy

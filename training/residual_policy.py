@@ -34,7 +34,7 @@ class BundlePolicy:
         """The residual for one policy observation (a dict, or a schedule policy's plan features)."""
         if self.bundle.normalizer is not None:
             obs = self.bundle.normalizer(obs)
-        residual, _ = self.bundle.model.predict(obs, deterministic=True)
+        residual, _ = self.bundle.policy.predict(obs, deterministic=True)
         return np.clip(np.asarray(residual, dtype=np.float32).reshape(-1), -1.0, 1.0)
 
 
@@ -91,7 +91,7 @@ def load_residual_controller(path: Path | str) -> ResidualController | PlanSched
     _single_thread_inference()
     resolved = resolve_policy(str(path))
     bundle = _loaded(resolved)
-    spaces = getattr(bundle.model.observation_space, "spaces", {})
+    spaces = getattr(bundle.policy.observation_space, "spaces", {})
     cfg = bundle.config
     if cfg.schedule:
         return PlanScheduledController(

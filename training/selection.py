@@ -36,7 +36,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from drillgym.controllers import Controller, make_controller
 from drillgym.controllers.rollout import run_batch, run_episode
@@ -126,7 +126,7 @@ def score(
 
 def _paired(a: list[float], b: list[float]) -> tuple[float, float, float]:
     d = np.asarray(a) - np.asarray(b)
-    half = stats.t.ppf(0.5 + CONFIDENCE / 2, len(d) - 1) * d.std(ddof=1) / math.sqrt(len(d))
+    half = special.stdtrit(len(d) - 1, 0.5 + CONFIDENCE / 2) * d.std(ddof=1) / math.sqrt(len(d))  # = stats.t.ppf
     return float(d.mean()), float(d.mean() - half), float(d.mean() + half)
 
 

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy import special
 
 SUMMARY_COLUMNS = ("suite", "scenario", "controller", "metric", "mean", "ci_low", "ci_high", "n")
 """Columns of ``summary.csv`` (long form), in order."""
@@ -36,7 +36,8 @@ def mean_ci(values: Sequence[float] | np.ndarray, confidence: float = CONFIDENCE
     mean = float(x.mean())
     if n == 1:
         return mean, math.nan, math.nan, 1
-    half = float(stats.t.ppf(0.5 + confidence / 2.0, n - 1)) * float(x.std(ddof=1)) / math.sqrt(n)
+    # special.stdtrit(df, q) is what scipy.stats.t.ppf(q, df) computes, without importing scipy.stats (~1 s)
+    half = float(special.stdtrit(n - 1, 0.5 + confidence / 2.0)) * float(x.std(ddof=1)) / math.sqrt(n)
     return mean, mean - half, mean + half, n
 
 

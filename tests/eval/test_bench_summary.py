@@ -14,6 +14,17 @@ def test_ci_of_the_mean_uses_student_t_with_n_minus_1_dof():
     assert low == pytest.approx(2.0 - half) and high == pytest.approx(2.0 + half)
 
 
+def test_ci_equals_scipy_stats_t_interval_bit_for_bit():
+    from scipy import stats
+
+    rng = np.random.default_rng(3)
+    for n in (2, 3, 5, 20, 100):
+        x = rng.normal(1.0, 0.3, n)
+        mean, low, high, _ = mean_ci(x)
+        half = float(stats.t.ppf(0.975, n - 1)) * float(x.std(ddof=1)) / math.sqrt(n)
+        assert (low, high) == (mean - half, mean + half)
+
+
 def test_ci_of_a_single_value_is_the_value_and_nans_are_left_out():
     for one in ([0.7], [0.7, math.nan]):  # one value: a mean, no interval
         mean, low, high, n = mean_ci(one)

@@ -191,7 +191,7 @@ def test_shipped_policy_completes_an_episode_from_real_cell_signals_only():
     env.close()
     assert np.isfinite(result.metrics["deviation_mean_mm"])
     # the policy's inputs are the env observation keys (real-cell signals) plus the base action
-    keys = set(controller.policy.bundle.model.observation_space.spaces)
+    keys = set(controller.policy.bundle.policy.observation_space.spaces)
     extra = {BASE_ACTION_KEY} | ({PREV_RESIDUAL_KEY} if controller.spec.observe_prev_residual else set())
     extra |= {PLAN_KEY} if controller.spec.observe_plan else set()
     assert keys == set(env.observation_space.spaces) | extra
