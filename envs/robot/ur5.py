@@ -36,6 +36,12 @@ def ur5_urdf_path() -> Path:
     raise FileNotFoundError("example-robot-data is installed without ur_description/urdf/ur5_robot.urdf")
 
 
+@functools.cache
+def _urdf_model() -> pin.Model:
+    """The UR5 model parsed from its URDF once per process; each :class:`UR5Kinematics` takes a copy."""
+    return pin.buildModelFromUrdf(str(ur5_urdf_path()))
+
+
 def _se3_to_base(m: pin.SE3) -> np.ndarray:
     """4x4 homogeneous transform of a Pinocchio placement, re-expressed in the UR ``base`` frame."""
     t = np.eye(4)
@@ -53,7 +59,7 @@ class UR5Kinematics:
     """
 
     def __init__(self, tcp_offset_m: float, tracker_offset_m: tuple[float, float, float] = (0.05, 0.0, 0.06)):
-        self.model = pin.buildModelFromUrdf(str(ur5_urdf_path()))
+        self.model = pin.Model(_urdf_model())  # a copy: frames are added to it below
         flange = self.model.getFrameId(FLANGE_FRAME)
         parent = self.model.frames[flange].parentJoint
         flange_placement = self.model.frames[flange].placement

@@ -73,3 +73,17 @@ def test_deflected_marker_follows_the_joint_twist_of_the_tip_load():
     dq = JointCompliance(KTHETA_LI2023_NM_RAD).joint_deflection_rad(jac, w)
     np.testing.assert_allclose(got, KIN.fk(q + dq, TRACKER_FRAME)[:3, 3], rtol=0, atol=1e-12)
     assert np.linalg.norm(got - KIN.fk(q, TRACKER_FRAME)[:3, 3]) > 1e-6  # the load does move it
+
+
+def test_kinematics_share_the_parsed_urdf_but_not_their_frames():
+    """Each model is a copy of the URDF parsed once: its added frames never reach another model."""
+    from drillgym.envs.robot.ur5 import _urdf_model, ur5_urdf_path
+
+    short, long = UR5Kinematics(0.10), UR5Kinematics(0.25)
+    tip_short, tip_long = short.position(Q_HOME_RAD), long.position(Q_HOME_RAD)
+    flange = short.position(Q_HOME_RAD, "tool0")
+    assert np.linalg.norm(tip_long - flange) == pytest.approx(0.25, abs=1e-12)
+    assert np.linalg.norm(tip_short - flange) == pytest.approx(0.10, abs=1e-12)
+    assert not _urdf_model().existFrame(TCP_FRAME)
+    fresh = pin.buildModelFromUrdf(str(ur5_urdf_path()))
+    assert _urdf_model() == fresh
