@@ -35,6 +35,7 @@ from collections.abc import Mapping
 from types import SimpleNamespace
 from typing import Any
 
+import numba
 import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -75,6 +76,10 @@ class BatchedDrillEnv(VectorEnv):
         effects: an effect spec (:func:`drillgym.envs.effects.build_effects`, e.g. a cell of
             :data:`drillgym.envs.effects.cells.CELLS`) built afresh for every episode; compiled effects only
             (:attr:`Effect.compiled <drillgym.envs.effects.base.Effect.compiled>`), else a ``UserError``.
+        threads: CPU threads the compiled step spreads the episodes over (default 1; at most numba's
+            ``NUMBA_NUM_THREADS``, the machine's CPUs unless set): the same numbers with any number
+            (``tests/envs/test_batched_threads.py``). Worth it for large batches on an otherwise idle machine; a
+            process that shares its cores (training workers, ``--workers``) keeps 1.
         **env_kwargs: the single env's arguments (scenario, ``cell_params``, ``bone_material``, reward
             weights); rendering is not available.
     """
@@ -87,10 +92,15 @@ class BatchedDrillEnv(VectorEnv):
         max_episode_steps: int | None = None,
         autoreset: bool = True,
         effects: str = "",
+        threads: int = 1,
         **env_kwargs: Any,
     ) -> None:
         if not isinstance(num_envs, int) or num_envs < 1:
             raise UserError(f"num_envs={num_envs!r} must be an integer >= 1")
+        most = int(getattr(numba.config, "NUMBA_NUM_THREADS", 1))  # set from the environment at numba's import
+        if not isinstance(threads, int) or not 1 <= threads <= most:
+            raise UserError(f"threads={threads!r} must be an integer in [1, {most}] (numba's NUMBA_NUM_THREADS)")
+        self.threads = threads
         limit = MAX_EPISODE_STEPS if max_episode_steps is None else max_episode_steps
         if not isinstance(limit, int) or not 1 <= limit <= MAX_EPISODE_STEPS:
             raise UserError(f"max_episode_steps={max_episode_steps!r} must be an integer in [1, {MAX_EPISODE_STEPS}]")
@@ -270,7 +280,11 @@ class BatchedDrillEnv(VectorEnv):
         for i in np.flatnonzero(running & (st["noise_at"] > self.noise.shape[1] - NOISE_SIZE)).tolist():
             self._fill_noise(i)
         t0 = time.perf_counter()
-        sk.advance_batch(*self.arrays, self.command, self.noise, self.record, self.recorded, running)
+        if self.threads > 1:
+            numba.set_num_threads(self.threads)  # this thread's setting, for its next parallel call
+            sk.advance_batch_threaded(*self.arrays, self.command, self.noise, self.record, self.recorded, running)
+        else:
+            sk.advance_batch(*self.arrays, self.command, self.noise, self.record, self.recorded, running)
         self.kernel_s += time.perf_counter() - t0
         if st["singular"].any():
             i = int(np.argmax(st["singular"]))

@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from drillgym.envs import step_kernel as sk
 from drillgym.envs.batched import BatchedDrillEnv
 from drillgym.envs.cell import SimCell
 from drillgym.envs.drill_env import UR5BoneDrillEnv
@@ -41,9 +42,11 @@ def compile_kernels() -> float:
     env.advance_open_loop(np.zeros((1, 4)))
     env.close()
 
-    batch = BatchedDrillEnv(1)
+    batch = BatchedDrillEnv(2)
     batch.reset(seed=0)
-    batch.step(np.zeros((1, 4), dtype=np.float32))
+    batch.step(np.zeros((2, 4), dtype=np.float32))
+    a = batch  # the threaded step too, whatever the CPUs (BatchedDrillEnv(threads=...) calls it)
+    sk.advance_batch_threaded(*a.arrays, a.command, a.noise, a.record, a.recorded, a.active)
     batch.close()
     return time.perf_counter() - t0
 

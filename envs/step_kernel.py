@@ -441,6 +441,40 @@ def advance_batch(
         recorded[i] = k + n
 
 
+@numba.njit(cache=True, parallel=True)
+def advance_batch_threaded(
+    state: np.ndarray,
+    params: np.ndarray,
+    pend: np.ndarray,
+    tab: np.ndarray,
+    rows: np.ndarray,
+    chains: np.ndarray,
+    centre: np.ndarray,
+    filled: np.ndarray,
+    bins: np.ndarray,
+    delay: np.ndarray,
+    command: np.ndarray,
+    noise: np.ndarray,
+    record: np.ndarray,
+    recorded: np.ndarray,
+    active: np.ndarray,
+) -> None:  # pragma: no cover (compiled)
+    """:func:`advance_batch` with the episodes spread over numba's threads (``numba.set_num_threads``).
+
+    The same numbers: each episode's step is the same compiled :func:`advance` on its own rows of every array,
+    and no episode reads another's.
+    """
+    n = SUBSTEPS_PER_STEP
+    for i in numba.prange(state.shape[0]):
+        if active[i]:
+            k = recorded[i]
+            advance(
+                state[i], params[i], pend[i], tab[i], rows[i], chains[i], centre[i], filled[i], bins[i], delay[i],
+                command[i], noise[i], record[i, k : k + n],
+            )  # fmt: skip
+            recorded[i] = k + n
+
+
 @numba.njit(cache=True)
 def advance_open_loop(
     state: np.ndarray,

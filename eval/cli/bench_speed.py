@@ -23,6 +23,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--batch-seconds", type=float, default=3.0, help="seconds per throughput measure (3 rounds; default 3)"
     )
     parser.add_argument(
+        "--threads",
+        type=int,
+        default=1,
+        help="also time each batch size with its compiled step on this many threads (BatchedDrillEnv(threads=...); "
+        "default 1: one thread only)",
+    )
+    parser.add_argument(
         "--rollout-controllers",
         default="li2023,zhang2005",
         help="controllers whose episodes per second are measured on the single env and on the batched engine, as "
@@ -55,6 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``drillgym bench-speed``."""
+    if args.threads < 1:
+        raise UserError(f"--threads {args.threads} must be >= 1")
     if args.rollout_seeds < 1 or args.schedule_holes < 0:
         raise UserError("--rollout-seeds must be >= 1 and --schedule-holes >= 0")
     if args.diagnosis_episodes and (args.diagnosis_episodes < 6 or args.diagnosis_workers < 1):
@@ -63,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     result["controllers"] = controller_cycle_times()
     sizes = tuple(int(n) for n in args.batch_sizes.split(",") if n.strip())
     if sizes:
-        result["batched"] = batched_throughput(sizes, args.batch_seconds)
+        result["batched"] = batched_throughput(sizes, args.batch_seconds, threads=args.threads)
     specs = tuple(s.strip() for s in args.rollout_controllers.split(",") if s.strip())
     if specs:
         result["rollouts"] = rollout_throughput(specs, args.rollout_seeds)
@@ -115,12 +124,12 @@ def _print(result: dict[str, Any], specs: tuple[str, ...]) -> None:
         b = result["batched"]
         print(
             f"episodes per second on one core (median of {b['runs']} interleaved rounds; "
-            f"{b['steps_per_episode']:.0f} steps per episode, resets included)"
+            f"{b['steps_per_episode']:.0f} steps per episode, resets included; N/T: the compiled step on T threads)"
         )
         print(f"  single env         {b['single_env_episodes_per_s_median']:7.1f}")
         for n, r in b["batched"].items():
             print(
-                f"  batched, N = {n:4s}  {r['episodes_per_s_median']:7.1f}   "
+                f"  batched, N = {n:6s}{r['episodes_per_s_median']:7.1f}   "
                 f"{r['speedup_over_single_median']:.1f}x the single env "
                 f"(compiled step {r['kernel_us_per_episode_step_median']:.1f} us per episode-step; "
                 f"{r['kernel_only_speedup_ceiling_median']:.1f}x if the rest were free)"

@@ -163,12 +163,12 @@ def _single_env_steps_per_s(seconds: float) -> tuple[float, float]:
     return steps / dt, steps / episodes
 
 
-def _batched_steps_per_s(num_envs: int, seconds: float) -> tuple[float, float]:
+def _batched_steps_per_s(num_envs: int, seconds: float, threads: int = 1) -> tuple[float, float]:
     """Zero-action episode-steps per second of a :class:`~drillgym.envs.batched.BatchedDrillEnv` of ``num_envs``.
 
     Also the share of the wall time spent in its compiled step (:attr:`~drillgym.envs.batched.BatchedDrillEnv.kernel_s`).
     """
-    env = BatchedDrillEnv(num_envs)
+    env = BatchedDrillEnv(num_envs, threads=threads)
     env.reset(seed=0)
     actions = np.zeros((num_envs, 4), dtype=np.float32)
     for _ in range(20):
@@ -185,45 +185,52 @@ def _batched_steps_per_s(num_envs: int, seconds: float) -> tuple[float, float]:
     return steps * num_envs / dt, kernel_share
 
 
-def batched_throughput(sizes: tuple[int, ...] = (1, 16, 64), seconds: float = 3.0, runs: int = 3) -> dict[str, Any]:
-    """Episodes per second on one core: the single env and the batched env at each size, interleaved in one run.
+def batched_throughput(
+    sizes: tuple[int, ...] = (1, 16, 64), seconds: float = 3.0, runs: int = 3, threads: int = 1
+) -> dict[str, Any]:
+    """Episodes per second: the single env (one core) and the batched env at each size, interleaved in one run.
 
     Each of ``runs`` rounds times the single env, then each batch size, for ``seconds`` each (ended
     episodes are reset inside the batch, so resets count); reported: the medians and each batch's
     speed-up over the single env of its own round, the compiled step's time per episode-step, and the speed-up the
     batch would reach if everything but the compiled step were free (its speed-up over the compiled step's share).
+    With ``threads`` > 1 each size is also timed with its compiled step on that many threads (``"N/T"`` keys,
+    :class:`~drillgym.envs.batched.BatchedDrillEnv`'s ``threads``), in the same rounds.
     """
+    keys = [(n, 1) for n in sizes] + ([(n, threads) for n in sizes] if threads > 1 else [])
     single: list[float] = []
-    per_size: dict[int, list[float]] = {n: [] for n in sizes}
-    ratio: dict[int, list[float]] = {n: [] for n in sizes}
-    ceiling: dict[int, list[float]] = {n: [] for n in sizes}
-    kernel_us: dict[int, list[float]] = {n: [] for n in sizes}
+    per_size: dict[tuple[int, int], list[float]] = {k: [] for k in keys}
+    ratio: dict[tuple[int, int], list[float]] = {k: [] for k in keys}
+    ceiling: dict[tuple[int, int], list[float]] = {k: [] for k in keys}
+    kernel_us: dict[tuple[int, int], list[float]] = {k: [] for k in keys}
     steps_per_episode = 0.0
     for _ in range(runs):
         s, steps_per_episode = _single_env_steps_per_s(seconds)
         single.append(s / steps_per_episode)
-        for n in sizes:
-            steps_per_s, kernel_share = _batched_steps_per_s(n, seconds)
+        for k in keys:
+            steps_per_s, kernel_share = _batched_steps_per_s(k[0], seconds, k[1])
             b = steps_per_s / steps_per_episode
-            per_size[n].append(b)
-            ratio[n].append(b / single[-1])
-            kernel_us[n].append(kernel_share / steps_per_s * 1e6)  # compiled step's µs per episode-step
-            ceiling[n].append(ratio[n][-1] / kernel_share)  # the speed-up with the Python around it free
+            per_size[k].append(b)
+            ratio[k].append(b / single[-1])
+            kernel_us[k].append(kernel_share / steps_per_s * 1e6)  # compiled step's µs per episode-step
+            ceiling[k].append(ratio[k][-1] / kernel_share)  # the speed-up with the Python around it free
     return {
         "steps_per_episode": steps_per_episode,
         "single_env_episodes_per_s_median": statistics.median(single),
         "batched": {
-            str(n): {
-                "episodes_per_s_median": statistics.median(per_size[n]),
-                "speedup_over_single_median": statistics.median(ratio[n]),
-                "speedup_runs": ratio[n],
-                "kernel_us_per_episode_step_median": statistics.median(kernel_us[n]),
-                "kernel_only_speedup_ceiling_median": statistics.median(ceiling[n]),
+            (str(n) if t == 1 else f"{n}/{t}"): {
+                "threads": t,
+                "episodes_per_s_median": statistics.median(per_size[(n, t)]),
+                "speedup_over_single_median": statistics.median(ratio[(n, t)]),
+                "speedup_runs": ratio[(n, t)],
+                "kernel_us_per_episode_step_median": statistics.median(kernel_us[(n, t)]),
+                "kernel_only_speedup_ceiling_median": statistics.median(ceiling[(n, t)]),
             }
-            for n in sizes
+            for n, t in keys
         },
         "seconds_per_measure": seconds,
         "runs": runs,
+        "threads": threads,
     }
 
 

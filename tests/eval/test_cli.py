@@ -20,7 +20,7 @@ def test_unknown_command_is_an_error_naming_it(capsys):
 
 def test_bench_speed_json_reports_a_real_time_factor(capsys):
     argv = ["--runs", "1", "--json", "--batch-sizes", "1,4", "--batch-seconds", "0.3", "--rollout-seeds", "2"]
-    argv += ["--schedule-holes", "2"]
+    argv += ["--schedule-holes", "2", "--threads", "2"]
     assert main(["bench-speed", *argv, "--rollout-controllers", "none"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["real_time_factor_median"] > 0
@@ -31,7 +31,8 @@ def test_bench_speed_json_reports_a_real_time_factor(capsys):
     assert result["peak_rss_mib"] > 0
     batched = result["batched"]
     assert batched["single_env_episodes_per_s_median"] > 0
-    assert set(batched["batched"]) == {"1", "4"}
+    assert set(batched["batched"]) == {"1", "4", "1/2", "4/2"}  # each size on one thread and on two
+    assert batched["batched"]["4/2"]["threads"] == 2 and batched["batched"]["4"]["threads"] == 1
     assert all(b["episodes_per_s_median"] > 0 for b in batched["batched"].values())
     for b in batched["batched"].values():  # the compiled step is part of the step: its ceiling lies above the speed-up
         assert b["kernel_us_per_episode_step_median"] > 0
