@@ -123,8 +123,8 @@ def _print(result: dict[str, Any], specs: tuple[str, ...]) -> None:
     if "batched" in result:
         b = result["batched"]
         print(
-            f"episodes per second on one core (median of {b['runs']} interleaved rounds; "
-            f"{b['steps_per_episode']:.0f} steps per episode, resets included; N/T: the compiled step on T threads)"
+            f"episodes per second on one core, N/T rows on T threads (median of {b['runs']} interleaved rounds; "
+            f"{b['steps_per_episode']:.0f} steps per episode, resets included)"
         )
         print(f"  single env         {b['single_env_episodes_per_s_median']:7.1f}")
         for n, r in b["batched"].items():
