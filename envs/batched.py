@@ -75,7 +75,8 @@ class BatchedDrillEnv(VectorEnv):
             of seeded episodes once each (:attr:`active` says which still run).
         effects: an effect spec (:func:`drillgym.envs.effects.build_effects`, e.g. a cell of
             :data:`drillgym.envs.effects.cells.CELLS`) built afresh for every episode; compiled effects only
-            (:attr:`Effect.compiled <drillgym.envs.effects.base.Effect.compiled>`), else a ``UserError``.
+            (:attr:`Effect.compiled <drillgym.envs.effects.base.Effect.compiled>`), else a ``UserError``. A
+            slot's own spec can be given at reset (``options={"effects": [...]}``).
         threads: CPU threads the compiled step spreads the episodes over (default 1; at most numba's
             ``NUMBA_NUM_THREADS``, the machine's CPUs unless set): the same numbers with any number
             (``tests/envs/test_batched_threads.py``). Worth it for large batches on an otherwise idle machine; a
@@ -110,8 +111,9 @@ class BatchedDrillEnv(VectorEnv):
         self.num_envs = num_envs
         self.autoreset = autoreset
         self.effects = effects
-        if effects:
-            build_effects(effects)  # a bad spec fails here, not at the first reset
+        _check_compiled(effects)  # a bad spec fails here, not at the first reset
+        self._slot_effects = [effects] * num_envs
+        """Each slot's effect spec (the construction's, or the last reset's)."""
         self.envs = [UR5BoneDrillEnv(pybullet_world=False, **env_kwargs) for _ in range(num_envs)]
         first = self.envs[0]
         self.scenario = first.scenario
@@ -154,11 +156,12 @@ class BatchedDrillEnv(VectorEnv):
     def _reset_one(self, i: int, seed: int | None, changes: Mapping[str, Any] | None = None) -> None:
         """Reset slot ``i`` (the single env's ``reset(seed=seed)``, with ``changes`` to its scenario) into the arrays."""
         env = self.envs[i]
-        if self.effects:
-            env.set_effects(build_effects(self.effects))
+        spec = self._slot_effects[i]
+        if spec or env.effects is not None:
+            env.set_effects(build_effects(spec) if spec else None)
         env.reset(seed=seed, options={"scenario": dict(changes)} if changes else None)
         if env._kernel is None:
-            raise UserError(f"effects {self.effects!r} do not all run in the compiled step; use UR5BoneDrillEnv")
+            raise UserError(f"effects {spec!r} do not all run in the compiled step; use UR5BoneDrillEnv")
         start = episode_arrays(env)
         for name in ("tab", "rows", "centre", "filled", "delay"):
             self._fit(name, getattr(start, name).shape[1:])
@@ -228,7 +231,11 @@ class BatchedDrillEnv(VectorEnv):
             if len(seeds) != self.num_envs:
                 raise UserError(f"{len(seeds)} seeds for {self.num_envs} episodes")
         changes = self._scenario_changes(options)
+        effects = self._effect_specs(options)
         for i, s in enumerate(seeds):
+            spec = effects[i]
+            if spec is not None:
+                self._slot_effects[i] = spec
             self._reset_one(i, s, changes[i])
         self._ready = True
         return self._observation(), {}
@@ -236,11 +243,11 @@ class BatchedDrillEnv(VectorEnv):
     def _scenario_changes(self, options: Mapping[str, Any] | None) -> list[dict[str, Any] | None]:
         """Each slot's scenario changes from ``reset``'s options, every one validated before any slot resets."""
         opts = dict(options or {})
-        unknown = sorted(set(opts) - {"scenario"})
+        unknown = sorted(set(opts) - {"scenario", "effects"})
         if unknown:
             raise UserError(
-                f"reset(options=...): unknown key(s) {unknown}; BatchedDrillEnv takes only 'scenario' (one dict, or a "
-                "list of one per episode); its effects are set at construction"
+                f"reset(options=...): unknown key(s) {unknown}; BatchedDrillEnv takes 'scenario' (one dict, or a "
+                "list of one per episode) and 'effects' (one effect spec, or a list of one per episode)"
             )
         given = opts.get("scenario")
         if given is None:
@@ -259,6 +266,24 @@ class BatchedDrillEnv(VectorEnv):
                 f"every episode of a batch has tracker={self.scenario.tracker} (its construction's): one observation"
             )
         return [dict(c) if c else None for c in per_slot]
+
+    def _effect_specs(self, options: Mapping[str, Any] | None) -> list[str | None]:
+        """Each slot's effect spec from ``reset``'s options (None: the slot keeps its own), all checked first."""
+        given = dict(options or {}).get("effects")
+        if given is None:
+            return [None] * self.num_envs
+        per_slot = [given] * self.num_envs if isinstance(given, str) else list(given)
+        if len(per_slot) != self.num_envs or not all(c is None or isinstance(c, str) for c in per_slot):
+            raise UserError(
+                f"options['effects'] must be an effect spec or a list of {self.num_envs} (one per episode), got {given!r}"
+            )
+        for spec in dict.fromkeys(c for c in per_slot if c):
+            _check_compiled(spec)
+        return per_slot
+
+    def effects_of(self, i: int) -> str:
+        """Episode ``i``'s effect spec (the construction's, or the last reset's)."""
+        return self._slot_effects[i]
 
     def scenario_of(self, i: int) -> Scenario:
         """Episode ``i``'s scenario (the construction's, or the last reset's changes)."""
@@ -361,6 +386,12 @@ class BatchedDrillEnv(VectorEnv):
         centre = centre_at(self.arrays.centre[i], self.arrays.bins[i], float(self.params[i]["bin_m"]), sc.entry_depth_m)
         offset = math.hypot(centre[0], centre[1]) if centre is not None else math.nan
         return episode_metrics(self.records(i), sc.entry_depth_m, sc.depth_m, offset, feed_phase=int(Phase.FEED))
+
+
+def _check_compiled(spec: str) -> None:
+    """``UserError`` unless every effect of ``spec`` runs in the compiled step (a bad spec raises its own)."""
+    if spec and not all(e.compiled for e in build_effects(spec)):
+        raise UserError(f"effects {spec!r} do not all run in the compiled step; use UR5BoneDrillEnv")
 
 
 def _record_rows(max_time_s: float) -> int:

@@ -115,13 +115,12 @@ def _train_env(cfg: TrainConfig, rank: int) -> gym.Env:
 def batched_schedule(cfg: TrainConfig) -> bool:
     """Whether a ``schedule`` run's holes run on the batched engine (:class:`ScheduleVecEnv`).
 
-    Always, but where the cell draws each hole's effects or has effects the compiled step does not run: those keep
-    one-hole envs. Both give the same holes, rewards and observations.
+    Always, but where the cell has effects the compiled step does not run: those keep one-hole envs. Both give the
+    same holes, rewards and observations (a cell drawn per hole too: each slot runs its hole's draw).
     """
     if not cfg.schedule:
         return False
-    cell = cfg.training_cell()
-    return not cell.ranges and cell.compiled
+    return cfg.training_cell().compiled
 
 
 def schedule_vec_env(

@@ -9,8 +9,9 @@ observations and infos are those of the one-hole envs, bit for bit (``tests/trai
 and a run with ``n`` slots learns what a run with ``n`` workers learns. It runs in one process: its speed comes
 from stepping all ``2n`` episodes per compiled call, not from more cores. Wrap it in SB3's ``VecMonitor``.
 
-Cells whose effects are drawn per hole (a training cell with ranges) are not batched: their episodes would each
-need their own effects; :func:`drillgym.training.env_factory.make_train_vec_env` keeps the one-hole envs for them.
+A cell whose effects are drawn per hole (a training cell with ranges, ``drillgym train --cell-from-diagnosis``)
+gives each slot its hole's effects (``BatchedDrillEnv.reset(options={"effects": ...})``); a cell with effects the
+compiled step does not run keeps the one-hole envs (:func:`drillgym.training.env_factory.batched_schedule`).
 """
 
 from __future__ import annotations
@@ -85,9 +86,10 @@ class HoleBatch:
                 draws.seed(seeds[j])
         self.current = [draws.next() for draws in self.holes]
         scenarios = [h.scenario for h in self.current] * 2
+        effects = [h.cell_spec for h in self.current] * 2  # a ranged cell's draws: the hole's own, for both runs
         seeds_: list[int | None] = []
         seeds_ += [h.episode_seed for h in self.current] * 2
-        self._started, _ = self.batch.reset(seed=seeds_, options={"scenario": scenarios})
+        self._started, _ = self.batch.reset(seed=seeds_, options={"scenario": scenarios, "effects": effects})
         infos = [{"scenario": dict(h.scenario), "episode_seed": h.episode_seed} for h in self.current]
         return self._plans(), infos
 
@@ -154,8 +156,6 @@ class ScheduleVecEnv(VecEnv):
         if not isinstance(workers, int) or workers < 1:
             raise UserError(f"workers={workers!r} must be an integer >= 1")
         cell = cell or TrainingCell()
-        if cell.ranges:
-            raise UserError("a cell with ranged effects draws each hole's effects: use ScheduleEnv workers")
         common: dict[str, Any] = {
             "total": num_envs,
             "spec": spec,

@@ -267,3 +267,39 @@ def test_bad_scenario_options_change_no_episode():
         assert batch.scenario_of(0) == batch.scenario_of(1) == batch.scenario
     finally:
         batch.close()
+
+
+def test_each_episode_can_run_its_own_effects_as_the_single_env_does():
+    """Three slots, three cells (friction, none, backlash + latency): each slot's episode is the single env's with those
+    effects, bit for bit, and the slot keeps its cell for its next episode."""
+    cells = ["joint_friction:coulomb_rad=3e-4", "", "joint_backlash:play_rad=6e-4+latency:extra_latency_s=0.05"]
+    num_envs, seed = len(cells), 4
+    batch = BatchedDrillEnv(num_envs, effects="joint_friction:coulomb_rad=1e-4")
+    singles = [UR5BoneDrillEnv(pybullet_world=False) for _ in range(num_envs)]
+    try:
+        batch.reset(seed=seed, options={"effects": cells})
+        for i, env in enumerate(singles):
+            env.reset(seed=seed + i, options={"effects": build_effects(cells[i]) if cells[i] else []})
+            assert batch.effects_of(i) == cells[i]
+        _step_alongside(batch, singles, _actions(6, 3000, num_envs), episodes_each=1)
+    finally:
+        batch.close()
+        for env in singles:
+            env.close()
+
+
+def test_bad_effects_options_change_no_episode():
+    batch = BatchedDrillEnv(2, effects="latency:extra_latency_s=0.02")
+    try:
+        batch.reset(seed=0)
+        before = (batch.state.tobytes(), batch.params.tobytes())
+        with pytest.raises(ValueError, match="compiled step"):
+            batch.reset(seed=0, options={"effects": ["", "servo_deadband:band_m=1e-4"]})
+        with pytest.raises(ValueError, match="list of 2"):
+            batch.reset(seed=0, options={"effects": [""]})
+        with pytest.raises(ValueError, match="no_such_effect"):
+            batch.reset(seed=0, options={"effects": "no_such_effect:x=1"})
+        assert before == (batch.state.tobytes(), batch.params.tobytes())
+        assert batch.effects_of(0) == batch.effects_of(1) == "latency:extra_latency_s=0.02"
+    finally:
+        batch.close()

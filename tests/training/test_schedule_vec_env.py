@@ -73,13 +73,12 @@ def test_fixed_holes_are_visited_once_per_reset_slot_by_slot():
         batched.close()
 
 
-def test_cells_with_drawn_effects_and_bad_sizes_are_refused():
+def test_bad_sizes_and_cells_the_compiled_step_does_not_run_are_refused():
     cfg = load_config("residual_schedule_sac")
-    ranged = TrainingCell("li2023-lab", {"joint_friction.coulomb_rad": (1e-4, 5e-4)})
-    with pytest.raises(UserError, match="ranged"):
-        ScheduleVecEnv(2, cfg.schedule_spec(), cell=ranged)
     with pytest.raises(UserError, match="num_envs"):
         ScheduleVecEnv(0, cfg.schedule_spec())
+    with pytest.raises(UserError, match="compiled step"):
+        ScheduleVecEnv(2, cfg.schedule_spec(), cell=TrainingCell("servo_deadband:band_m=1e-4"))
 
 
 def test_slots_drilled_in_a_worker_process_give_the_same_holes_and_rewards():
@@ -123,11 +122,21 @@ def test_an_error_in_the_worker_process_is_raised_here():
         env.close()
 
 
-def test_a_cell_with_compiled_effects_drills_the_same_holes_batched():
-    """The li2023-lab cell (joint friction, compiled): each slot's episodes carry the cell's effects as the env does."""
+@pytest.mark.parametrize(
+    "cell",
+    [
+        {"cell": "li2023-lab"},
+        {  # drawn per hole, as --cell-from-diagnosis gives: each slot runs its own hole's draw
+            "cell": "joint_friction:coulomb_rad=1.5e-4,viscous_s=0.005+latency:extra_latency_s=0.01",
+            "cell_ranges": {"joint_friction.coulomb_rad": [1e-4, 5e-4], "latency.extra_latency_s": [0.0, 0.08]},
+        },
+    ],
+)
+def test_a_cell_with_compiled_effects_drills_the_same_holes_batched(cell):
+    """Joint friction (compiled), fixed or drawn per hole: each slot's episodes carry its hole's effects as the env's."""
     from drillgym.training.env_factory import batched_schedule, schedule_vec_env
 
-    cfg = load_config("residual_schedule_sac", {"cell": "li2023-lab"})
+    cfg = load_config("residual_schedule_sac", cell)
     assert batched_schedule(cfg)
     workers = DummyVecEnv([lambda r=r: schedule_env(cfg, rank=r) for r in range(2)])
     batched = schedule_vec_env(cfg, 2)
@@ -139,6 +148,10 @@ def test_a_cell_with_compiled_effects_drills_the_same_holes_batched():
         (_, rew_w, _, info_w), (_, rew_b, _, info_b) = workers.step(actions), batched.step(actions)
         assert np.array_equal(rew_w, np.asarray(rew_b, np.float32))
         assert [i["metrics"] for i in info_w] == [i["metrics"] for i in info_b]
+        assert [i.get("cell") for i in info_w] == [i.get("cell") for i in info_b]
+        if "cell_ranges" in cell:  # the holes' drawn cells differ from slot to slot and from the nominal one
+            drawn = {i["cell"] for i in info_b}
+            assert len(drawn) == 2 and cfg.training_cell().nominal_spec() not in drawn
     finally:
         workers.close()
         batched.close()

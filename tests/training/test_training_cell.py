@@ -80,8 +80,8 @@ def test_evaluation_runs_the_cell_at_its_own_values():
     try:
         for _ in range(2):
             venv.reset()
-            _, _, _, infos = venv.step(np.zeros((1, *venv.action_space.shape)))
-            assert infos[0]["cell"] == FRICTION  # never a draw
+            _, _, _, infos = venv.step(np.zeros((venv.num_envs, *venv.action_space.shape)))
+            assert {info["cell"] for info in infos} == {FRICTION}  # never a draw
     finally:
         venv.close()
 
