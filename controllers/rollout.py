@@ -133,7 +133,7 @@ def run_episodes(
     make_policy: Callable[[], PolicyPredictor],
     seeds: Sequence[int],
     env_kwargs: dict[str, Any] | None = None,
-    effects: str = "",
+    effects: str | Sequence[str] = "",
     on_step: StepHook | None = None,
 ) -> list[EpisodeResult]:
     """Run one episode per seed of a simulated scenario on the batched engine, each with its own policy.
@@ -145,16 +145,19 @@ def run_episodes(
             (:meth:`~drillgym.controllers.Controller.act_batch`), with the same actions.
         seeds: the episodes' reset seeds, one batch slot each.
         env_kwargs: the single env's arguments (scenario, cell parameters).
-        effects: an effect spec of compiled effects (:class:`~drillgym.envs.batched.BatchedDrillEnv`).
+        effects: an effect spec of compiled effects (:class:`~drillgym.envs.batched.BatchedDrillEnv`), or one per
+            seed (a cell drawn per episode).
         on_step: called after every step (:data:`StepHook`), e.g. to log the episodes as they run.
 
     Returns:
         One :class:`EpisodeResult` per seed, in order, equal to :func:`run_episode` on the single env with
         ``keep_trace=False`` (its ``info`` is the batched env's final info of the episode).
     """
-    batch = BatchedDrillEnv(len(seeds), autoreset=False, effects=effects, **(env_kwargs or {}))
+    shared = effects if isinstance(effects, str) else ""
+    batch = BatchedDrillEnv(len(seeds), autoreset=False, effects=shared, **(env_kwargs or {}))
     try:
-        return run_batch(batch, make_policy, seeds, on_step=on_step)
+        per_slot = None if isinstance(effects, str) else list(effects)
+        return run_batch(batch, make_policy, seeds, on_step=on_step, effects=per_slot)
     finally:
         batch.close()
 
@@ -166,21 +169,26 @@ def run_batch(
     scenarios: Sequence[dict[str, Any] | None] | None = None,
     on_step: StepHook | None = None,
     started: dict[str, np.ndarray] | None = None,
+    effects: Sequence[str] | None = None,
 ) -> list[EpisodeResult]:
     """Run one episode in each slot of ``batch`` (built with ``autoreset=False``) to its end.
 
     ``policies``: a factory as :func:`run_episodes` takes, or one policy per slot (each handed its slot's plan);
     ``scenarios``: each slot's scenario changes for this reset (kept for its next ones, as the single env keeps
-    them), None for the scenario the slot has; ``started``: the observation of a reset the caller has just made
-    with these seeds and scenarios (the episodes start from it, without another reset). The rest as
-    :func:`run_episodes`.
+    them), None for the scenario the slot has; ``effects``: each slot's effect spec for this reset (kept likewise);
+    ``started``: the observation of a reset the caller has just made with these seeds, scenarios and effects (the
+    episodes start from it, without another reset). The rest as :func:`run_episodes`.
     """
     n = batch.num_envs
     if len(seeds) != n:
         raise UserError(f"{len(seeds)} seeds for a batch of {n} episodes")
     if started is None:
-        options = None if scenarios is None else {"scenario": list(scenarios)}
-        obs, _ = batch.reset(seed=[int(s) for s in seeds], options=options)
+        options: dict[str, Any] = {}
+        if scenarios is not None:
+            options["scenario"] = list(scenarios)
+        if effects is not None:
+            options["effects"] = list(effects)
+        obs, _ = batch.reset(seed=[int(s) for s in seeds], options=options or None)
     else:
         obs = started
     slots, batched, alone = _stepping(policies, [env.plan for env in batch.envs])

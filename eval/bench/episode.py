@@ -189,8 +189,13 @@ BATCH_MAX = 64
 
 
 def batch_key(job: EpisodeJob) -> tuple[str, str, str, str, str, str]:
-    """What the episodes of one batch share: suite, scenario, its arguments, controller, cell and reality."""
-    return (job.suite, job.scenario, json.dumps(job.kwargs, sort_keys=True), job.controller, job.effects, job.reality)
+    """What the episodes of one batch share: suite, scenario, its arguments, controller, cell and reality.
+
+    A cell the batched engine runs is not shared: each slot takes its own (a cell drawn per episode, as the robustness
+    suite's ``*_drawn`` scenarios draw it), so such episodes batch together whatever their draws.
+    """
+    cell = "" if batchable(job) else job.effects
+    return (job.suite, job.scenario, json.dumps(job.kwargs, sort_keys=True), job.controller, cell, job.reality)
 
 
 REALITY_STREAM = 7
@@ -235,19 +240,21 @@ def _run_batched(jobs: list[EpisodeJob]) -> list[EpisodeResult]:
     def make() -> Controller:
         return make_controller(first.controller)
 
+    effects = [j.effects for j in jobs]  # each episode's own cell (the same text for a fixed cell)
     if all(j.log_path is None for j in jobs):
-        return run_episodes(make, seeds, first.kwargs, first.effects)
+        return run_episodes(make, seeds, first.kwargs, effects)
     logger: list[BatchLogger] = []  # made at the first step, once the batch is reset
 
     def log(batch: Any, step: int, actions: Any, obs: Any, running: list[int], ended: Any) -> None:
         if not logger:
             extra = {"suite": first.suite, "scenario": first.scenario, "controller_spec": first.controller}
             paths = [j.log_path for j in jobs]
-            logger.append(BatchLogger(batch, paths, seeds, make().describe(), {**extra, "effects": first.effects}))
+            extras = [{**extra, "effects": j.effects} for j in jobs]
+            logger.append(BatchLogger(batch, paths, seeds, make().describe(), extras))
         logger[0].log_step(step, actions, obs, running, ended)
 
     try:
-        results = run_episodes(make, seeds, first.kwargs, first.effects, on_step=log)
+        results = run_episodes(make, seeds, first.kwargs, effects, on_step=log)
     except BaseException:
         for lg in logger:
             lg.abandon()  # keep what was recorded, as a crash would

@@ -45,7 +45,7 @@ class BatchLogger:
         paths: per episode, its log path or None.
         seeds: per episode, its reset seed.
         controller: the controller's ``describe()``.
-        extra: the header's ``run`` entry (suite, scenario, controller spec, effects).
+        extra: the header's ``run`` entry (suite, scenario, controller spec, effects), or one per episode.
         flush_rows: samples per part (as :class:`~drillgym.eval.logs.writer.EpisodeLogWriter`'s).
     """
 
@@ -55,17 +55,18 @@ class BatchLogger:
         paths: list[Path | None],
         seeds: list[int],
         controller: dict[str, Any],
-        extra: dict[str, Any],
+        extra: dict[str, Any] | list[dict[str, Any]],
         flush_rows: int = FLUSH_ROWS,
     ) -> None:
         self.batch = batch
+        extras = [extra] * len(paths) if isinstance(extra, dict) else extra
         self.writers: list[EpisodeLogWriter | None] = [
             None
             if path is None
             else EpisodeLogWriter(
-                path, build_header(env, controller, seed, extra=extra, env_id=SIM_ENV_ID), flush_rows, overwrite=True
+                path, build_header(env, controller, seed, extra=ex, env_id=SIM_ENV_ID), flush_rows, overwrite=True
             )
-            for env, path, seed in zip(batch.envs, paths, seeds, strict=True)
+            for env, path, seed, ex in zip(batch.envs, paths, seeds, extras, strict=True)
         ]
         n, steps = batch.num_envs, batch.record.shape[1] // SUBSTEPS_PER_STEP
         self.held = np.zeros((n, steps, len(HELD)))

@@ -42,6 +42,24 @@ def test_a_batch_gives_the_rows_and_logs_of_its_episodes_run_one_by_one(tmp_path
         pd.testing.assert_frame_equal(db, ds, check_exact=True)
 
 
+def test_episodes_with_cells_of_their_own_batch_together_with_the_rows_and_logs_of_one_by_one(tmp_path):
+    """A cell drawn per episode (the robustness suite's ``*_drawn``): one batch, each slot in its own cell."""
+    cells = ["joint_friction:coulomb_rad=3e-4", "", "latency:extra_latency_s=0.06+joint_backlash:play_rad=5e-4"]
+    jobs_b = [j for k, c in enumerate(cells) for j in _jobs("li2023_tuned", [k], tmp_path / "b", c)]
+    jobs_s = [j for k, c in enumerate(cells) for j in _jobs("li2023_tuned", [k], tmp_path / "s", c)]
+    assert len(batches(jobs_b)) == 1
+    batched = run_batch(jobs_b)
+    single = [run_job(j) for j in jobs_s]
+    assert [_without_timing(r) for r in batched] == [_without_timing(r) for r in single]
+    assert len({r["deviation_mean_mm"] for r in batched}) == 3
+    for k in range(3):
+        hb, db = read_episode_log(tmp_path / "b" / f"li2023_tuned_{k}.parquet")
+        hs, ds = read_episode_log(tmp_path / "s" / f"li2023_tuned_{k}.parquet")
+        hb.pop("created_utc"), hs.pop("created_utc")
+        assert hb == hs and hb["run"]["effects"] == cells[k]
+        pd.testing.assert_frame_equal(db, ds, check_exact=True)
+
+
 def test_a_cell_with_effects_the_compiled_step_does_not_run_goes_episode_by_episode(monkeypatch):
     ran = []
     monkeypatch.setattr(bench_episode, "run_job", lambda job: ran.append(job.seed) or {"seed": job.seed})
@@ -63,19 +81,20 @@ def test_jobs_of_mixed_batches_are_refused():
         run_batch(_jobs("none", [0]) + _jobs("li2023", [0]))
 
 
-def test_batches_group_by_controller_and_cell_and_split_for_the_workers():
+def test_batches_group_by_controller_and_uncompiled_cell_and_split_for_the_workers():
     grid = (
         _jobs("none", list(range(10)))
         + _jobs("li2023", list(range(10)))
-        + _jobs("none", [0, 1], effects="latency:extra_latency_s=0.1")
+        + _jobs("none", [0, 1], effects="servo_deadband:band_m=1e-4")
+        + _jobs("none", [10, 11], effects="latency:extra_latency_s=0.1")  # compiled: each slot runs its own cell
     )
     one = batches(grid, workers=1)
     assert [(b[0].controller, b[0].effects, len(b)) for b in one] == [
-        ("none", "", 10),
+        ("none", "", 12),
         ("li2023", "", 10),
-        ("none", "latency:extra_latency_s=0.1", 2),
+        ("none", "servo_deadband:band_m=1e-4", 2),
     ]
-    assert [len(b) for b in batches(grid, workers=4)] == [6, 4, 6, 4, 2]  # at most 22 / 4 -> 6 per batch
+    assert [len(b) for b in batches(grid, workers=4)] == [6, 6, 6, 4, 2]  # at most 24 / 4 -> 6 per batch
     assert max(len(b) for b in batches(_jobs("none", list(range(200))), workers=1)) == BATCH_MAX
 
 
