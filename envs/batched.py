@@ -24,7 +24,9 @@ Per step, ``infos`` holds ``t_s``, ``phase``, ``deviation_m`` (the true tip's, p
 The episodes need not share a scenario: ``reset(options={"scenario": [changes_0, ..., changes_N-1]})`` changes
 each slot's scenario arguments from this episode on, as the single env's ``reset(options={"scenario": ...})``
 does (one dict: every slot's), so a batch can drill N different holes (a schedule residual's training does). The
-slots must agree on whether the cell has a tracker (one observation layout).
+slots must agree on whether the cell has a tracker (one observation layout). Likewise ``reset(options={"effects":
+[spec_0, ..., spec_N-1]})`` puts each slot in its own cell of compiled effects (a cell drawn per episode), and
+``BatchedDrillEnv(N, threads=T)`` spreads the compiled step's episodes over ``T`` threads (the same numbers).
 """
 
 from __future__ import annotations
