@@ -46,6 +46,7 @@ from drillgym.envs.drilling.contact_kernel import run_samples
 from drillgym.envs.effects.backlash import move_links_kernel
 from drillgym.envs.effects.bone import soften
 from drillgym.envs.effects.joints import friction_lag
+from drillgym.envs.effects.sensor import drifted
 from drillgym.envs.effects.spindle import sag
 from drillgym.envs.effects.timing import delayed
 from drillgym.envs.robot.ur5_kernel import frame_pose, ik_step, jacobian_and_compliance, joint_deflection
@@ -321,9 +322,11 @@ def advance(  # noqa: C901 (one step, in the env's order)
     s.sample[:] = smp[n - 1]
     if rtde_k >= 0:  # the RTDE sample saw the servo-held tip before sample rtde_k
         _rtde_tcp(s, p, smp[rtde_k - 1] if rtde_k > 0 else smp[n - 1])
-    # F/T readings: the true wrench at the sensor, noise, quantisation
+    # F/T readings: the true wrench at the sensor, the force drift (ft_drift), noise, quantisation
     arm = p.sensor_arm_m
     ft_std = p.ft_std
+    rate = p.ft_drift_rate_n_s
+    drift = rate[0] != 0.0 or rate[1] != 0.0 or rate[2] != 0.0  # off: the forces as they are (no -0.0 + 0.0)
     at = s.noise_at
     dev_sum = 0.0
     lat_sum = 0.0
@@ -331,7 +334,10 @@ def advance(  # noqa: C901 (one step, in the env's order)
     over = False
     for k in range(n):
         f0, f1, f2 = smp[k, 6], smp[k, 7], smp[k, 8]
-        w = (f0, f1, f2, -arm * f1, arm * f0, smp[k, 9])
+        w = (f0, f1, f2, -arm * f1, arm * f0, smp[k, 9])  # the torques from the true forces
+        if drift:
+            d0, d1, d2 = drifted(rate, out[k, OUT_T_S], f0, f1, f2)
+            w = (d0, d1, d2, w[3], w[4], w[5])
         for c in range(6):
             v = w[c] + ft_std[c] * noise[at + 6 * k + c] if ft_std[0] > 0.0 else w[c]
             v = np.rint(v / FT_RESOLUTION[c]) * FT_RESOLUTION[c]

@@ -7,10 +7,13 @@ They act on the true wrench before the sensor's noise and resolution, and on a r
 from __future__ import annotations
 
 import math
+from typing import Any
 
+import numba
 import numpy as np
 
 from drillgym.envs.effects.base import Effect, EffectHost, Param, TraceView
+from drillgym.envs.record_fields import float_field
 
 
 class FTDrift(Effect):
@@ -31,10 +34,18 @@ class FTDrift(Effect):
     channels = frozenset({"force"})
     channels_before_contact = frozenset({"force"})
     sensor_only = True
+    compiled = True
+    kernel_params = (
+        float_field("ft_drift_rate_n_s", "F/T drift: the force axes' drift rates (N/s, sensor frame; 0: off).", 3),
+    )
 
     def _rates(self) -> np.ndarray:
         v = self.values
         return np.array([v["fx_rate_n_s"], v["fy_rate_n_s"], v["fz_rate_n_s"]])
+
+    def set_kernel_params(self, p: np.void) -> None:
+        """The three rates (the compiled step adds ``rate · t`` to each force axis before the sensor's noise)."""
+        p["ft_drift_rate_n_s"] = self._rates()
 
     def sensor_wrenches(self, env: EffectHost, wrenches: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Add the drift to the force axes."""
@@ -45,6 +56,16 @@ class FTDrift(Effect):
     def apply_to_trace(self, trace: TraceView) -> None:
         """Add the drift to the recorded forces."""
         trace.force_n += self._rates()[None, :] * trace.t_s[:, None]
+
+
+@numba.njit(cache=True)
+def drifted(rate: Any, t_s: float, f0: float, f1: float, f2: float) -> tuple[float, float, float]:  # pragma: no cover
+    """:meth:`FTDrift.sensor_wrenches` in the compiled step: the drifted force axes (N).
+
+    ``F + r · t`` per axis, ``t`` the sample's time since the tare at reset (s), ``rate`` the episode's
+    ``ft_drift_rate_n_s`` (N/s, sensor frame).
+    """
+    return f0 + rate[0] * t_s, f1 + rate[1] * t_s, f2 + rate[2] * t_s
 
 
 class FTEpisodeDrift(FTDrift):

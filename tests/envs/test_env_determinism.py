@@ -114,7 +114,7 @@ def test_an_episode_after_one_with_effects_is_the_fresh_envs_episode():
     from drillgym.controllers.rollout import run_episode
     from drillgym.envs.effects import build_effects
 
-    spec = "joint_backlash:play_rad=3e-4+ft_drift:fx_rate_n_s=0.01"  # an uncompiled one: the Python step
+    spec = "joint_backlash:play_rad=3e-4+ft_gain:fz_gain=0.05"  # an uncompiled one: the Python step
 
     def deviation(env, controller, seed):
         env.unwrapped.set_effects(build_effects(spec))

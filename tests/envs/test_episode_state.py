@@ -63,6 +63,7 @@ def test_each_compiled_effect_with_a_step_hook_declares_and_writes_the_parameter
         "joint_backlash",
         "latency",
         "spindle_sag",
+        "ft_drift",
     }
     core = {f.name for f in CORE_PARAM_FIELDS + CORE_STATE_FIELDS}
     for cls in hooked:

@@ -99,7 +99,7 @@ def test_fast_step_matches_the_original_step_to_rounding_with_each_effect(name):
     assert _run_pair({}, 6, "li2023", None, effects) > 200
 
 
-@pytest.mark.parametrize("name", ["latency", "joint_friction", "ft_drift"])
+@pytest.mark.parametrize("name", ["latency", "joint_friction", "ft_drift", "ft_gain"])
 def test_advance_records_what_step_records(name):
     """``advance`` (the replays' step without observation, reward and info) leaves the same recorder, cell and metrics."""
     rng = np.random.default_rng(4)

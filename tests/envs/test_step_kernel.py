@@ -93,11 +93,13 @@ COMPILED_EFFECTS = {
     "spindle_sag": "spindle_sag:sag_per_nm=300",
     "registration": "registration:surface_dz_m=6e-4,slope_error_rad=-0.1",
     "joint_backlash": "joint_backlash:play_rad=8e-4",
+    "ft_drift": "ft_drift:fx_rate_n_s=0.05,fy_rate_n_s=-0.04,fz_rate_n_s=0.05",
     "kinematic_offset_trend": "kinematic_offset_trend:dx_first_m=4e-4,dy_first_m=-3e-4,dz_first_m=5e-4,dz_last_m=-5e-4",
     "all": "kinematic_offset:dx_base_m=2e-4+tool_length:dl_m=-3e-3+skid_friction:mu=0.7"
     "+thermal_softening:softening=0.3+joint_friction:coulomb_rad=2e-4,viscous_s=0.005+density_gradient:offset=-0.1"
     "+latency:extra_latency_s=0.3+spindle_sag:sag_per_nm=100"
-    "+registration:surface_dz_m=-4e-4,slope_error_rad=0.08+joint_backlash:play_rad=3e-4",
+    "+registration:surface_dz_m=-4e-4,slope_error_rad=0.08+joint_backlash:play_rad=3e-4"
+    "+ft_drift:fx_rate_n_s=0.01,fy_rate_n_s=-0.01",
 }
 """Every effect the compiled step runs, each at a size that moves the episode well away from the nominal one."""
 
@@ -138,7 +140,7 @@ def test_compiled_step_is_used_only_for_compiled_effects():
         env.reset(seed=0, options={"effects": [EFFECTS["servo_deadband"](band_m=1e-4)]})
         assert env.unwrapped._kernel is None
         gradient = EFFECTS["density_gradient"](offset=0.1)
-        env.reset(seed=0, options={"effects": [gradient, EFFECTS["ft_drift"](fx_rate_n_s=0.01)]})
+        env.reset(seed=0, options={"effects": [gradient, EFFECTS["ft_gain"](fz_gain=0.1)]})
         assert env.unwrapped._kernel is None
         two = [EFFECTS["joint_friction"](coulomb_rad=1e-4), EFFECTS["joint_friction"](viscous_s=1e-3)]
         env.reset(seed=0, options={"effects": two})  # one set of kernel parameters per hooked effect
