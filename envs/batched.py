@@ -251,14 +251,7 @@ class BatchedDrillEnv(VectorEnv):
                 f"reset(options=...): unknown key(s) {unknown}; BatchedDrillEnv takes 'scenario' (one dict, or a "
                 "list of one per episode) and 'effects' (one effect spec, or a list of one per episode)"
             )
-        given = opts.get("scenario")
-        if given is None:
-            return [None] * self.num_envs
-        per_slot = [given] * self.num_envs if isinstance(given, Mapping) else list(given)
-        if len(per_slot) != self.num_envs or not all(c is None or isinstance(c, Mapping) for c in per_slot):
-            raise UserError(
-                f"options['scenario'] must be a dict or a list of {self.num_envs} dicts (one per episode), got {given!r}"
-            )
+        per_slot = self._per_slot(opts.get("scenario"), Mapping, "scenario", "a dict")
         scenarios = [
             Scenario.from_kwargs(**{**env.scenario.to_dict(), **dict(c)}) if c else env.scenario
             for env, c in zip(self.envs, per_slot, strict=True)
@@ -271,16 +264,20 @@ class BatchedDrillEnv(VectorEnv):
 
     def _effect_specs(self, options: Mapping[str, Any] | None) -> list[str | None]:
         """Each slot's effect spec from ``reset``'s options (None: the slot keeps its own), all checked first."""
-        given = dict(options or {}).get("effects")
-        if given is None:
-            return [None] * self.num_envs
-        per_slot = [given] * self.num_envs if isinstance(given, str) else list(given)
-        if len(per_slot) != self.num_envs or not all(c is None or isinstance(c, str) for c in per_slot):
-            raise UserError(
-                f"options['effects'] must be an effect spec or a list of {self.num_envs} (one per episode), got {given!r}"
-            )
+        per_slot = self._per_slot(dict(options or {}).get("effects"), str, "effects", "an effect spec")
         for spec in dict.fromkeys(c for c in per_slot if c):
             _check_compiled(spec)
+        return per_slot
+
+    def _per_slot(self, given: Any, kind: type, key: str, one: str) -> list[Any]:
+        """A reset option for every slot: None (each keeps its own), one ``kind`` for all, or one per slot (or None)."""
+        if given is None:
+            return [None] * self.num_envs
+        per_slot = [given] * self.num_envs if isinstance(given, kind) else list(given)
+        if len(per_slot) != self.num_envs or not all(c is None or isinstance(c, kind) for c in per_slot):
+            raise UserError(
+                f"options[{key!r}] must be {one} or a list of {self.num_envs} (one per episode, or None), got {given!r}"
+            )
         return per_slot
 
     def effects_of(self, i: int) -> str:
