@@ -153,11 +153,10 @@ def run_episodes(
         One :class:`EpisodeResult` per seed, in order, equal to :func:`run_episode` on the single env with
         ``keep_trace=False`` (its ``info`` is the batched env's final info of the episode).
     """
-    shared = effects if isinstance(effects, str) else ""
-    batch = BatchedDrillEnv(len(seeds), autoreset=False, effects=shared, **(env_kwargs or {}))
+    per_episode = [effects] * len(seeds) if isinstance(effects, str) else list(effects)
+    batch = BatchedDrillEnv(len(seeds), autoreset=False, **(env_kwargs or {}))
     try:
-        per_slot = None if isinstance(effects, str) else list(effects)
-        return run_batch(batch, make_policy, seeds, on_step=on_step, effects=per_slot)
+        return run_batch(batch, make_policy, seeds, on_step=on_step, effects=per_episode)
     finally:
         batch.close()
 

@@ -49,7 +49,7 @@ from drillgym.envs.compiled_step import episode_arrays
 from drillgym.envs.constants import ACTION_DIM, CONTROL_DT_S, MAX_EPISODE_STEPS, SUBSTEPS_PER_STEP, scaled_rows
 from drillgym.envs.drill_env import UR5BoneDrillEnv
 from drillgym.envs.drilling.hole import centre_at
-from drillgym.envs.effects.registry import build_effects
+from drillgym.envs.effects.registry import build_effects, runs_compiled
 from drillgym.envs.episode_state import new_params, new_state
 from drillgym.envs.errors import UserError
 from drillgym.envs.metrics import episode_metrics
@@ -389,7 +389,7 @@ class BatchedDrillEnv(VectorEnv):
 
 def _check_compiled(spec: str) -> None:
     """``UserError`` unless every effect of ``spec`` runs in the compiled step (a bad spec raises its own)."""
-    if spec and not all(e.compiled for e in build_effects(spec)):
+    if not runs_compiled(spec):
         raise UserError(f"effects {spec!r} do not all run in the compiled step; use UR5BoneDrillEnv")
 
 

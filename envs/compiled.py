@@ -45,8 +45,8 @@ def compile_kernels() -> float:
     batch = BatchedDrillEnv(2)
     batch.reset(seed=0)
     batch.step(np.zeros((2, 4), dtype=np.float32))
-    a = batch  # the threaded step too, whatever the CPUs (BatchedDrillEnv(threads=...) calls it)
-    sk.advance_batch_threaded(*a.arrays, a.command, a.noise, a.record, a.recorded, a.active)
+    # the threaded step too, whatever the CPUs (BatchedDrillEnv(threads=...) calls it)
+    sk.advance_batch_threaded(*batch.arrays, batch.command, batch.noise, batch.record, batch.recorded, batch.active)
     batch.close()
     return time.perf_counter() - t0
 

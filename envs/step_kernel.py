@@ -334,10 +334,8 @@ def advance(  # noqa: C901 (one step, in the env's order)
     over = False
     for k in range(n):
         f0, f1, f2 = smp[k, 6], smp[k, 7], smp[k, 8]
-        w = (f0, f1, f2, -arm * f1, arm * f0, smp[k, 9])  # the torques from the true forces
-        if drift:
-            d0, d1, d2 = drifted(rate, out[k, OUT_T_S], f0, f1, f2)
-            w = (d0, d1, d2, w[3], w[4], w[5])
+        r0, r1, r2 = drifted(rate, out[k, OUT_T_S], f0, f1, f2) if drift else (f0, f1, f2)
+        w = (r0, r1, r2, -arm * f1, arm * f0, smp[k, 9])  # the torques from the true forces
         for c in range(6):
             v = w[c] + ft_std[c] * noise[at + 6 * k + c] if ft_std[0] > 0.0 else w[c]
             v = np.rint(v / FT_RESOLUTION[c]) * FT_RESOLUTION[c]

@@ -21,7 +21,7 @@ import gymnasium as gym
 import numpy as np
 
 from drillgym.envs.effects.cells import cell_effects_spec
-from drillgym.envs.effects.registry import EFFECTS, build_effects, parse_effect_spec
+from drillgym.envs.effects.registry import EFFECTS, build_effects, parse_effect_spec, runs_compiled
 from drillgym.envs.errors import UserError
 from drillgym.envs.seeds import training_stream
 
@@ -67,8 +67,7 @@ class TrainingCell:
     @property
     def compiled(self) -> bool:
         """Whether the compiled step runs every effect of the cell (the batched engine takes it)."""
-        spec = self.nominal_spec()
-        return not spec or all(e.compiled for e in build_effects(spec))
+        return runs_compiled(self.nominal_spec())
 
     def nominal_spec(self) -> str:
         """The effect spec at the cell's own values (a named cell's spec)."""

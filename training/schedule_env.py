@@ -133,8 +133,6 @@ class ScheduleEnv(gym.Env):
         self.schedule = spec
         self.cell = cell or TrainingCell()
         self.sim = with_cell(gym.make(SIM_ENV_ID, **(env_kwargs or {})), self.cell)
-        self.cell_spec = self.cell.nominal_spec()
-        """The effects of the current hole (drawn at reset with the cell's ranges, in training; else the cell's own)."""
         self.weights = reward or ScheduleReward()
         paper = dict(self.sim.unwrapped.scenario.to_dict())  # type: ignore[attr-defined]
         try:
@@ -146,9 +144,19 @@ class ScheduleEnv(gym.Env):
             raise
         self.observation_space = spaces.Box(-1.0, 1.0, PLAN_HIGH.shape, np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (spec.dims,), np.float32)
-        self.scenario: dict[str, Any] = {}
-        self.episode_seed = -1
+        self.hole: Hole | None = None
+        """The current hole (drawn at reset; its effects drawn with the cell's ranges in training, else the cell's own)."""
         self.base = make_controller(spec.base)
+
+    @property
+    def scenario(self) -> dict[str, Any]:
+        """The current hole's scenario (empty before the first reset)."""
+        return {} if self.hole is None else self.hole.scenario
+
+    @property
+    def episode_seed(self) -> int:
+        """The current hole's episode seed (-1 before the first reset)."""
+        return -1 if self.hole is None else self.hole.episode_seed
 
     def _plan(self) -> np.ndarray:
         self.sim.reset(seed=self.episode_seed, options={"scenario": self.scenario})
@@ -160,13 +168,12 @@ class ScheduleEnv(gym.Env):
         """Draw the hole's scenario and seed (``options["scenario"]`` fixes the scenario); observe its plan."""
         super().reset(seed=seed)
         self.holes.seed(seed)
-        hole = self.holes.next((options or {}).get("scenario"))
-        self.scenario, self.episode_seed, self.cell_spec = hole.scenario, hole.episode_seed, hole.cell_spec
+        self.hole = self.holes.next((options or {}).get("scenario"))
         return self._plan(), {"scenario": dict(self.scenario), "episode_seed": self.episode_seed}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Drill the hole with the tuning ``action`` and with the base; the paired reward; the episode ends."""
-        if self.episode_seed < 0:
+        if self.hole is None:
             raise RuntimeError("call reset() before step()")
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         tuned = PlanScheduledController(self.schedule, policy=lambda _obs: a)
@@ -175,16 +182,17 @@ class ScheduleEnv(gym.Env):
             base = agent
         else:
             base = run_episode(self.sim, self.base, self.episode_seed, keep_trace=False, options=self._options())
-        hole = Hole(self.scenario, self.episode_seed, self.cell_spec)
-        reward, info = hole_outcome(self.schedule, self.weights, hole, a, agent.metrics, base.metrics)
+        reward, info = hole_outcome(self.schedule, self.weights, self.hole, a, agent.metrics, base.metrics)
         obs = normalized_plan(self.sim.unwrapped.plan, self.schedule.plan_support)  # type: ignore[attr-defined]
         return obs, reward, True, False, info
 
     def _options(self) -> dict[str, Any]:
         """The hole's reset options: its scenario, and its drawn effects (each run gets its own effect objects)."""
+        assert self.hole is not None
         if not self.cell.ranges:  # the cell's own effects stay switched on in the env (with_cell)
-            return {"scenario": self.scenario}
-        return {"scenario": self.scenario, "effects": build_effects(self.cell_spec) if self.cell_spec else []}
+            return {"scenario": self.hole.scenario}
+        spec = self.hole.cell_spec
+        return {"scenario": self.hole.scenario, "effects": build_effects(spec) if spec else []}
 
     def close(self) -> None:
         """Close the simulated env."""
