@@ -16,6 +16,7 @@ import numba
 import numpy as np
 
 from drillgym.controllers.models import OfflineForceModel
+from drillgym.envs.interp_kernel import interp_one
 
 
 class StackedOfflineModels:
@@ -44,36 +45,6 @@ class StackedOfflineModels:
 
 
 @numba.njit(cache=True)
-def _interp_one(xp: np.ndarray, fp: np.ndarray, n: int, x: float) -> float:  # pragma: no cover (compiled)
-    """``np.interp(x, xp[:n], fp[:n], left=0.0, right=0.0)`` for one x, as numpy computes it."""
-    if np.isnan(x):
-        return x
-    if x < xp[0]:
-        return 0.0
-    if x > xp[n - 1]:
-        return 0.0
-    if x == xp[n - 1]:
-        return fp[n - 1]
-    lo, hi = 0, n - 1  # the bracket xp[j] <= x < xp[j + 1]
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if xp[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    j = lo
-    if xp[j] == x:
-        return fp[j]
-    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
-    res = slope * (x - xp[j]) + fp[j]
-    if np.isnan(res):  # numpy tries the other end
-        res = slope * (x - xp[j + 1]) + fp[j + 1]
-        if np.isnan(res) and fp[j] == fp[j + 1]:
-            res = fp[j]
-    return res
-
-
-@numba.njit(cache=True)
 def _interp_rows(
     xp: np.ndarray, fp: np.ndarray, sizes: np.ndarray, model_of: np.ndarray, x: np.ndarray, out: np.ndarray
 ) -> None:  # pragma: no cover (compiled)
@@ -82,4 +53,4 @@ def _interp_rows(
         m = model_of[i]
         n = sizes[m]
         for c in range(2):
-            out[i, c] = _interp_one(xp[m], fp[m, :, c], n, x[i])
+            out[i, c] = interp_one(xp[m], fp[m, :, c], n, x[i], 0.0, 0.0)

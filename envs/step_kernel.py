@@ -49,7 +49,8 @@ from drillgym.envs.effects.joints import friction_lag
 from drillgym.envs.effects.sensor import drifted
 from drillgym.envs.effects.spindle import sag
 from drillgym.envs.effects.timing import delayed
-from drillgym.envs.robot.ur5_kernel import frame_pose, ik_step, jacobian_and_compliance, joint_deflection
+from drillgym.envs.interp_kernel import interp_one
+from drillgym.envs.robot.ur5_kernel import compliance_into, deflected_into, ik_step_into, jacobian_into, pose
 from drillgym.envs.sample_record import (
     OUT_CUTTING,
     OUT_DEPTH_CMD,
@@ -152,7 +153,7 @@ def _prepare(s, pend: np.ndarray, p, tab: np.ndarray, rows: np.ndarray) -> tuple
             for c in range(4):
                 rows[i, c] = scale * (tab[1 + c, i] + chip * tab[5 + c, i]) * tab[10, i]
     d = s.tip_balance[7]
-    share = np.interp(d, tab[0, :n], tab[9, :n])
+    share = interp_one(tab[0], tab[9], n, d, tab[9, 0], tab[9, n - 1])  # np.interp's numbers
     g = share**p.guidance_exponent
     floor = p.wall_floor
     if floor < 1.0:
@@ -190,11 +191,12 @@ def _solve(
     centre: np.ndarray,
     filled: np.ndarray,
     bins: np.ndarray,
-) -> np.ndarray:  # pragma: no cover (compiled)
-    """The tip balance over ``targets``: :meth:`TipContactSolver.run`; its rows."""
+    out: np.ndarray,
+) -> None:  # pragma: no cover (compiled)
+    """The tip balance over ``targets``: :meth:`TipContactSolver.run`; its rows into ``out``."""
     n = p.n_grid
     b = p.stage_bounds_m
-    out, touching, j = run_samples(
+    touching, j = run_samples(
         targets,
         p.servo_gain,
         s.tip_balance,
@@ -210,10 +212,10 @@ def _solve(
         filled,
         bins,
         p.bin_m,
+        out,
     )
     s.touching = touching
     s.bracket = j
-    return out
 
 
 @numba.njit(cache=True)
@@ -298,7 +300,7 @@ def advance(  # noqa: C901 (one step, in the env's order)
             s.pending -= 1
             if scale != s.feed_scale:
                 if k > done:
-                    smp[done:k] = _solve(s, p, tab, frows, k_guided, c_total, targets[done:k], hole_c, hole_f, bins)
+                    _solve(s, p, tab, frows, k_guided, c_total, targets[done:k], hole_c, hole_f, bins, smp[done:k])
                     done = k
                 s.feed_scale = scale
                 s.t_s = t_s
@@ -317,7 +319,7 @@ def advance(  # noqa: C901 (one step, in the env's order)
         out[k, OUT_DEPTH_CMD] = d
         t_s = t_next
     if n > done:
-        smp[done:n] = _solve(s, p, tab, frows, k_guided, c_total, targets[done:n], hole_c, hole_f, bins)
+        _solve(s, p, tab, frows, k_guided, c_total, targets[done:n], hole_c, hole_f, bins, smp[done:n])
     s.t_s = t_s
     s.sample[:] = smp[n - 1]
     if rtde_k >= 0:  # the RTDE sample saw the servo-held tip before sample rtde_k
@@ -364,26 +366,35 @@ def advance(  # noqa: C901 (one step, in the env's order)
     # the arm follows the servo target: one Newton step of IK, then J and the compliance at the new angles
     r_task = p.R_base_task
     stiffness = p.stiffness_nm_rad
-    rigid = smp[n - 1, 3:6] - s.geometry_offset_task_m if p.geometry_on else smp[n - 1, 3:6]
-    q = ik_step(s.q_motor_rad, s.jacobian, rigid, p.entry_base_m, r_task, chains[0])
-    for i in range(6):
+    last = smp[n - 1]
+    if p.geometry_on:
+        g = s.geometry_offset_task_m
+        rigid = (last[3] - g[0], last[4] - g[1], last[5] - g[2])
+    else:
+        rigid = (last[3], last[4], last[5])
+    joints = s.q_motor_rad.shape[0]
+    solve_m, vec, rows_j = np.empty((joints, joints)), np.empty((3, joints)), np.empty((2, joints, 3))  # scratch
+    q = vec[0]
+    ik_step_into(s.q_motor_rad, s.jacobian, rigid, p.entry_base_m, r_task, chains[0], solve_m, vec[1], q)
+    for i in range(joints):
         if not math.isfinite(q[i]):
             s.singular = True
             return
     s.q_motor_rad[:] = q
-    jac, c_robot = jacobian_and_compliance(q, stiffness, r_task, chains[0])
-    s.jacobian[:, :] = jac
-    s.c_robot_m_n[:, :] = c_robot
+    jacobian_into(q, chains[0], s.jacobian, rows_j[0], rows_j[1])
+    compliance_into(s.jacobian, stiffness, r_task, s.c_robot_m_n)
     # the tracker: a new sample of the true (deflected) marker at its rate, against the nominal path
     stamp = math.floor(s.t_s * TRACKER_RATE_HZ + 1e-9) / TRACKER_RATE_HZ
     s.tracker_new = False
     if stamp != s.tracker_stamp_s:
         s.tracker_new = True
         s.tracker_stamp_s = stamp
-        dq = joint_deflection(jac, smp[n - 1, 6:9], smp[n - 1, 9], r_task, stiffness)
-        marker = frame_pose(q + dq, chains[1])[1]
+        q_true = vec[2]
+        deflected_into(q, s.jacobian, (last[6], last[7], last[8]), last[9], r_task, stiffness, q_true)
+        marker = pose(q_true, chains[1])[1]
         if p.marker_on:
-            marker = marker + s.marker_offset_base_m
+            o = s.marker_offset_base_m
+            marker = (marker[0] + o[0], marker[1] + o[1], marker[2] + o[2])
         noise_m = p.tracker_noise_m
         for i in range(3):
             s.tracker_reading_base_m[i] = marker[i] + noise_m * noise[at + i] if noise_m > 0.0 else marker[i]

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drillgym.envs.drilling.contact_kernel import run_samples
+from drillgym.envs.drilling.contact_kernel import ROW_SIZE, run_samples
 from drillgym.envs.drilling.force_model import EngagementTable, stage_bounds
 from drillgym.envs.drilling.geometry import DrillGeometry
 from drillgym.envs.drilling.hole import Hole
@@ -177,7 +177,8 @@ class TipContactSolver(ReadThrough):
             return []
         hole = self.hole
         state = np.array([*self.rigid, *self.tip, self.bottom_z, self.depth_local])
-        rows, touching, j = run_samples(
+        rows = np.empty((len(targets), ROW_SIZE))
+        touching, j = run_samples(
             np.array(targets, dtype=float),
             servo_gain,
             state,
@@ -193,6 +194,7 @@ class TipContactSolver(ReadThrough):
             hole.filled,
             hole.bins,
             hole.bin_m,
+            rows,
         )
         st = state.tolist()
         self.rigid, self.tip, self.bottom_z, self.depth_local = st[0:3], st[3:6], st[6], st[7]

@@ -18,32 +18,36 @@ ROW_SIZE = 13
 """``rows`` layout: tip (3), rigid (3), force (3), torque about the axis, local depth, stage, cutting (0/1)."""
 
 
+Mat = tuple[float, float, float, float, float, float, float, float, float]
+"""A 3x3 matrix, row-major, as the loop passes it (no array to allocate)."""
+_EYE: Mat = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+_ZERO: Mat = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
 @numba.njit(cache=True)
-def _guided(c: np.ndarray, k: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover (compiled)
+def _guided(c: Mat, k: float) -> tuple[Mat, Mat, Mat]:  # pragma: no cover (compiled)
     """Balance matrices with lateral cut stiffness ``k`` (N/m) on x and y: ``M = (I + C K)⁻¹``, ``S = M C``, ``M C K``."""
-    a = np.eye(3)
-    for i in range(3):
-        a[i, 0] += c[i, 0] * k
-        a[i, 1] += c[i, 1] * k
-    c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
-    c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
-    c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
-    det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
-    m = np.empty((3, 3))
-    m[0, 0], m[1, 0], m[2, 0] = c00 / det, c01 / det, c02 / det
-    m[0, 1] = (a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]) / det
-    m[1, 1] = (a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]) / det
-    m[2, 1] = (a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]) / det
-    m[0, 2] = (a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]) / det
-    m[1, 2] = (a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]) / det
-    m[2, 2] = (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]) / det
-    s = np.empty((3, 3))
-    mck = np.zeros((3, 3))
-    for i in range(3):
-        for j in range(3):
-            s[i, j] = m[i, 0] * c[0, j] + m[i, 1] * c[1, j] + m[i, 2] * c[2, j]
-        mck[i, 0] = s[i, 0] * k
-        mck[i, 1] = s[i, 1] * k
+    a00, a01, a02 = 1.0 + c[0] * k, 0.0 + c[1] * k, 0.0
+    a10, a11, a12 = 0.0 + c[3] * k, 1.0 + c[4] * k, 0.0
+    a20, a21, a22 = 0.0 + c[6] * k, 0.0 + c[7] * k, 1.0
+    c00 = a11 * a22 - a12 * a21
+    c01 = a12 * a20 - a10 * a22
+    c02 = a10 * a21 - a11 * a20
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    m = (
+        c00 / det, (a02 * a21 - a01 * a22) / det, (a01 * a12 - a02 * a11) / det,
+        c01 / det, (a00 * a22 - a02 * a20) / det, (a02 * a10 - a00 * a12) / det,
+        c02 / det, (a01 * a20 - a00 * a21) / det, (a00 * a11 - a01 * a10) / det,
+    )  # fmt: skip
+    s = (
+        m[0] * c[0] + m[1] * c[3] + m[2] * c[6], m[0] * c[1] + m[1] * c[4] + m[2] * c[7],
+        m[0] * c[2] + m[1] * c[5] + m[2] * c[8],
+        m[3] * c[0] + m[4] * c[3] + m[5] * c[6], m[3] * c[1] + m[4] * c[4] + m[5] * c[7],
+        m[3] * c[2] + m[4] * c[5] + m[5] * c[8],
+        m[6] * c[0] + m[7] * c[3] + m[8] * c[6], m[6] * c[1] + m[7] * c[4] + m[8] * c[7],
+        m[6] * c[2] + m[7] * c[5] + m[8] * c[8],
+    )  # fmt: skip
+    mck = (s[0] * k, s[1] * k, 0.0, s[3] * k, s[4] * k, 0.0, s[6] * k, s[7] * k, 0.0)
     return m, s, mck
 
 
@@ -64,8 +68,9 @@ def run_samples(  # noqa: C901 (one loop, on purpose)
     filled: np.ndarray,
     hole_bins: np.ndarray,
     bin_m: float,
-) -> tuple[np.ndarray, bool, int]:  # pragma: no cover (compiled)
-    """Solve the balance for consecutive servo targets; returns ``(rows, touching, j)``.
+    rows: np.ndarray,
+) -> tuple[bool, int]:  # pragma: no cover (compiled)
+    """Solve the balance for consecutive servo targets into ``rows``; returns ``(touching, j)``.
 
     Args:
         targets: (k, 3) servo targets (m, task frame).
@@ -83,16 +88,16 @@ def run_samples(  # noqa: C901 (one loop, on purpose)
         filled: the hole's cut bins, updated in place.
         hole_bins: the hole's ``[deepest_bin, first_bin]``, updated in place (:func:`~drillgym.envs.drilling.hole.cut`).
         bin_m: the hole's bin length (m).
+        rows: (k, :data:`ROW_SIZE`) the samples' rows, written.
     """
     n = grid.shape[0]
-    rows = np.empty((targets.shape[0], ROW_SIZE))
-    eye = np.eye(3)
-    zero = np.zeros((3, 3))
-    m1, s1, k1 = _guided(compliance, k_guided)
+    cm = compliance
+    c = (cm[0, 0], cm[0, 1], cm[0, 2], cm[1, 0], cm[1, 1], cm[1, 2], cm[2, 0], cm[2, 1], cm[2, 2])
+    m1, s1, k1 = _guided(c, k_guided)
     r0, r1, r2, p0, p1, p2, bottom, d = state
     touch = bounds[0]
     v_cur = -1
-    m, s, mck, kx = eye, compliance, zero, 0.0
+    m, s, mck, kx = _EYE, c, _ZERO, 0.0
     lam = 1.0
     torque = 0.0
     for row in range(targets.shape[0]):
@@ -105,10 +110,10 @@ def run_samples(  # noqa: C901 (one loop, on purpose)
             if v == 1:
                 m, s, mck, kx = m1, s1, k1, k_guided
             else:
-                m, s, mck, kx = eye, compliance, zero, 0.0
-        b0 = m[0, 0] * r0 + m[0, 1] * r1 + m[0, 2] * r2 + mck[0, 0] * p0 + mck[0, 1] * p1
-        b1 = m[1, 0] * r0 + m[1, 1] * r1 + m[1, 2] * r2 + mck[1, 0] * p0 + mck[1, 1] * p1
-        b2 = m[2, 0] * r0 + m[2, 1] * r1 + m[2, 2] * r2 + mck[2, 0] * p0 + mck[2, 1] * p1
+                m, s, mck, kx = _EYE, c, _ZERO, 0.0
+        b0 = m[0] * r0 + m[1] * r1 + m[2] * r2 + mck[0] * p0 + mck[1] * p1
+        b1 = m[3] * r0 + m[4] * r1 + m[5] * r2 + mck[3] * p0 + mck[4] * p1
+        b2 = m[6] * r0 + m[7] * r1 + m[8] * r2 + mck[6] * p0 + mck[7] * p1
         # depth: the stable root of d = front + tanβ (b0 + s_x · F(d)) on the piecewise-linear table
         front = max(bottom, p2)
         rhs = front + tan_beta * b0
@@ -117,21 +122,19 @@ def run_samples(  # noqa: C901 (one loop, on purpose)
         else:
             j = min(max(j, 1), n - 1)
             for _ in range(4 * n):
-                q0 = s[0, 0] * table[j - 1, 0] + s[0, 1] * table[j - 1, 1] + s[0, 2] * table[j - 1, 2]
-                q1 = s[0, 0] * table[j, 0] + s[0, 1] * table[j, 1] + s[0, 2] * table[j, 2]
+                q0 = s[0] * table[j - 1, 0] + s[1] * table[j - 1, 1] + s[2] * table[j - 1, 2]
+                q1 = s[0] * table[j, 0] + s[1] * table[j, 1] + s[2] * table[j, 2]
                 h0 = grid[j - 1] - tan_beta * q0 - rhs
                 h1 = grid[j] - tan_beta * q1 - rhs
                 if h0 > 0.0:
                     if j == 1:
-                        d = rhs + tan_beta * (s[0, 0] * table[0, 0] + s[0, 1] * table[0, 1] + s[0, 2] * table[0, 2])
+                        d = rhs + tan_beta * (s[0] * table[0, 0] + s[1] * table[0, 1] + s[2] * table[0, 2])
                         break
                     j -= 1
                 elif h1 < 0.0:
                     if j == n - 1:
                         last = n - 1
-                        d = rhs + tan_beta * (
-                            s[0, 0] * table[last, 0] + s[0, 1] * table[last, 1] + s[0, 2] * table[last, 2]
-                        )
+                        d = rhs + tan_beta * (s[0] * table[last, 0] + s[1] * table[last, 1] + s[2] * table[last, 2])
                         break
                     j += 1
                 else:
@@ -153,9 +156,9 @@ def run_samples(  # noqa: C901 (one loop, on purpose)
         f2 = table[a, 2] + t * (table[i, 2] - table[a, 2])
         tq = table[a, 3] + t * (table[i, 3] - table[a, 3])
         touching = f0 != 0.0 or f1 != 0.0 or f2 != 0.0
-        sf0 = s[0, 0] * f0 + s[0, 1] * f1 + s[0, 2] * f2
-        sf1 = s[1, 0] * f0 + s[1, 1] * f1 + s[1, 2] * f2
-        sf2 = s[2, 0] * f0 + s[2, 1] * f1 + s[2, 2] * f2
+        sf0 = s[0] * f0 + s[1] * f1 + s[2] * f2
+        sf1 = s[3] * f0 + s[4] * f1 + s[5] * f2
+        sf2 = s[6] * f0 + s[7] * f1 + s[8] * f2
         full_z = b2 + sf2
         if not touching or full_z >= bottom:
             lam = 1.0
@@ -183,4 +186,4 @@ def run_samples(  # noqa: C901 (one loop, on purpose)
         out[12] = 1.0 if cutting else 0.0
         p0, p1, p2 = q0, q1, q2
     state[0], state[1], state[2], state[3], state[4], state[5], state[6], state[7] = r0, r1, r2, p0, p1, p2, bottom, d
-    return rows, touching, j
+    return touching, j

@@ -7,12 +7,18 @@ UR ``base`` frame as :meth:`UR5Kinematics.fk` and :meth:`UR5Kinematics.jacobian`
 within rounding (``tests/envs/test_ur5_kernel.py`` bounds the difference at 1e-12). What the cell runs once
 per agent step (:meth:`drillgym.envs.cell.SimCell.end_step`, the tracker's marker) is one call each
 instead of a dozen small numpy and Pinocchio calls.
+
+Inside the compiled step rotations and points travel as tuples (:data:`Rot`, row-major, and :data:`Vec`) and
+results go into the caller's arrays (:func:`pose`, :func:`jacobian_into`, :func:`compliance_into`,
+:func:`ik_step_into`, :func:`deflected_into`), so a step makes no small arrays; the functions that return arrays
+are the same arithmetic, for Python callers and tests.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numba
 import numpy as np
@@ -20,6 +26,11 @@ import numpy as np
 from drillgym.envs.robot.ur5 import UR5Kinematics
 
 _AXES = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2}
+
+Rot = tuple[float, float, float, float, float, float, float, float, float]
+"""A rotation matrix, row-major, as the kernels pass it (no array to allocate)."""
+Vec = tuple[float, float, float]
+"""A 3-vector as the kernels pass it."""
 
 
 @dataclass(frozen=True)
@@ -75,113 +86,156 @@ class Chain:
 
 
 @numba.njit(cache=True)
-def _mm(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no cover (compiled)
-    out = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
-    return out
+def _times(r: Rot, chain: np.ndarray, o: int) -> Rot:  # pragma: no cover (compiled)
+    """``r · m`` with ``m`` the 3x3 stored row-major in ``chain[o : o + 9]``; rotations as row-major 9-tuples."""
+    m0, m1, m2, m3, m4, m5, m6, m7, m8 = (
+        chain[o], chain[o + 1], chain[o + 2], chain[o + 3], chain[o + 4], chain[o + 5], chain[o + 6], chain[o + 7],
+        chain[o + 8],
+    )  # fmt: skip
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
+    return (
+        r00 * m0 + r01 * m3 + r02 * m6, r00 * m1 + r01 * m4 + r02 * m7, r00 * m2 + r01 * m5 + r02 * m8,
+        r10 * m0 + r11 * m3 + r12 * m6, r10 * m1 + r11 * m4 + r12 * m7, r10 * m2 + r11 * m5 + r12 * m8,
+        r20 * m0 + r21 * m3 + r22 * m6, r20 * m1 + r21 * m4 + r22 * m7, r20 * m2 + r21 * m5 + r22 * m8,
+    )  # fmt: skip
 
 
 @numba.njit(cache=True)
-def _walk(q: np.ndarray, chain: np.ndarray):  # pragma: no cover (compiled)
-    """Frame rotation and origin, joint axes and origins, all in ``base_link`` (``chain``: :meth:`Chain.packed`)."""
+def _moved(r: Rot, p: Vec, chain: np.ndarray, o: int) -> Vec:  # pragma: no cover (compiled)
+    """``p + r · d`` with ``d`` stored in ``chain[o : o + 3]``."""
+    a, b, c = chain[o], chain[o + 1], chain[o + 2]
+    return (
+        p[0] + (r[0] * a + r[1] * b + r[2] * c),
+        p[1] + (r[3] * a + r[4] * b + r[5] * c),
+        p[2] + (r[6] * a + r[7] * b + r[8] * c),
+    )
+
+
+@numba.njit(cache=True)
+def _turned(t: Rot, ax: int, c: float, s: float) -> Rot:  # pragma: no cover (compiled)
+    """``t · (rotation by the angle of cosine c, sine s about local axis ax)``: only the two other columns change."""
+    t00, t01, t02, t10, t11, t12, t20, t21, t22 = t
+    if ax == 0:
+        return (
+            t00, t01 * c + t02 * s, t02 * c - t01 * s,
+            t10, t11 * c + t12 * s, t12 * c - t11 * s,
+            t20, t21 * c + t22 * s, t22 * c - t21 * s,
+        )  # fmt: skip
+    if ax == 1:
+        return (
+            t00 * c - t02 * s, t01, t02 * c + t00 * s,
+            t10 * c - t12 * s, t11, t12 * c + t10 * s,
+            t20 * c - t22 * s, t21, t22 * c + t20 * s,
+        )  # fmt: skip
+    return (
+        t00 * c + t01 * s, t01 * c - t00 * s, t02,
+        t10 * c + t11 * s, t11 * c - t10 * s, t12,
+        t20 * c + t21 * s, t21 * c - t20 * s, t22,
+    )  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _walk(q: np.ndarray, chain: np.ndarray, axes: Any, origins: Any) -> tuple[Rot, Vec]:  # pragma: no cover (compiled)
+    """The frame's rotation and origin in ``base_link`` (``chain``: :meth:`Chain.packed`).
+
+    Unless ``axes`` is None (then ``origins`` too), each joint's axis and origin (``base_link``) go to rows of
+    ``axes`` and ``origins`` (n, 3).
+    """
     n = int(chain[0])
-    r = np.eye(3)
-    t = np.empty((3, 3))
-    p = np.zeros(3)
-    axes = np.empty((n, 3))
-    origins = np.empty((n, 3))
+    r: Rot = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    p: Vec = (0.0, 0.0, 0.0)
     for j in range(n):
         o = 1 + 13 * j
-        for i in range(3):  # p += r · trans_j, then r = r · rot_j
-            p[i] += r[i, 0] * chain[o + 9] + r[i, 1] * chain[o + 10] + r[i, 2] * chain[o + 11]
-        for i in range(3):
-            for k in range(3):
-                t[i, k] = r[i, 0] * chain[o + k] + r[i, 1] * chain[o + 3 + k] + r[i, 2] * chain[o + 6 + k]
+        p = _moved(r, p, chain, o + 9)  # p += r · trans_j, then t = r · rot_j
+        t = _times(r, chain, o)
         ax = int(chain[o + 12])
-        for i in range(3):
-            axes[j, i] = t[i, ax]
-            origins[j, i] = p[i]
-        # r = t · (rotation of q_j about local axis ax): only the two other columns change
-        c, s = math.cos(q[j]), math.sin(q[j])
-        u, w = (1, 2) if ax == 0 else ((2, 0) if ax == 1 else (0, 1))
-        for i in range(3):
-            r[i, ax] = t[i, ax]
-            r[i, u] = t[i, u] * c + t[i, w] * s
-            r[i, w] = t[i, w] * c - t[i, u] * s
+        if axes is not None:
+            axes[j, 0], axes[j, 1], axes[j, 2] = t[ax], t[3 + ax], t[6 + ax]
+            origins[j, 0], origins[j, 1], origins[j, 2] = p
+        r = _turned(t, ax, math.cos(q[j]), math.sin(q[j]))
     f = 1 + 13 * n
-    rf = np.empty((3, 3))
-    pf = p.copy()
-    for i in range(3):
-        pf[i] += r[i, 0] * chain[f + 9] + r[i, 1] * chain[f + 10] + r[i, 2] * chain[f + 11]
-        for k in range(3):
-            rf[i, k] = r[i, 0] * chain[f + k] + r[i, 1] * chain[f + 3 + k] + r[i, 2] * chain[f + 6 + k]
-    return rf, pf, axes, origins
+    return _times(r, chain, f), _moved(r, p, chain, f + 9)
+
+
+@numba.njit(cache=True)
+def pose(q: np.ndarray, chain: np.ndarray) -> tuple[Rot, Vec]:  # pragma: no cover (compiled)
+    """:func:`frame_pose` as tuples (the rotation row-major), without making arrays: what the kernels call."""
+    r, p = _walk(q, chain, None, None)
+    return (-r[0], -r[1], -r[2], -r[3], -r[4], -r[5], r[6], r[7], r[8]), (-p[0], -p[1], p[2])
 
 
 @numba.njit(cache=True)
 def frame_pose(q, chain):  # pragma: no cover
     """``(R, p)`` of the frame in the UR ``base`` frame at joint angles ``q`` (rad): rotation and origin (m)."""
-    r, p, _, _ = _walk(q, chain)
-    for i in range(2):  # base_link -> base: a half turn about z
-        p[i] = -p[i]
-        for j in range(3):
-            r[i, j] = -r[i, j]
-    return r, p
+    r, p = pose(q, chain)
+    return np.array(r).reshape(3, 3), np.array(p)
+
+
+@numba.njit(cache=True)
+def jacobian_into(
+    q: np.ndarray, chain: np.ndarray, jac: np.ndarray, axes: np.ndarray, origins: np.ndarray
+) -> None:  # pragma: no cover
+    """:func:`frame_jacobian` into ``jac`` (6xn), with ``axes`` and ``origins`` (n, 3) as scratch."""
+    _, p = _walk(q, chain, axes, origins)
+    for j in range(axes.shape[0]):
+        a0, a1, a2 = axes[j, 0], axes[j, 1], axes[j, 2]
+        d0, d1, d2 = p[0] - origins[j, 0], p[1] - origins[j, 1], p[2] - origins[j, 2]
+        jac[0, j] = -(a1 * d2 - a2 * d1)
+        jac[1, j] = -(a2 * d0 - a0 * d2)
+        jac[2, j] = a0 * d1 - a1 * d0
+        jac[3, j] = -a0
+        jac[4, j] = -a1
+        jac[5, j] = a2
 
 
 @numba.njit(cache=True)
 def frame_jacobian(q, chain):  # pragma: no cover
     """6xn Jacobian at the frame origin, linear rows first, axes of the UR ``base`` frame."""
-    _, p, axes, origins = _walk(q, chain)
-    n = axes.shape[0]
+    n = int(chain[0])
     jac = np.empty((6, n))
-    for j in range(n):
-        a = axes[j]
-        d = p - origins[j]
-        jac[0, j] = -(a[1] * d[2] - a[2] * d[1])
-        jac[1, j] = -(a[2] * d[0] - a[0] * d[2])
-        jac[2, j] = a[0] * d[1] - a[1] * d[0]
-        jac[3, j] = -a[0]
-        jac[4, j] = -a[1]
-        jac[5, j] = a[2]
+    jacobian_into(q, chain, jac, np.empty((n, 3)), np.empty((n, 3)))
     return jac
 
 
 @numba.njit(cache=True)
-def log3(r: np.ndarray) -> np.ndarray:  # pragma: no cover (compiled)
-    """Rotation vector (rad) of a rotation matrix: the axis times the angle, as ``pinocchio.log3``."""
-    tr = r[0, 0] + r[1, 1] + r[2, 2]
+def _rotvec(r: Rot) -> Vec:  # pragma: no cover (compiled)
+    """:func:`log3` of a rotation given row-major as a 9-tuple."""
+    tr = r[0] + r[4] + r[8]
     cos_t = min(max(0.5 * (tr - 1.0), -1.0), 1.0)
     theta = math.acos(cos_t)
-    w = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    w0, w1, w2 = r[7] - r[5], r[2] - r[6], r[3] - r[1]
     if theta < math.pi - 1e-2:
         k = 0.5 * (theta / math.sin(theta) if theta > 1e-4 else 1.0 + theta * theta / 6.0)
-        return k * w
+        return k * w0, k * w1, k * w2
     # near a half turn w vanishes: the axis from the symmetric part, R + Rᵀ = 2 cos θ I + 2 (1 - cos θ) a aᵀ,
     # read from its largest diagonal entry, then signed so that w = 2 sin θ a
     d = 1.0 - cos_t
     i = 0
     for k in range(1, 3):
-        if r[k, k] > r[i, i]:
+        if r[4 * k] > r[4 * i]:
             i = k
-    out = np.empty(3)
-    out[i] = math.sqrt(max((r[i, i] - cos_t) / d, 0.0))
+    a_i = math.sqrt(max((r[4 * i] - cos_t) / d, 0.0))
+    a = [0.0, 0.0, 0.0]
     for k in range(3):
-        if k != i:
-            out[k] = (r[i, k] + r[k, i]) / (2.0 * d * out[i])
-    if out[0] * w[0] + out[1] * w[1] + out[2] * w[2] < 0.0:
-        out = -out
-    return theta * out
+        a[k] = a_i if k == i else (r[3 * i + k] + r[3 * k + i]) / (2.0 * d * a_i)
+    if a[0] * w0 + a[1] * w1 + a[2] * w2 < 0.0:
+        return theta * -a[0], theta * -a[1], theta * -a[2]
+    return theta * a[0], theta * a[1], theta * a[2]
 
 
 @numba.njit(cache=True)
-def solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no cover (compiled)
-    """``a⁻¹ b`` for a small square system (Gaussian elimination, partial pivoting); NaN if ``a`` is singular."""
-    n = b.shape[0]
-    m = a.copy()
-    x = b.copy()
+def log3(r: np.ndarray) -> np.ndarray:  # pragma: no cover (compiled)
+    """Rotation vector (rad) of a rotation matrix: the axis times the angle, as ``pinocchio.log3``."""
+    return np.array(_rotvec((r[0, 0], r[0, 1], r[0, 2], r[1, 0], r[1, 1], r[1, 2], r[2, 0], r[2, 1], r[2, 2])))
+
+
+@numba.njit(cache=True)
+def solve_in_place(m: np.ndarray, x: np.ndarray) -> None:  # pragma: no cover (compiled)
+    """``x <- m⁻¹ x`` for a small square system (Gaussian elimination, partial pivoting; ``m`` is overwritten).
+
+    ``x`` is all NaN if ``m`` is singular.
+    """
+    n = x.shape[0]
     for c in range(n):
         piv = c
         for r in range(c + 1, n):
@@ -189,7 +243,7 @@ def solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no cover (comp
                 piv = r
         if m[piv, c] == 0.0:
             x[:] = np.nan
-            return x
+            return
         if piv != c:
             for k in range(n):
                 m[c, k], m[piv, k] = m[piv, k], m[c, k]
@@ -204,7 +258,41 @@ def solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no cover (comp
         for k in range(c + 1, n):
             s -= m[c, k] * x[k]
         x[c] = s / m[c, c]
+
+
+@numba.njit(cache=True)
+def solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no cover (compiled)
+    """``a⁻¹ b`` for a small square system (Gaussian elimination, partial pivoting); NaN if ``a`` is singular."""
+    x = b.copy()
+    solve_in_place(a.copy(), x)
     return x
+
+
+@numba.njit(cache=True)
+def _weighted(jac: np.ndarray, i: int, k: int, stiffness: np.ndarray) -> float:  # pragma: no cover (compiled)
+    """``Σ_j J[i, j] J[k, j] / Kθ[j]``, summed in joint order."""
+    s = 0.0
+    for j in range(jac.shape[1]):
+        s += jac[i, j] * jac[k, j] / stiffness[j]
+    return s
+
+
+@numba.njit(cache=True)
+def compliance_into(
+    jac: np.ndarray, stiffness: np.ndarray, r_task: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover
+    """``R_base_taskᵀ (J_v Kθ⁻¹ J_vᵀ) R_base_task`` (3x3, m/N, task axes) into ``out``."""
+    c = (
+        _weighted(jac, 0, 0, stiffness), _weighted(jac, 0, 1, stiffness), _weighted(jac, 0, 2, stiffness),
+        _weighted(jac, 1, 0, stiffness), _weighted(jac, 1, 1, stiffness), _weighted(jac, 1, 2, stiffness),
+        _weighted(jac, 2, 0, stiffness), _weighted(jac, 2, 1, stiffness), _weighted(jac, 2, 2, stiffness),
+    )  # fmt: skip
+    for i in range(3):  # a = Rᵀ c (row i), then out = a R
+        a0 = r_task[0, i] * c[0] + r_task[1, i] * c[3] + r_task[2, i] * c[6]
+        a1 = r_task[0, i] * c[1] + r_task[1, i] * c[4] + r_task[2, i] * c[7]
+        a2 = r_task[0, i] * c[2] + r_task[1, i] * c[5] + r_task[2, i] * c[8]
+        for j in range(3):
+            out[i, j] = a0 * r_task[0, j] + a1 * r_task[1, j] + a2 * r_task[2, j]
 
 
 @numba.njit(cache=True)
@@ -212,13 +300,38 @@ def jacobian_and_compliance(q, stiffness, r_task, chain):  # pragma: no cover
     """The Jacobian at ``q`` (6xn, base axes) and ``R_base_taskᵀ (J_v Kθ⁻¹ J_vᵀ) R_base_task`` (3x3, m/N, task axes)."""
     jac = frame_jacobian(q, chain)
     c = np.empty((3, 3))
+    compliance_into(jac, stiffness, r_task, c)
+    return jac, c
+
+
+@numba.njit(cache=True)
+def ik_step_into(q, jac, rigid_task, entry_base, r_task, chain, m, x, q_out):  # pragma: no cover
+    """:func:`ik_step` into ``q_out`` (n,), with ``m`` (n, n) and ``x`` (n,) as scratch; ``rigid_task`` a 3-tuple."""
+    r, p = pose(q, chain)
     for i in range(3):
-        for k in range(3):
-            s = 0.0
-            for j in range(jac.shape[1]):
-                s += jac[i, j] * jac[k, j] / stiffness[j]
-            c[i, k] = s
-    return jac, _mm(_mm(r_task.T, c), r_task)
+        x[i] = (
+            entry_base[i]
+            + r_task[i, 0] * rigid_task[0]
+            + r_task[i, 1] * rigid_task[1]
+            + r_task[i, 2] * rigid_task[2]
+            - p[i]
+        )
+    e = (  # R_base_task · Rᵀ
+        r_task[0, 0] * r[0] + r_task[0, 1] * r[1] + r_task[0, 2] * r[2],
+        r_task[0, 0] * r[3] + r_task[0, 1] * r[4] + r_task[0, 2] * r[5],
+        r_task[0, 0] * r[6] + r_task[0, 1] * r[7] + r_task[0, 2] * r[8],
+        r_task[1, 0] * r[0] + r_task[1, 1] * r[1] + r_task[1, 2] * r[2],
+        r_task[1, 0] * r[3] + r_task[1, 1] * r[4] + r_task[1, 2] * r[5],
+        r_task[1, 0] * r[6] + r_task[1, 1] * r[7] + r_task[1, 2] * r[8],
+        r_task[2, 0] * r[0] + r_task[2, 1] * r[1] + r_task[2, 2] * r[2],
+        r_task[2, 0] * r[3] + r_task[2, 1] * r[4] + r_task[2, 2] * r[5],
+        r_task[2, 0] * r[6] + r_task[2, 1] * r[7] + r_task[2, 2] * r[8],
+    )
+    x[3], x[4], x[5] = _rotvec(e)
+    m[:, :] = jac
+    solve_in_place(m, x)
+    for j in range(q.shape[0]):
+        q_out[j] = q[j] + x[j]
 
 
 @numba.njit(cache=True)
@@ -228,18 +341,38 @@ def ik_step(q, jac, rigid_task, entry_base, r_task, chain):  # pragma: no cover
     The target puts the frame at ``entry_base + R_base_task · rigid_task`` (m, base frame) with the
     rotation ``R_base_task``.
     """
-    r, p = frame_pose(q, chain)
-    err = np.empty(6)
-    for i in range(3):
-        err[i] = (
-            entry_base[i]
-            + r_task[i, 0] * rigid_task[0]
-            + r_task[i, 1] * rigid_task[1]
-            + r_task[i, 2] * rigid_task[2]
-            - p[i]
-        )
-    err[3:] = log3(_mm(r_task, r.T))
-    return q + solve(jac, err)
+    n = q.shape[0]
+    out = np.empty(n)
+    rigid = (rigid_task[0], rigid_task[1], rigid_task[2])
+    ik_step_into(q, jac, rigid, entry_base, r_task, chain, np.empty((n, n)), np.empty(n), out)
+    return out
+
+
+@numba.njit(cache=True)
+def _twist(
+    jac: np.ndarray, force_task: Vec, torque_axis: float, r_task: np.ndarray, stiffness: np.ndarray, j: int
+) -> float:  # pragma: no cover
+    """Joint ``j``'s ``(Jᵀ W)_j / Kθ_j`` (rad) for :func:`joint_deflection`'s wrench ``W``."""
+    f0, f1, f2 = force_task
+    w = (
+        r_task[0, 0] * f0 + r_task[0, 1] * f1 + r_task[0, 2] * f2,
+        r_task[1, 0] * f0 + r_task[1, 1] * f1 + r_task[1, 2] * f2,
+        r_task[2, 0] * f0 + r_task[2, 1] * f1 + r_task[2, 2] * f2,
+        r_task[0, 2] * torque_axis,
+        r_task[1, 2] * torque_axis,
+        r_task[2, 2] * torque_axis,
+    )
+    s = 0.0
+    for i in range(6):
+        s += jac[i, j] * w[i]
+    return s / stiffness[j]
+
+
+@numba.njit(cache=True)
+def deflected_into(q, jac, force_task, torque_axis, r_task, stiffness, out):  # pragma: no cover
+    """``q + δq`` (rad) into ``out``, ``δq`` :func:`joint_deflection`'s (``force_task`` a 3-tuple)."""
+    for j in range(jac.shape[1]):
+        out[j] = q[j] + _twist(jac, force_task, torque_axis, r_task, stiffness, j)
 
 
 @numba.njit(cache=True)
@@ -249,14 +382,8 @@ def joint_deflection(jac, force_task, torque_axis, r_task, stiffness):  # pragma
     ``W`` is the force ``force_task`` (N) and the torque ``torque_axis`` (N·m) about the drill axis, both
     given in task axes and turned to base axes by ``r_task``; ``jac`` is the TCP Jacobian (6xn, base axes).
     """
-    w = np.empty(6)
-    for i in range(3):
-        w[i] = r_task[i, 0] * force_task[0] + r_task[i, 1] * force_task[1] + r_task[i, 2] * force_task[2]
-        w[3 + i] = r_task[i, 2] * torque_axis
     dq = np.empty(jac.shape[1])
+    force = (force_task[0], force_task[1], force_task[2])
     for j in range(jac.shape[1]):
-        s = 0.0
-        for i in range(6):
-            s += jac[i, j] * w[i]
-        dq[j] = s / stiffness[j]
+        dq[j] = _twist(jac, force, torque_axis, r_task, stiffness, j)
     return dq
