@@ -53,6 +53,7 @@ from drillgym.envs.effects.registry import build_effects, runs_compiled
 from drillgym.envs.episode_state import new_params, new_state
 from drillgym.envs.errors import UserError
 from drillgym.envs.metrics import episode_metrics
+from drillgym.envs.noise_ahead import NormalsAhead
 from drillgym.envs.observation import observation_space
 from drillgym.envs.reward import checked_action
 from drillgym.envs.sample_record import OUT_COLUMNS, record_channels
@@ -62,7 +63,7 @@ from drillgym.envs.task import Phase
 from drillgym.envs.views import observation_from_state, privileged_info
 
 NOISE_BLOCK = 64 * NOISE_SIZE
-"""Standard normals drawn at once into an episode's noise buffer (64 steps' worth at most)."""
+"""Standard normals per episode drawn ahead (:class:`~drillgym.envs.noise_ahead.NormalsAhead`): 64 steps' worth."""
 
 
 class BatchedDrillEnv(VectorEnv):
@@ -142,8 +143,8 @@ class BatchedDrillEnv(VectorEnv):
         )
         self.state, self.params = self.arrays.state, self.arrays.params
         self.command = np.zeros((n, 4))
-        self.noise = np.zeros((n, NOISE_BLOCK))
-        self._noise_from: list[Mapping[str, Any] | None] = [None] * n
+        self.normals = NormalsAhead(n, NOISE_BLOCK)
+        """Each episode's sensor noise drawn ahead from its generator (the compiled step's ``noise``)."""
         self.record = np.zeros((n, _record_rows(first.max_time_s), OUT_COLUMNS))
         self.recorded = np.zeros(n, dtype=np.int64)
         self.prev_action = np.zeros((n, ACTION_DIM))
@@ -179,36 +180,14 @@ class BatchedDrillEnv(VectorEnv):
         self.prev_action[i] = 0.0
         self.peak_lateral_n[i] = 0.0
         self.active[i] = True
-        self._noise_from[i] = None  # the generator was (re)seeded or is in step: nothing drawn ahead
-        self.state["noise_at"][i] = self.noise.shape[1]  # empty: the first step fills it
+        self.normals.restart(i, self.state["noise_at"])  # the generator was (re)seeded or is in step
 
-    def _fill_noise(self, i: int) -> None:
-        """Refill episode ``i``'s noise buffer from its generator (if it reads any), continuing its stream.
-
-        The generator is drawn ahead by a block; its state before the block is kept so that
-        :meth:`_sync_generator` can put it where the normals read so far leave it.
-        """
-        if not is_noisy(self.params[i]):
-            return
-        rng = self.envs[i].np_random
-        self._sync_generator(i)
-        self._noise_from[i] = rng.bit_generator.state
-        rng.standard_normal(out=self.noise[i])
-        self.state["noise_at"][i] = 0
-
-    def _sync_generator(self, i: int) -> None:
-        """Put episode ``i``'s generator where the single env's would be: past the normals the episode has read.
-
-        NumPy's normals are the same however a stream is cut into draws, so redrawing the read ones from the state
-        before the block lands on the state the single env's step-by-step draws reach.
-        """
-        start = self._noise_from[i]
-        if start is None:
-            return
-        rng = self.envs[i].np_random
-        rng.bit_generator.state = start
-        rng.standard_normal(int(self.state["noise_at"][i]))
-        self._noise_from[i] = None
+    def _draw_ahead(self, running: np.ndarray) -> None:
+        """Refill the normals of the running episodes that may read past their row in this step."""
+        noise_at = self.state["noise_at"]
+        for i in np.flatnonzero(running & (noise_at > self.normals.size - NOISE_SIZE)).tolist():
+            if is_noisy(self.params[i]):
+                self.normals.refill(i, self.envs[i].np_random, noise_at)
 
     def _fit(self, name: str, shape: tuple[int, ...]) -> None:
         """Grow array ``name`` (zero-padded, contents kept) so that each episode's row holds ``shape``."""
@@ -301,14 +280,15 @@ class BatchedDrillEnv(VectorEnv):
         a = checked_action(actions, "state unchanged", self.num_envs)
         self.command[:] = scaled_rows(a)  # the single env's feed scale, bit for bit
         st, running = self.state, self.active.copy()
-        for i in np.flatnonzero(running & (st["noise_at"] > self.noise.shape[1] - NOISE_SIZE)).tolist():
-            self._fill_noise(i)
+        self._draw_ahead(running)
         t0 = time.perf_counter()
         if self.threads > 1:
             numba.set_num_threads(self.threads)  # this thread's setting, for its next parallel call
-            sk.advance_batch_threaded(*self.arrays, self.command, self.noise, self.record, self.recorded, running)
+            sk.advance_batch_threaded(
+                *self.arrays, self.command, self.normals.rows, self.record, self.recorded, running
+            )
         else:
-            sk.advance_batch(*self.arrays, self.command, self.noise, self.record, self.recorded, running)
+            sk.advance_batch(*self.arrays, self.command, self.normals.rows, self.record, self.recorded, running)
         self.kernel_s += time.perf_counter() - t0
         if st["singular"].any():
             i = int(np.argmax(st["singular"]))
@@ -339,8 +319,8 @@ class BatchedDrillEnv(VectorEnv):
             infos["_final_obs"] = terminated | truncated
             infos["final_info"] = final_info
             infos["_final_info"] = terminated | truncated
-            for i in ended.tolist():
-                self._sync_generator(i)
+            for i in ended.tolist():  # each generator where the single env's step-by-step draws leave it
+                self.normals.sync(i, self.envs[i].np_random, st["noise_at"])
             if not self.autoreset:
                 self.active[ended] = False
                 return obs, reward, terminated, truncated, infos

@@ -46,7 +46,9 @@ def compile_kernels() -> float:
     batch.reset(seed=0)
     batch.step(np.zeros((2, 4), dtype=np.float32))
     # the threaded step too, whatever the CPUs (BatchedDrillEnv(threads=...) calls it)
-    sk.advance_batch_threaded(*batch.arrays, batch.command, batch.noise, batch.record, batch.recorded, batch.active)
+    sk.advance_batch_threaded(
+        *batch.arrays, batch.command, batch.normals.rows, batch.record, batch.recorded, batch.active
+    )
     batch.close()
     return time.perf_counter() - t0
 

@@ -198,7 +198,7 @@ def test_each_episode_reads_its_generators_stream_and_leaves_the_generator_where
     try:
         batch.reset(seed=[11, 12])
         single.reset(seed=12)
-        assert batch.state["noise_at"].tolist() == [batch.noise.shape[1]] * 2  # nothing drawn before a step
+        assert batch.state["noise_at"].tolist() == [batch.normals.size] * 2  # nothing drawn before a step
         actions = _actions(4, 2000, 2)
         for step in range(2000):
             *_, terminated, truncated, _ = batch.step(actions[step])
