@@ -18,6 +18,7 @@ from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numba
 import numpy as np
 
 from drillgym.controllers.base import Controller
@@ -112,11 +113,8 @@ class SlowEntry(Controller):
     def act_batch(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """:meth:`act` of every episode (the base's :meth:`act_batch`; the same numbers as one episode's)."""
         actions = np.array(self.base.act_batch(obs), dtype=np.float32)
-        depth = obs["path_depth_m"][:, 0].astype(float)
         entry_m, entry_offset = self._entry
-        offset = np.where(depth < entry_m, entry_offset, 0.0)
-        # float32 + a float32 offset: the rounding of float32 + a Python float (one episode's)
-        actions[:, 3] = np.clip(actions[:, 3] + offset.astype(np.float32), -1.0, 1.0)
+        _add_entry_feed(actions, obs["path_depth_m"][:, 0], np.atleast_1d(entry_m), np.atleast_1d(entry_offset))
         return actions
 
     def describe(self) -> dict[str, Any]:
@@ -124,3 +122,22 @@ class SlowEntry(Controller):
         desc = self.base.describe()
         desc["config"] = {**desc["config"], **{k: getattr(self.schedule, k) for k in SCHEDULE_FIELDS}}
         return desc
+
+
+@numba.njit(cache=True)
+def _add_entry_feed(
+    actions: np.ndarray, depth_m: np.ndarray, entry_m: np.ndarray, offset: np.ndarray
+) -> None:  # pragma: no cover
+    """Add each episode's entry offset to its feed action (float32), clipped to [-1, 1], in place.
+
+    ``actions`` (N, 4) float32; ``depth_m`` (N,) the nominal depths; ``entry_m`` and ``offset`` (1,) shared or (N,):
+    the entry's depth (m) and feed offset. The offset is rounded to float32 and added in float32, as numpy's
+    ``actions[:, 3] + np.where(depth < entry_m, offset, 0.0).astype(np.float32)`` does (and one episode's float32
+    plus a Python float), then clipped as ``np.clip`` clips.
+    """
+    shared = entry_m.shape[0] == 1
+    for i in range(actions.shape[0]):
+        k = 0 if shared else i
+        add = np.float32(offset[k] if np.float64(depth_m[i]) < entry_m[k] else 0.0)
+        v = actions[i, 3] + add
+        actions[i, 3] = -1.0 if v < -1.0 else (1.0 if v > 1.0 else v)

@@ -28,7 +28,8 @@ from typing import Any, cast
 import numpy as np
 
 from drillgym.controllers.base import Controller
-from drillgym.controllers.batch import matvec, unscale_actions, window_mean
+from drillgym.controllers.batch import matvec, window_mean
+from drillgym.controllers.li2023_step import actions_into
 from drillgym.controllers.models import (
     LI2023_MODEL_PEAK_N,
     OfflineForceModel,
@@ -129,10 +130,11 @@ class Li2023Controller(Controller):
         """Each episode's robot compliance model."""
         self.C_tool: np.ndarray = tool_compliance_m_n(plan, self.config.tool_effective_diameter_ratio)
         """Drill compliance at the tip (m/N, task axes): (3, 3) shared, or (N, 3, 3) per episode once stacked."""
-        self.offline_model: OfflineForceModel | StackedOfflineModels = OfflineForceModel.for_plan(
-            plan, self.config.model_peak_force_n
-        )
+        model = OfflineForceModel.for_plan(plan, self.config.model_peak_force_n)
+        self.offline_model: OfflineForceModel | StackedOfflineModels = model
         """The offline force model: the plan's, or one per episode once stacked (read in one call)."""
+        self._model_rows = StackedOfflineModels([model] * num_episodes)
+        """The offline model of each episode in the form the compiled step reads (one table, shared)."""
         self.R: np.ndarray = plan.R_base_task
         """Rotation task -> base: (3, 3) shared, or (N, 3, 3) per episode once stacked."""
         self.lateral: np.ndarray = lateral_projector(self.R, self.config.axes)
@@ -181,7 +183,7 @@ class Li2023Controller(Controller):
         out.robots = [c.robots[0] for c in parts]
         out.C_tool = np.stack([np.broadcast_to(c.C_tool, (3, 3)) for c in parts])
         models = [cast(OfflineForceModel, c.offline_model) for c in parts]  # one episode each: the plan's model
-        out.offline_model = StackedOfflineModels(models)
+        out.offline_model = out._model_rows = StackedOfflineModels(models)
         out.R = np.stack([c.R for c in parts])
         out.lateral = np.stack([c.lateral for c in parts])
         kp, ki, kd = (np.array([getattr(c.config, name) for c in parts])[:, None] for name in ("kp", "ki", "kd"))
@@ -249,16 +251,28 @@ class Li2023Controller(Controller):
         if cfg.online and self.step % self.steps_per_point == 0:
             self._compensation_point(obs, t)
         online = self._online_at(t + CONTROL_DT_S) if cfg.online else np.zeros((n, 3))
-        offline = self.offline_correction_base_m(obs["path_depth_m"][:, 0]) if cfg.offline else np.zeros((n, 3))
         self.step += 1
-        total = offline + online
-        if self._y_any:
-            y_base = self.R[..., :, 1]  # (3,) shared or (N, 3)
-            along = total[:, 0] * y_base[..., 0] + total[:, 1] * y_base[..., 1] + total[:, 2] * y_base[..., 2]
-            adjusted = total + ((self.y_gain - 1.0) * along)[:, None] * y_base
-            total = adjusted if self._y_all else np.where((self.y_gain != 1.0)[:, None], adjusted, total)
-        total = np.minimum(np.maximum(total, -cfg.max_correction_m), cfg.max_correction_m)  # np.clip's numbers
-        return unscale_actions(total)
+        model = self._model_rows
+        actions = np.empty((n, 4), dtype=np.float32)
+        actions_into(
+            obs["path_depth_m"][:, 0].astype(float),
+            cfg.offline,
+            model.depth_m,
+            model.lateral_task_n,
+            model.sizes,
+            model.model_of,
+            _rows(self.lateral),
+            _rows(self.R),
+            _rows(self.C_tool),
+            np.broadcast_to(online, (n, 3)),
+            self.y_gain,
+            self._y_any,
+            self._y_all,
+            cfg.max_correction_m,
+            np.empty((n, 3)),
+            actions,
+        )  # offline + online, the y gain, the clips and the action, as the numpy expressions give them
+        return actions
 
     def _compensation_point(self, obs: dict[str, np.ndarray], t: float) -> None:
         cfg = self.config
@@ -285,3 +299,8 @@ class Li2023Controller(Controller):
         if t <= t_start:
             return c0
         return c0 + (c1 - c0) * (t - t_start) / (t1 - t_start)
+
+
+def _rows(m: np.ndarray) -> np.ndarray:
+    """A matrix shared by the batch (3, 3) as (1, 3, 3); one per episode (N, 3, 3) as it is."""
+    return m[None] if m.ndim == 2 else m

@@ -120,3 +120,23 @@ def test_a_cmrr_capped_at_the_nominal_feed_only_ever_slows():
     for _ in range(40):
         capped_scale = _feed_scale(capped, high_thrust)
     assert capped_scale < 1.0
+
+
+@pytest.mark.parametrize("per_episode", [False, True])
+def test_compiled_entry_feed_is_the_numpy_expression_bit_for_bit(per_episode):
+    from drillgym.controllers.feed_schedule import _add_entry_feed
+
+    rng = np.random.default_rng(3)
+    n = 200
+    actions = rng.uniform(-1.2, 1.2, (n, 4)).astype(np.float32)
+    actions[:3, 3] = [1.0, -1.0, 0.0]
+    depth = rng.uniform(-1e-3, 3e-3, n).astype(np.float32)
+    entry_m = rng.uniform(0.0, 2e-3, n) if per_episode else np.array([1.5e-3])
+    offset = rng.uniform(-1.0, 0.0, n) if per_episode else np.array([-0.35])
+    want = actions.copy()
+    where = np.where(depth.astype(float) < entry_m, offset, 0.0)
+    want[:, 3] = np.clip(want[:, 3] + where.astype(np.float32), -1.0, 1.0)
+    got = actions.copy()
+    _add_entry_feed(got, depth, entry_m, offset)
+    assert got.dtype == np.float32
+    assert np.array_equal(got, want)
