@@ -75,8 +75,8 @@ class SlowEntry(Controller):
         self.schedule = schedule
         self.config = base.config
         self.batchable = base.batchable
-        self._entry: tuple[Any, Any] = (schedule.entry_depth_mm * 1e-3, schedule.feed_action_offset(-math.inf))
-        """The entry's depth (m) and feed offset: floats, or one per episode once stacked ((N,) arrays)."""
+        self._entry = (np.array([schedule.entry_depth_mm * 1e-3]), np.array([schedule.feed_action_offset(-math.inf)]))
+        """The entry's depth (m) and feed offset: (1,) arrays, or one per episode once stacked ((N,) arrays)."""
 
     def stack_key(self) -> Hashable | None:
         """The base's key: slow entries of stackable bases stack, each with its own schedule."""
@@ -91,7 +91,7 @@ class SlowEntry(Controller):
             raise UserError("only slow entries stack with slow entries")
         bases = [c.base.stack_part() for c in parts]
         out = cls(type(bases[0]).stack(bases), parts[0].schedule)
-        out._entry = (np.array([c._entry[0] for c in parts]), np.array([c._entry[1] for c in parts]))
+        out._entry = (np.concatenate([c._entry[0] for c in parts]), np.concatenate([c._entry[1] for c in parts]))
         out.plan, out.num_episodes = parts[0].plan, len(parts)
         return out
 
@@ -114,7 +114,7 @@ class SlowEntry(Controller):
         """:meth:`act` of every episode (the base's :meth:`act_batch`; the same numbers as one episode's)."""
         actions = np.array(self.base.act_batch(obs), dtype=np.float32)
         entry_m, entry_offset = self._entry
-        _add_entry_feed(actions, obs["path_depth_m"][:, 0], np.atleast_1d(entry_m), np.atleast_1d(entry_offset))
+        _add_entry_feed(actions, obs["path_depth_m"][:, 0], entry_m, entry_offset)
         return actions
 
     def describe(self) -> dict[str, Any]:

@@ -264,7 +264,7 @@ class Li2023Controller(Controller):
             _rows(self.lateral),
             _rows(self.R),
             _rows(self.C_tool),
-            np.broadcast_to(online, (n, 3)),
+            online,
             self.y_gain,
             self._y_any,
             self._y_all,

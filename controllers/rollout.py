@@ -193,12 +193,13 @@ def run_batch(
     slots, batched, alone = _stepping(policies, [env.plan for env in batch.envs])
     states: list[Any] = [None] * n
     start = np.ones(n, dtype=bool)
-    rewards: list[list[float]] = [[] for _ in range(n)]
+    rewards: list[np.ndarray] = []  # each step's rewards of every slot (0 for the slots not running)
     results: list[EpisodeResult | None] = [None] * n
     actions = np.zeros((n, ACTION_DIM), dtype=np.float32)
     step = 0
     while batch.active.any():
-        running = np.flatnonzero(batch.active).tolist()
+        running_mask = batch.active.copy()
+        running = np.flatnonzero(running_mask).tolist()
         for idx, policy in batched:  # the ended episodes' rows too (their last observation): not sent, not stepped
             actions[idx] = policy.act_batch(obs if len(idx) == n else {k: v[idx] for k, v in obs.items()})
         for i in (i for i in alone if batch.active[i]):
@@ -207,25 +208,26 @@ def run_batch(
                 one, state=states[i], episode_start=np.array([start[i]]), deterministic=True
             )
         obs, reward, terminated, truncated, _ = batch.step(actions)
+        ended = terminated | truncated
         if on_step is not None:
-            on_step(batch, step, actions, obs, running, terminated | truncated)
+            on_step(batch, step, actions, obs, running, ended)
         step += 1
-        for i in running:
-            rewards[i].append(float(reward[i]))
-            start[i] = False
-            if terminated[i] or truncated[i]:
-                info = batch.final_info(i)  # the slot stays as it ended (autoreset off)
-                failure = info["failure"] or ("truncated" if truncated[i] and not terminated[i] else "")
-                results[i] = EpisodeResult(
-                    int(seeds[i]),
-                    {k: float(v) for k, v in info["metrics"].items()},
-                    {},
-                    len(rewards[i]),
-                    float(info["t_s"]),
-                    str(failure),
-                    info,
-                    np.asarray(rewards[i]),
-                )
+        rewards.append(reward)
+        start[running_mask] = False
+        for i in np.flatnonzero(ended & running_mask).tolist():
+            info = batch.final_info(i)  # the slot stays as it ended (autoreset off)
+            failure = info["failure"] or ("truncated" if truncated[i] and not terminated[i] else "")
+            own = np.array([row[i] for row in rewards])  # every slot started at the first step
+            results[i] = EpisodeResult(
+                int(seeds[i]),
+                {k: float(v) for k, v in info["metrics"].items()},
+                {},
+                len(own),
+                float(info["t_s"]),
+                str(failure),
+                info,
+                own,
+            )
     assert all(r is not None for r in results)
     return results  # type: ignore[return-value]
 

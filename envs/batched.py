@@ -55,7 +55,7 @@ from drillgym.envs.errors import UserError
 from drillgym.envs.metrics import episode_metrics
 from drillgym.envs.noise_ahead import NormalsAhead
 from drillgym.envs.observation import observation_space
-from drillgym.envs.reward import checked_action
+from drillgym.envs.reward import TERM_NAMES, batch_rewards_into, checked_action
 from drillgym.envs.sample_record import OUT_COLUMNS, record_channels
 from drillgym.envs.scenario import Scenario
 from drillgym.envs.step_noise import NOISE_SIZE, is_noisy
@@ -122,6 +122,8 @@ class BatchedDrillEnv(VectorEnv):
         self.scenario = first.scenario
         """The scenario given at construction (each slot's own, after a reset that changes it: :meth:`scenario_of`)."""
         self.reward_weights = first.reward
+        w = self.reward_weights
+        self._weights = np.array([w.deviation, w.force, w.smooth, w.peak_force])
         self.single_observation_space = observation_space()
         self.single_action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
@@ -293,11 +295,13 @@ class BatchedDrillEnv(VectorEnv):
         if st["singular"].any():
             i = int(np.argmax(st["singular"]))
             raise np.linalg.LinAlgError(f"episode {i}: singular TCP Jacobian at q = {st['q_motor_rad'][i]}")
-        lateral = st["step_lateral_n"]
-        terms = self.reward_weights.terms(st["step_deviation_m"], lateral, a, self.prev_action, self.peak_lateral_n)
-        np.maximum(self.peak_lateral_n, lateral, out=self.peak_lateral_n)
+        rows, reward = np.empty((4, self.num_envs)), np.empty(self.num_envs)
+        batch_rewards_into(
+            self._weights, st["step_deviation_m"], st["step_lateral_n"], a, self.prev_action, self.peak_lateral_n,
+            running, rows, reward,
+        )  # fmt: skip
+        terms = dict(zip(TERM_NAMES, rows, strict=True))
         self.prev_action = a
-        reward = np.where(running, terms["deviation"] + terms["force"] + terms["smooth"] + terms["peak_force"], 0.0)
         terminated = st["terminated"] & running
         truncated = st["truncated"] & running
         if self.max_episode_steps < MAX_EPISODE_STEPS:

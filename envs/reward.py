@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numba
 import numpy as np
 
 from drillgym.envs.constants import ACTION_DIM
@@ -67,6 +68,50 @@ class RewardWeights:
             "smooth": -self.smooth * change,
             "peak_force": -self.peak_force * rise,
         }
+
+
+@numba.njit(cache=True)
+def batch_rewards_into(
+    weights: np.ndarray,
+    deviation_m: np.ndarray,
+    lateral_force_n: np.ndarray,
+    action: np.ndarray,
+    prev_action: np.ndarray,
+    peak_n: np.ndarray,
+    running: np.ndarray,
+    terms: np.ndarray,
+    reward: np.ndarray,
+) -> None:  # pragma: no cover (compiled)
+    """:meth:`RewardWeights.terms` of a batch and the reward, in one call, with numpy's arithmetic term for term.
+
+    ``weights``: the four weights (deviation, force, smooth, peak force); the step's ``deviation_m`` and
+    ``lateral_force_n`` (N,); ``action`` and ``prev_action`` (N, 4); ``peak_n`` (N,) the running peaks before the
+    step, raised to the step's lateral force in place; ``running`` (N,) which episodes stepped. Writes ``terms``
+    (4, N) and ``reward`` (N,): the four terms' sum in their order for a running episode, 0 for the others.
+    """
+    w_dev, w_force, w_smooth, w_peak = -weights[0], -weights[1], -weights[2], -weights[3]
+    for i in range(action.shape[0]):
+        d0 = action[i, 0] - prev_action[i, 0]
+        d1 = action[i, 1] - prev_action[i, 1]
+        d2 = action[i, 2] - prev_action[i, 2]
+        d3 = action[i, 3] - prev_action[i, 3]
+        change = d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3  # np.add.reduce over the row, in order
+        lateral, peak = lateral_force_n[i], peak_n[i]
+        rise = lateral - peak
+        if not (rise >= 0.0 or rise != rise):  # np.maximum(rise, 0.0)
+            rise = 0.0
+        t0 = w_dev * deviation_m[i] * 1e3
+        t1 = w_force * lateral
+        t2 = w_smooth * change
+        t3 = w_peak * rise
+        terms[0, i], terms[1, i], terms[2, i], terms[3, i] = t0, t1, t2, t3
+        reward[i] = t0 + t1 + t2 + t3 if running[i] else 0.0
+        if not (peak >= lateral or peak != peak):  # np.maximum(peak, lateral)
+            peak_n[i] = lateral
+
+
+TERM_NAMES = ("deviation", "force", "smooth", "peak_force")
+"""The reward terms, in :meth:`RewardWeights.terms`'s order (the rows of :func:`batch_rewards_into`'s ``terms``)."""
 
 
 def checked_action(action: np.ndarray, consequence: str, num_envs: int | None = None) -> np.ndarray:

@@ -121,3 +121,27 @@ def test_a_batch_of_actions_is_checked_per_episode_and_names_the_bad_ones():
         ValueError, match=r"contains NaN or inf in episodes \[0, 2\]; rejected \(env state unchanged\)$"
     ):
         checked_action(bad, "env state unchanged", num_envs=3)
+
+
+def test_the_compiled_batch_rewards_are_the_terms_and_their_sum_bit_for_bit():
+    """``batch_rewards_into`` (the batched env's step) against :meth:`RewardWeights.terms` on arrays and numpy's sum."""
+    from drillgym.envs.reward import TERM_NAMES, batch_rewards_into
+
+    rng = np.random.default_rng(0)
+    w = RewardWeights(deviation=1.3, force=0.1, smooth=0.07, peak_force=2.5)
+    n = 500
+    dev, lateral, peak = rng.uniform(0, 1e-3, n), rng.uniform(0, 3, n), rng.uniform(0, 3, n)
+    peak[:5] = lateral[:5]  # ties
+    lateral[5] = math.nan
+    action, prev = rng.uniform(-1, 1, (n, 4)), rng.uniform(-1, 1, (n, 4))
+    running = rng.random(n) < 0.8
+    want = w.terms(dev, lateral, action, prev, peak)
+    want_reward = np.where(running, want["deviation"] + want["force"] + want["smooth"] + want["peak_force"], 0.0)
+    want_peak = np.maximum(peak, lateral)
+    terms, reward, got_peak = np.empty((4, n)), np.empty(n), peak.copy()
+    weights = np.array([w.deviation, w.force, w.smooth, w.peak_force])
+    batch_rewards_into(weights, dev, lateral, action, prev, got_peak, running, terms, reward)
+    for k, name in enumerate(TERM_NAMES):
+        assert np.array_equal(terms[k], want[name], equal_nan=True), name
+    assert np.array_equal(reward, want_reward, equal_nan=True)
+    assert np.array_equal(got_peak, want_peak, equal_nan=True)
