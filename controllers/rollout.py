@@ -199,7 +199,7 @@ def run_batch(
     step = 0
     while batch.active.any():
         running_mask = batch.active.copy()
-        running = np.flatnonzero(running_mask).tolist()
+        running = running_mask.nonzero()[0].tolist()
         for idx, policy in batched:  # the ended episodes' rows too (their last observation): not sent, not stepped
             actions[idx] = policy.act_batch(obs if len(idx) == n else {k: v[idx] for k, v in obs.items()})
         for i in (i for i in alone if batch.active[i]):
@@ -214,7 +214,7 @@ def run_batch(
         step += 1
         rewards.append(reward)
         start[running_mask] = False
-        for i in np.flatnonzero(ended & running_mask).tolist():
+        for i in (ended & running_mask).nonzero()[0].tolist():
             info = batch.final_info(i)  # the slot stays as it ended (autoreset off)
             failure = info["failure"] or ("truncated" if truncated[i] and not terminated[i] else "")
             own = np.array([row[i] for row in rewards])  # every slot started at the first step

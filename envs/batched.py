@@ -187,7 +187,7 @@ class BatchedDrillEnv(VectorEnv):
     def _draw_ahead(self, running: np.ndarray) -> None:
         """Refill the normals of the running episodes that may read past their row in this step."""
         noise_at = self.state["noise_at"]
-        for i in np.flatnonzero(running & (noise_at > self.normals.size - NOISE_SIZE)).tolist():
+        for i in (running & (noise_at > self.normals.size - NOISE_SIZE)).nonzero()[0].tolist():
             if is_noisy(self.params[i]):
                 self.normals.refill(i, self.envs[i].np_random, noise_at)
 
@@ -314,7 +314,7 @@ class BatchedDrillEnv(VectorEnv):
             "reward_terms": terms,
         }
         obs = self._observation()
-        ended = np.flatnonzero(terminated | truncated)
+        ended = (terminated | truncated).nonzero()[0]
         if ended.size:
             final_info: dict[str, Any] = {}
             for i in ended.tolist():
