@@ -1,7 +1,8 @@
 """Compile the controllers' numba kernels ahead of use, into numba's on-disk cache.
 
-:func:`drillgym.controllers.batch.matvec` and the stacked offline models' interpolation
-(:mod:`drillgym.controllers.stacked_models`) are compiled on first call and cached beside its source (or in
+:func:`drillgym.controllers.batch.matvec`, the stacked offline models' interpolation
+(:mod:`drillgym.controllers.stacked_models`), li2023's step (:mod:`drillgym.controllers.li2023_step`) and the slow
+entry's feed offset are compiled on first call and cached beside its source (or in
 ``NUMBA_CACHE_DIR``); ``make install`` runs this module once, after :mod:`drillgym.envs.compiled`, so that a
 controller streaming to a robot does not stall on its first action.
 
@@ -15,6 +16,8 @@ import time
 import numpy as np
 
 from drillgym.controllers.batch import matvec
+from drillgym.controllers.feed_schedule import add_entry_feed
+from drillgym.controllers.li2023_step import actions_into
 from drillgym.controllers.models import OfflineForceModel
 from drillgym.controllers.stacked_models import StackedOfflineModels
 
@@ -27,7 +30,18 @@ def compile_kernels() -> float:
     matvec(np.zeros((2, 3, 3)), x)  # one per episode
     matvec(np.eye(3), np.zeros((2, 6))[:, :3])  # a strided view
     model = OfflineForceModel(np.linspace(0.0, 1.0, 4), np.zeros((4, 2)))  # stacked offline models, two episodes
-    StackedOfflineModels([model, model]).lateral_into(np.zeros(2), np.zeros((2, 3)))
+    stacked = StackedOfflineModels([model, model])
+    stacked.lateral_into(np.zeros(2), np.zeros((2, 3)))
+    eye = np.eye(3)[None]  # li2023's step: matrices shared (1, 3, 3) and per episode (2, 3, 3)
+    for m in (eye, np.repeat(eye, 2, axis=0)):
+        actions_into(
+            np.zeros(2), True, stacked.depth_m, stacked.lateral_task_n, stacked.sizes, stacked.model_of, m, m, m,
+            np.zeros((2, 3)), np.ones(1), False, False, 1e-3, np.zeros((2, 3)), np.zeros((2, 4), dtype=np.float32),
+        )  # fmt: skip
+    actions = np.zeros((2, 4), dtype=np.float32)  # the slow entry's feed offset, on an observation's column
+    depth = np.zeros((2, 33), dtype=np.float32)[:, 25]
+    add_entry_feed(actions, depth, np.zeros(1), np.zeros(1))
+    add_entry_feed(actions, depth, np.zeros(2), np.zeros(2))
     return time.perf_counter() - t0
 
 

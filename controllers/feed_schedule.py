@@ -114,7 +114,7 @@ class SlowEntry(Controller):
         """:meth:`act` of every episode (the base's :meth:`act_batch`; the same numbers as one episode's)."""
         actions = np.array(self.base.act_batch(obs), dtype=np.float32)
         entry_m, entry_offset = self._entry
-        _add_entry_feed(actions, obs["path_depth_m"][:, 0], entry_m, entry_offset)
+        add_entry_feed(actions, obs["path_depth_m"][:, 0], entry_m, entry_offset)
         return actions
 
     def describe(self) -> dict[str, Any]:
@@ -125,7 +125,7 @@ class SlowEntry(Controller):
 
 
 @numba.njit(cache=True)
-def _add_entry_feed(
+def add_entry_feed(
     actions: np.ndarray, depth_m: np.ndarray, entry_m: np.ndarray, offset: np.ndarray
 ) -> None:  # pragma: no cover
     """Add each episode's entry offset to its feed action (float32), clipped to [-1, 1], in place.

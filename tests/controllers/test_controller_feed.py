@@ -124,7 +124,7 @@ def test_a_cmrr_capped_at_the_nominal_feed_only_ever_slows():
 
 @pytest.mark.parametrize("per_episode", [False, True])
 def test_compiled_entry_feed_is_the_numpy_expression_bit_for_bit(per_episode):
-    from drillgym.controllers.feed_schedule import _add_entry_feed
+    from drillgym.controllers.feed_schedule import add_entry_feed
 
     rng = np.random.default_rng(3)
     n = 200
@@ -137,6 +137,6 @@ def test_compiled_entry_feed_is_the_numpy_expression_bit_for_bit(per_episode):
     where = np.where(depth.astype(float) < entry_m, offset, 0.0)
     want[:, 3] = np.clip(want[:, 3] + where.astype(np.float32), -1.0, 1.0)
     got = actions.copy()
-    _add_entry_feed(got, depth, entry_m, offset)
+    add_entry_feed(got, depth, entry_m, offset)
     assert got.dtype == np.float32
     assert np.array_equal(got, want)
