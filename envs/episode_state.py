@@ -56,6 +56,13 @@ CORE_STATE_FIELDS: tuple[Field, ...] = (
     _f("step_lateral_n", "Mean true lateral force over the step's samples (N)."),
     _f("q_motor_rad", "Motor-side joint angles (rad).", 6),
     _f("jacobian", "TCP Jacobian at ``q_motor_rad`` (base axes; rows: linear (m/rad), angular (rad/rad)).", 6, 6),
+    _f(
+        "tcp_pose_base",
+        "The TCP's pose at ``tcp_pose_q_rad``, computed with the Jacobian, which the next IK step reads: rotation "
+        "(9, row-major), then origin (3, m); base frame.",
+        12,
+    ),
+    _f("tcp_pose_q_rad", "The motor angles ``tcp_pose_base`` is for (rad; NaN: none yet).", 6),
     _f("c_robot_m_n", "Arm compliance at the TCP (m/N, task axes).", 3, 3),
     _f(
         "sample",
@@ -191,9 +198,10 @@ StepScalars: Any = _tuple_of("StepScalars", _STEP_FIELDS)
 
 
 def new_state(n: int) -> np.ndarray:
-    """``n`` episodes' state, zero but for ``key_chip_m`` (NaN: no force rows cached yet)."""
+    """``n`` episodes' state, zero but for ``key_chip_m`` and ``tcp_pose_q_rad`` (NaN: nothing cached yet)."""
     state = np.zeros(n, dtype=STATE)
     state["key_chip_m"] = math.nan
+    state["tcp_pose_q_rad"] = math.nan
     return state
 
 

@@ -241,6 +241,23 @@ def _c_total(s, p) -> np.ndarray:  # pragma: no cover (compiled)
 
 
 @numba.njit(cache=True)
+def _pose_cached(s) -> bool:  # pragma: no cover (compiled)
+    """Whether ``s.tcp_pose_base`` is the TCP's pose at the motor angles (the same bits: signs of zeros too)."""
+    for i in range(s.q_motor_rad.shape[0]):
+        a, b = s.q_motor_rad[i], s.tcp_pose_q_rad[i]
+        if not (a == b and math.copysign(1.0, a) == math.copysign(1.0, b)):
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _cached_pose(s):  # pragma: no cover (compiled)
+    """``s.tcp_pose_base`` as :func:`~drillgym.envs.robot.ur5_kernel.pose` gives a pose (tuples)."""
+    c = s.tcp_pose_base
+    return (c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8]), (c[9], c[10], c[11])
+
+
+@numba.njit(cache=True)
 def advance(  # noqa: C901 (one step, in the env's order)
     s,
     p,
@@ -375,13 +392,19 @@ def advance(  # noqa: C901 (one step, in the env's order)
     joints = s.q_motor_rad.shape[0]
     solve_m, vec, rows_j = np.empty((joints, joints)), np.empty((3, joints)), np.empty((2, joints, 3))  # scratch
     q = vec[0]
-    ik_step_into(s.q_motor_rad, s.jacobian, rigid, p.entry_base_m, r_task, chains[0], solve_m, vec[1], q)
+    pose_q = _cached_pose(s) if _pose_cached(s) else pose(s.q_motor_rad, chains[0])
+    ik_step_into(s.q_motor_rad, pose_q, s.jacobian, rigid, p.entry_base_m, r_task, solve_m, vec[1], q)
     for i in range(joints):
         if not math.isfinite(q[i]):
             s.singular = True
             return
     s.q_motor_rad[:] = q
-    jacobian_into(q, chains[0], s.jacobian, rows_j[0], rows_j[1])
+    r_new, p_new = jacobian_into(q, chains[0], s.jacobian, rows_j[0], rows_j[1])
+    for i in range(9):  # the pose at the new angles, for the next step's IK
+        s.tcp_pose_base[i] = r_new[i]
+    for i in range(3):
+        s.tcp_pose_base[9 + i] = p_new[i]
+    s.tcp_pose_q_rad[:] = q
     compliance_into(s.jacobian, stiffness, r_task, s.c_robot_m_n)
     # the tracker: a new sample of the true (deflected) marker at its rate, against the nominal path
     stamp = math.floor(s.t_s * TRACKER_RATE_HZ + 1e-9) / TRACKER_RATE_HZ

@@ -158,10 +158,16 @@ def _walk(q: np.ndarray, chain: np.ndarray, axes: Any, origins: Any) -> tuple[Ro
 
 
 @numba.njit(cache=True)
+def _in_base(r: Rot, p: Vec) -> tuple[Rot, Vec]:  # pragma: no cover (compiled)
+    """A pose in ``base_link`` turned into the UR ``base`` frame: a half turn about z."""
+    return (-r[0], -r[1], -r[2], -r[3], -r[4], -r[5], r[6], r[7], r[8]), (-p[0], -p[1], p[2])
+
+
+@numba.njit(cache=True)
 def pose(q: np.ndarray, chain: np.ndarray) -> tuple[Rot, Vec]:  # pragma: no cover (compiled)
     """:func:`frame_pose` as tuples (the rotation row-major), without making arrays: what the kernels call."""
     r, p = _walk(q, chain, None, None)
-    return (-r[0], -r[1], -r[2], -r[3], -r[4], -r[5], r[6], r[7], r[8]), (-p[0], -p[1], p[2])
+    return _in_base(r, p)
 
 
 @numba.njit(cache=True)
@@ -174,9 +180,12 @@ def frame_pose(q, chain):  # pragma: no cover
 @numba.njit(cache=True)
 def jacobian_into(
     q: np.ndarray, chain: np.ndarray, jac: np.ndarray, axes: np.ndarray, origins: np.ndarray
-) -> None:  # pragma: no cover
-    """:func:`frame_jacobian` into ``jac`` (6xn), with ``axes`` and ``origins`` (n, 3) as scratch."""
-    _, p = _walk(q, chain, axes, origins)
+) -> tuple[Rot, Vec]:  # pragma: no cover
+    """:func:`frame_jacobian` into ``jac`` (6xn), with ``axes`` and ``origins`` (n, 3) as scratch.
+
+    Returns the frame's pose at ``q`` as :func:`pose` gives it, which the walk computes anyway.
+    """
+    r, p = _walk(q, chain, axes, origins)
     for j in range(axes.shape[0]):
         a0, a1, a2 = axes[j, 0], axes[j, 1], axes[j, 2]
         d0, d1, d2 = p[0] - origins[j, 0], p[1] - origins[j, 1], p[2] - origins[j, 2]
@@ -186,6 +195,7 @@ def jacobian_into(
         jac[3, j] = -a0
         jac[4, j] = -a1
         jac[5, j] = a2
+    return _in_base(r, p)
 
 
 @numba.njit(cache=True)
@@ -305,9 +315,12 @@ def jacobian_and_compliance(q, stiffness, r_task, chain):  # pragma: no cover
 
 
 @numba.njit(cache=True)
-def ik_step_into(q, jac, rigid_task, entry_base, r_task, chain, m, x, q_out):  # pragma: no cover
-    """:func:`ik_step` into ``q_out`` (n,), with ``m`` (n, n) and ``x`` (n,) as scratch; ``rigid_task`` a 3-tuple."""
-    r, p = pose(q, chain)
+def ik_step_into(q, pose_q, jac, rigid_task, entry_base, r_task, m, x, q_out):  # pragma: no cover
+    """:func:`ik_step` into ``q_out`` (n,), with ``m`` (n, n) and ``x`` (n,) as scratch.
+
+    ``pose_q``: the frame's pose at ``q`` as :func:`pose` gives it; ``rigid_task`` a 3-tuple.
+    """
+    r, p = pose_q
     for i in range(3):
         x[i] = (
             entry_base[i]
@@ -344,7 +357,7 @@ def ik_step(q, jac, rigid_task, entry_base, r_task, chain):  # pragma: no cover
     n = q.shape[0]
     out = np.empty(n)
     rigid = (rigid_task[0], rigid_task[1], rigid_task[2])
-    ik_step_into(q, jac, rigid, entry_base, r_task, chain, np.empty((n, n)), np.empty(n), out)
+    ik_step_into(q, pose(q, chain), jac, rigid, entry_base, r_task, np.empty((n, n)), np.empty(n), out)
     return out
 
 
