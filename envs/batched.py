@@ -164,7 +164,7 @@ class BatchedDrillEnv(VectorEnv):
         spec = self._slot_effects[i]
         if spec or env.effects is not None:
             env.set_effects(build_effects(spec) if spec else None)
-        env.reset(seed=seed, options={"scenario": dict(changes)} if changes else None)
+        env.begin_episode(seed=seed, options={"scenario": dict(changes)} if changes else None)
         if env._kernel is None:
             raise UserError(f"effects {spec!r} do not all run in the compiled step; use UR5BoneDrillEnv")
         start = episode_arrays(env)

@@ -201,6 +201,11 @@ class UR5BoneDrillEnv(DrillEpisode, gym.Env[dict[str, np.ndarray], np.ndarray]):
         Every option is validated first: a reset that raises leaves the env (episode, effects, scenario, random
         stream) as it was.
         """
+        self.begin_episode(seed=seed, options=options)
+        return self._observation(), self._info()
+
+    def begin_episode(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> None:
+        """:meth:`reset` without making its observation and info (a batch of episodes reads its own arrays)."""
         opts = options or {}
         unknown = sorted(set(opts) - RESET_OPTIONS)
         if unknown:
@@ -222,7 +227,6 @@ class UR5BoneDrillEnv(DrillEpisode, gym.Env[dict[str, np.ndarray], np.ndarray]):
         if scenario is not None:
             self._build(scenario)
         self._reset_state(specimen_seed)
-        return self._observation(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Apply one correction + feed override for 50 ms (5 physics updates / F/T samples)."""
