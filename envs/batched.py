@@ -122,8 +122,7 @@ class BatchedDrillEnv(VectorEnv):
         self.scenario = first.scenario
         """The scenario given at construction (each slot's own, after a reset that changes it: :meth:`scenario_of`)."""
         self.reward_weights = first.reward
-        w = self.reward_weights
-        self._weights = np.array([w.deviation, w.force, w.smooth, w.peak_force])
+        self._weights = self.reward_weights.vector()
         self.single_observation_space = observation_space()
         self.single_action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
         self.observation_space = batch_space(self.single_observation_space, num_envs)

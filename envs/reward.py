@@ -21,6 +21,9 @@ import numpy as np
 from drillgym.envs.constants import ACTION_DIM
 from drillgym.envs.errors import UserError
 
+TERM_NAMES = ("deviation", "force", "smooth", "peak_force")
+"""The reward terms, in :meth:`RewardWeights.terms`'s order (the rows of :func:`batch_rewards_into`'s ``terms``)."""
+
 
 @dataclass(frozen=True)
 class RewardWeights:
@@ -53,21 +56,31 @@ class RewardWeights:
         Floats for one episode; for a batch (``action`` of shape (N, 4), the others of shape (N,)), arrays
         with one entry per episode.
         """
-        if action.ndim == 1:  # np.sum((a - b) ** 2) in Python floats: numpy adds four terms in order
-            a0, a1, a2, a3 = action.tolist()
-            p0, p1, p2, p3 = prev_action.tolist()
-            d0, d1, d2, d3 = a0 - p0, a1 - p1, a2 - p2, a3 - p3
-            change = d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3
-            rise = max(lateral_force_n - peak_n, 0.0)
-        else:
-            change = np.add.reduce((action - prev_action) ** 2, axis=1)
-            rise = np.maximum(lateral_force_n - peak_n, 0.0)
+        if action.ndim == 2:  # a batch: the batched env's compiled terms (their running peaks left as given)
+            n = len(action)
+            rows, reward = np.empty((4, n)), np.empty(n)
+            f = np.asarray
+            batch_rewards_into(
+                self.vector(), f(deviation_m, float), f(lateral_force_n, float), f(action, float),
+                f(prev_action, float), np.array(peak_n, dtype=float), np.ones(n, dtype=bool), rows, reward,
+            )  # fmt: skip
+            return dict(zip(TERM_NAMES, rows, strict=True))
+        # np.sum((a - b) ** 2) in Python floats: numpy adds four terms in order
+        a0, a1, a2, a3 = action.tolist()
+        p0, p1, p2, p3 = prev_action.tolist()
+        d0, d1, d2, d3 = a0 - p0, a1 - p1, a2 - p2, a3 - p3
+        change = d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3
+        rise = max(lateral_force_n - peak_n, 0.0)
         return {
             "deviation": -self.deviation * deviation_m * 1e3,
             "force": -self.force * lateral_force_n,
             "smooth": -self.smooth * change,
             "peak_force": -self.peak_force * rise,
         }
+
+    def vector(self) -> np.ndarray:
+        """The weights in :data:`TERM_NAMES`' order, as :func:`batch_rewards_into` takes them."""
+        return np.array([self.deviation, self.force, self.smooth, self.peak_force])
 
 
 @numba.njit(cache=True)
@@ -83,6 +96,8 @@ def batch_rewards_into(
     reward: np.ndarray,
 ) -> None:  # pragma: no cover (compiled)
     """:meth:`RewardWeights.terms` of a batch and the reward, in one call, with numpy's arithmetic term for term.
+
+    ``(a − a_prev)²`` is summed over the row in order; ``np.maximum`` gives the peak's rise and the running peak.
 
     ``weights``: the four weights (deviation, force, smooth, peak force); the step's ``deviation_m`` and
     ``lateral_force_n`` (N,); ``action`` and ``prev_action`` (N, 4); ``peak_n`` (N,) the running peaks before the
@@ -108,10 +123,6 @@ def batch_rewards_into(
         reward[i] = t0 + t1 + t2 + t3 if running[i] else 0.0
         if not (peak >= lateral or peak != peak):  # np.maximum(peak, lateral)
             peak_n[i] = lateral
-
-
-TERM_NAMES = ("deviation", "force", "smooth", "peak_force")
-"""The reward terms, in :meth:`RewardWeights.terms`'s order (the rows of :func:`batch_rewards_into`'s ``terms``)."""
 
 
 def checked_action(action: np.ndarray, consequence: str, num_envs: int | None = None) -> np.ndarray:

@@ -124,7 +124,7 @@ def test_a_batch_of_actions_is_checked_per_episode_and_names_the_bad_ones():
 
 
 def test_the_compiled_batch_rewards_are_the_terms_and_their_sum_bit_for_bit():
-    """``batch_rewards_into`` (the batched env's step) against :meth:`RewardWeights.terms` on arrays and numpy's sum."""
+    """``batch_rewards_into`` (the batched env's step and a batch's :meth:`RewardWeights.terms`) against numpy."""
     from drillgym.envs.reward import TERM_NAMES, batch_rewards_into
 
     rng = np.random.default_rng(0)
@@ -135,12 +135,18 @@ def test_the_compiled_batch_rewards_are_the_terms_and_their_sum_bit_for_bit():
     lateral[5] = math.nan
     action, prev = rng.uniform(-1, 1, (n, 4)), rng.uniform(-1, 1, (n, 4))
     running = rng.random(n) < 0.8
-    want = w.terms(dev, lateral, action, prev, peak)
+    change = np.add.reduce((action - prev) ** 2, axis=1)
+    rise = np.maximum(lateral - peak, 0.0)
+    want = {
+        "deviation": -w.deviation * dev * 1e3,
+        "force": -w.force * lateral,
+        "smooth": -w.smooth * change,
+        "peak_force": -w.peak_force * rise,
+    }
     want_reward = np.where(running, want["deviation"] + want["force"] + want["smooth"] + want["peak_force"], 0.0)
     want_peak = np.maximum(peak, lateral)
     terms, reward, got_peak = np.empty((4, n)), np.empty(n), peak.copy()
-    weights = np.array([w.deviation, w.force, w.smooth, w.peak_force])
-    batch_rewards_into(weights, dev, lateral, action, prev, got_peak, running, terms, reward)
+    batch_rewards_into(w.vector(), dev, lateral, action, prev, got_peak, running, terms, reward)
     for k, name in enumerate(TERM_NAMES):
         assert np.array_equal(terms[k], want[name], equal_nan=True), name
     assert np.array_equal(reward, want_reward, equal_nan=True)
