@@ -29,7 +29,7 @@ import numpy as np
 
 from drillgym.controllers.base import Controller
 from drillgym.controllers.batch import matvec, window_mean
-from drillgym.controllers.li2023_step import actions_into
+from drillgym.controllers.li2023_step import actions_into, offline_into
 from drillgym.controllers.models import (
     LI2023_MODEL_PEAK_N,
     OfflineForceModel,
@@ -208,11 +208,19 @@ class Li2023Controller(Controller):
 
     # ------------------------------------------------------------------ models
     def offline_correction_base_m(self, depth_m: float | np.ndarray) -> np.ndarray:
-        """ΔP = -k_D⁻¹ F_model at the planned depth, lateral, base frame (m): (3,) for a depth, (N, 3) for N."""
+        """ΔP = -k_D⁻¹ F_model at the planned depth, lateral, base frame (m): (3,) for a depth, (N, 3) for N.
+
+        Once stacked, N depths are the N episodes' (each read in its own model, with its own matrices).
+        """
         depth = np.asarray(depth_m, dtype=float)
-        f_task = np.zeros((depth.size, 3))
-        self.offline_model.lateral_into(depth.ravel(), f_task)
-        out = -matvec(self.lateral, matvec(self.R, matvec(self.C_tool, f_task)))
+        d = depth.ravel()
+        m = self._model_rows
+        model_of = m.model_of if d.size == m.model_of.size else np.zeros(d.size, dtype=np.int64)
+        if (m.sizes.size > 1 or self.R.ndim == 3) and d.size != self.num_episodes:
+            raise UserError(f"{d.size} depths for {self.num_episodes} stacked episodes")
+        out = np.empty((d.size, 3))
+        offline_into(d, m.depth_m, m.lateral_task_n, m.sizes, model_of, _rows(self.lateral), _rows(self.R),
+                     _rows(self.C_tool), out)  # fmt: skip
         return out[0] if depth.ndim == 0 else out
 
     def deviation_estimate_base_m(

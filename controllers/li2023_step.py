@@ -43,6 +43,49 @@ def _clip(x: float, lo: float, hi: float) -> float:  # pragma: no cover (compile
 
 
 @numba.njit(cache=True)
+def _offline(
+    i: int,
+    k: int,
+    depth_m: np.ndarray,
+    xp: np.ndarray,
+    fp: np.ndarray,
+    sizes: np.ndarray,
+    model_of: np.ndarray,
+    lateral: np.ndarray,
+    rot: np.ndarray,
+    c_tool: np.ndarray,
+) -> tuple[float, float, float]:  # pragma: no cover (compiled)
+    """Row ``i``'s offline correction ``−P (R (C (F_x, F_y, 0)))`` (m, base), with matrices ``k`` (0 when shared)."""
+    m = model_of[i]
+    f0 = interp_one(xp[m], fp[m, :, 0], sizes[m], depth_m[i], 0.0, 0.0)
+    f1 = interp_one(xp[m], fp[m, :, 1], sizes[m], depth_m[i], 0.0, 0.0)
+    a0, a1, a2 = _times(c_tool[k], f0, f1, 0.0)
+    b0, b1, b2 = _times(rot[k], a0, a1, a2)
+    c0, c1, c2 = _times(lateral[k], b0, b1, b2)
+    return -c0, -c1, -c2
+
+
+@numba.njit(cache=True)
+def offline_into(
+    depth_m: np.ndarray,
+    xp: np.ndarray,
+    fp: np.ndarray,
+    sizes: np.ndarray,
+    model_of: np.ndarray,
+    lateral: np.ndarray,
+    rot: np.ndarray,
+    c_tool: np.ndarray,
+    out: np.ndarray,
+) -> None:  # pragma: no cover (compiled)
+    """Each row's offline correction alone into ``out`` (N, 3) (m, base frame); arguments as :func:`actions_into`'s."""
+    shared = lateral.shape[0] == 1
+    for i in range(depth_m.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = _offline(
+            i, 0 if shared else i, depth_m, xp, fp, sizes, model_of, lateral, rot, c_tool
+        )
+
+
+@numba.njit(cache=True)
 def actions_into(
     depth_m: np.ndarray,
     offline_on: bool,
@@ -87,14 +130,8 @@ def actions_into(
     for i in range(depth_m.shape[0]):
         k = 0 if shared_m else i
         t0, t1, t2 = 0.0, 0.0, 0.0
-        if offline_on:  # -P (R (C (F_x, F_y, 0)))
-            m = model_of[i]
-            f0 = interp_one(xp[m], fp[m, :, 0], sizes[m], depth_m[i], 0.0, 0.0)
-            f1 = interp_one(xp[m], fp[m, :, 1], sizes[m], depth_m[i], 0.0, 0.0)
-            a0, a1, a2 = _times(c_tool[k], f0, f1, 0.0)
-            b0, b1, b2 = _times(rot[k], a0, a1, a2)
-            c0, c1, c2 = _times(lateral[k], b0, b1, b2)
-            t0, t1, t2 = -c0, -c1, -c2
+        if offline_on:
+            t0, t1, t2 = _offline(i, k, depth_m, xp, fp, sizes, model_of, lateral, rot, c_tool)
         t0, t1, t2 = t0 + online_base_m[i, 0], t1 + online_base_m[i, 1], t2 + online_base_m[i, 2]
         g = y_gain[0] if shared_y else y_gain[i]
         if y_any and (y_all or g != 1.0):  # total + (g - 1) (total · y) y, y the task's y axis in base

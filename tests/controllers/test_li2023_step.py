@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from drillgym.controllers import make_controller
-from drillgym.controllers.batch import unscale_actions
+from drillgym.controllers.batch import matvec, unscale_actions
 from drillgym.controllers.li2023 import Li2023Controller
 from drillgym.controllers.li2023_step import actions_into
 from drillgym.envs.drill_env import UR5BoneDrillEnv
@@ -21,7 +21,11 @@ def _plan(**scenario):
 def _numpy_actions(c: Li2023Controller, depth: np.ndarray, online: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The numpy expressions the compiled step replaced (offline model, y gain, clips, action)."""
     cfg, n = c.config, len(depth)
-    offline = c.offline_correction_base_m(depth) if cfg.offline else np.zeros((n, 3))
+    offline = np.zeros((n, 3))
+    if cfg.offline:  # -P (R (C F)), the model read by np.interp (or the stacked models' tested equal)
+        forces = np.zeros((n, 3))
+        c.offline_model.lateral_into(depth, forces)
+        offline = -matvec(c.lateral, matvec(c.R, matvec(c.C_tool, forces)))
     total = offline + online
     if c._y_any:
         y_base = c.R[..., :, 1]
