@@ -2,7 +2,7 @@
 
 :func:`drillgym.controllers.batch.matvec`, the stacked offline models' interpolation
 (:mod:`drillgym.controllers.stacked_models`), li2023's step (:mod:`drillgym.controllers.li2023_step`) and the slow
-entry's feed offset are compiled on first call and cached beside its source (or in
+entry's feed offset and the closed loop of the li2023 family (:mod:`drillgym.controllers.closed_loop_kernel`) are compiled on first call and cached beside its source (or in
 ``NUMBA_CACHE_DIR``); ``make install`` runs this module once, after :mod:`drillgym.envs.compiled`, so that a
 controller streaming to a robot does not stall on its first action.
 
@@ -16,10 +16,13 @@ import time
 import numpy as np
 
 from drillgym.controllers.batch import matvec
+from drillgym.controllers.closed_loop import run_closed_loop
 from drillgym.controllers.feed_schedule import add_entry_feed
 from drillgym.controllers.li2023_step import actions_into
 from drillgym.controllers.models import OfflineForceModel
+from drillgym.controllers.registry import make_controller
 from drillgym.controllers.stacked_models import StackedOfflineModels
+from drillgym.envs.batched import BatchedDrillEnv
 
 
 def compile_kernels() -> float:
@@ -42,6 +45,14 @@ def compile_kernels() -> float:
     depth = np.zeros((2, 33), dtype=np.float32)[:, 25]
     add_entry_feed(actions, depth, np.zeros(1), np.zeros(1))
     add_entry_feed(actions, depth, np.zeros(2), np.zeros(2))
+    batch = BatchedDrillEnv(1, autoreset=False, max_episode_steps=2)  # the closed loop: two steps of li2023_tuned
+    try:
+        batch.reset(seed=0)
+        controller = make_controller("li2023_tuned")
+        controller.set_plan(batch.envs[0].plan)
+        run_closed_loop(batch, controller, lambda i, rewards: None)
+    finally:
+        batch.close()
     return time.perf_counter() - t0
 
 

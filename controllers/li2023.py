@@ -20,7 +20,6 @@ Compensation is applied across the drill axis (both lateral axes by default; Li'
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, cast
@@ -29,7 +28,7 @@ import numpy as np
 
 from drillgym.controllers.base import Controller
 from drillgym.controllers.batch import matvec, window_mean
-from drillgym.controllers.li2023_step import actions_into, offline_into
+from drillgym.controllers.li2023_step import actions_into, offline_into, online_into
 from drillgym.controllers.models import (
     LI2023_MODEL_PEAK_N,
     OfflineForceModel,
@@ -203,8 +202,12 @@ class Li2023Controller(Controller):
         self.prev_dx = np.zeros((n, 3))
         self.prev_dd = np.zeros((n, 3))
         self.sum_dd = np.zeros((n, 3))
-        # online correction at the corrected points: (time of the point, correction of each episode (N, 3)) pairs
-        self.points: deque[tuple[float, np.ndarray]] = deque([(0.0, np.zeros((n, 3)))])
+        # the online correction's corrected points, a queue (ring): time (s), each episode's correction (m, base)
+        size = self.config.prediction_points + 3  # at most prediction_points + 2 are queued (a full ring grows)
+        self.point_times_s = np.zeros(size)
+        self.point_corrections = np.zeros((size, n, 3))
+        self.point_ring = np.array([0, 1])
+        """The queue's first slot and its length: one point at t = 0, no correction."""
 
     # ------------------------------------------------------------------ models
     def offline_correction_base_m(self, depth_m: float | np.ndarray) -> np.ndarray:
@@ -258,7 +261,10 @@ class Li2023Controller(Controller):
         self.tcp_window[slot] = obs["tcp_error_base_m"]
         if cfg.online and self.step % self.steps_per_point == 0:
             self._compensation_point(obs, t)
-        online = self._online_at(t + CONTROL_DT_S) if cfg.online else np.zeros((n, 3))
+        online = np.zeros((n, 3))
+        if cfg.online:
+            online_into(self.point_times_s, self.point_corrections, self.point_ring, t + CONTROL_DT_S,
+                        cfg.point_period_s, online)  # fmt: skip
         self.step += 1
         model = self._model_rows
         actions = np.empty((n, 4), dtype=np.float32)
@@ -292,21 +298,24 @@ class Li2023Controller(Controller):
         self.prev_dx, self.prev_dd = dx, dd
         t_apply = t + cfg.prediction_points * cfg.point_period_s
         target = np.clip(-u, -cfg.max_correction_m, cfg.max_correction_m)
-        self.points.append((t_apply, target))
+        self._queue_point(t_apply, target)
 
-    def _online_at(self, t: float) -> np.ndarray:
-        """Correction the robot has reached at time t, moving linearly between corrected points, (N, 3)."""
-        while len(self.points) >= 2 and self.points[1][0] <= t:
-            self.points.popleft()
-        t0, c0 = self.points[0]
-        if len(self.points) == 1 or t <= t0:
-            return c0
-        # the point before the next one is reached at the previous point's time
-        t1, c1 = self.points[1]
-        t_start = t1 - self.config.point_period_s
-        if t <= t_start:
-            return c0
-        return c0 + (c1 - c0) * (t - t_start) / (t1 - t_start)
+    def _queue_point(self, t_s: float, correction_base_m: np.ndarray) -> None:
+        """Append a corrected point (time s, (N, 3) corrections m) to the queue, growing a full ring."""
+        first, count = (int(v) for v in self.point_ring)
+        size = self.point_times_s.size
+        if count == size:  # unroll the ring into one twice its size
+            order = (first + np.arange(size)) % size
+            self.point_times_s = np.concatenate([self.point_times_s[order], np.zeros(size)])
+            self.point_corrections = np.concatenate(
+                [self.point_corrections[order], np.zeros_like(self.point_corrections)]
+            )
+            first, size = 0, 2 * size
+            self.point_ring[0] = 0
+        slot = (first + count) % size
+        self.point_times_s[slot] = t_s
+        self.point_corrections[slot] = correction_base_m
+        self.point_ring[1] = count + 1
 
 
 def _rows(m: np.ndarray) -> np.ndarray:

@@ -146,3 +146,39 @@ def actions_into(
         out[i, 1] = _clip(t1 / MAX_CORRECTION_M, -1.0, 1.0)
         out[i, 2] = _clip(t2 / MAX_CORRECTION_M, -1.0, 1.0)
         out[i, 3] = 0.0  # log2 of the feed scale 1, over the feed's span
+
+
+@numba.njit(cache=True)
+def online_into(
+    times_s: np.ndarray, corrections: np.ndarray, ring: np.ndarray, t: float, point_period_s: float, out: np.ndarray
+) -> None:  # pragma: no cover (compiled)
+    """The online correction the robot has reached at time ``t`` (s), moving linearly between corrected points.
+
+    The points are a ring (queue) of ``ring[1]`` entries from slot ``ring[0]`` on: each a time (s) in ``times_s``
+    (P,) and each episode's correction (m, base) in ``corrections`` (P, N, 3). Points the time has passed are
+    dropped first (while the second is due, the first goes). The point before the next one is reached at the
+    previous point's time: before ``t₁ − period`` the correction is the first point's, then
+    ``c₀ + (c₁ − c₀)(t − t_start) / (t₁ − t_start)`` elementwise (numpy's operations in numpy's order). Writes ``out``
+    (N, 3).
+    """
+    size = times_s.shape[0]
+    while ring[1] >= 2 and times_s[(ring[0] + 1) % size] <= t:
+        ring[0] = (ring[0] + 1) % size
+        ring[1] -= 1
+    first = ring[0]
+    c0 = corrections[first]
+    t0 = times_s[first]
+    if ring[1] == 1 or t <= t0:
+        out[:] = c0
+        return
+    second = (first + 1) % size
+    t1 = times_s[second]
+    c1 = corrections[second]
+    t_start = t1 - point_period_s
+    if t <= t_start:
+        out[:] = c0
+        return
+    span, dt = t1 - t_start, t - t_start
+    for i in range(out.shape[0]):
+        for k in range(3):
+            out[i, k] = c0[i, k] + (c1[i, k] - c0[i, k]) * dt / span

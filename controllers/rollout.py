@@ -18,6 +18,7 @@ import numpy as np
 
 from drillgym import envs  # noqa: F401  (registers the ids)
 from drillgym.controllers.base import stack_controllers
+from drillgym.controllers.closed_loop import run_closed_loop
 from drillgym.envs.batched import BatchedDrillEnv
 from drillgym.envs.constants import ACTION_DIM
 from drillgym.envs.errors import UserError
@@ -169,6 +170,7 @@ def run_batch(
     on_step: StepHook | None = None,
     started: dict[str, np.ndarray] | None = None,
     effects: Sequence[str] | None = None,
+    compiled: bool = True,
 ) -> list[EpisodeResult]:
     """Run one episode in each slot of ``batch`` (built with ``autoreset=False``) to its end.
 
@@ -176,7 +178,10 @@ def run_batch(
     ``scenarios``: each slot's scenario changes for this reset (kept for its next ones, as the single env keeps
     them), None for the scenario the slot has; ``effects``: each slot's effect spec for this reset (kept likewise);
     ``started``: the observation of a reset the caller has just made with these seeds, scenarios and effects (the
-    episodes start from it, without another reset). The rest as :func:`run_episodes`.
+    episodes start from it, without another reset); ``compiled``: where one stacked ``li2023``-family controller
+    drives every slot, without ``on_step``, run the steps in compiled code
+    (:mod:`drillgym.controllers.closed_loop`: the same numbers; False steps in Python). The rest as
+    :func:`run_episodes`.
     """
     n = batch.num_envs
     if len(seeds) != n:
@@ -191,10 +196,40 @@ def run_batch(
     else:
         obs = started
     slots, batched, alone = _stepping(policies, [env.plan for env in batch.envs])
+    results: list[EpisodeResult | None] = [None] * n
+
+    def end(i: int, own: np.ndarray) -> None:
+        """Slot ``i`` has ended (it stays as it ended: autoreset off) with these rewards: its result."""
+        info = batch.final_info(i)
+        ended_by = info["failure"] or (
+            "truncated" if info["metrics_truncated"] and not batch.state[i]["terminated"] else ""
+        )
+        results[i] = EpisodeResult(
+            int(seeds[i]), {k: float(v) for k, v in info["metrics"].items()}, {}, len(own), float(info["t_s"]),
+            str(ended_by), info, own,
+        )  # fmt: skip
+
+    whole = len(batched) == 1 and not alone and len(batched[0][0]) == n
+    if not (compiled and on_step is None and whole and run_closed_loop(batch, batched[0][1], end)):
+        _run_python(batch, slots, batched, alone, obs, end, on_step)
+    assert all(r is not None for r in results)
+    return results  # type: ignore[return-value]
+
+
+def _run_python(
+    batch: BatchedDrillEnv,
+    slots: list[Any],
+    batched: list[tuple[np.ndarray, Any]],
+    alone: list[int],
+    obs: dict[str, np.ndarray],
+    end: Callable[[int, np.ndarray], None],
+    on_step: StepHook | None,
+) -> None:
+    """:func:`run_batch`'s loop in Python, a step at a time: each step's actions, then the batch's step."""
+    n = batch.num_envs
     states: list[Any] = [None] * n
     start = np.ones(n, dtype=bool)
     rewards: list[np.ndarray] = []  # each step's rewards of every slot (0 for the slots not running)
-    results: list[EpisodeResult | None] = [None] * n
     actions = np.zeros((n, ACTION_DIM), dtype=np.float32)
     step = 0
     while batch.active.any():
@@ -215,21 +250,7 @@ def run_batch(
         rewards.append(reward)
         start[running_mask] = False
         for i in (ended & running_mask).nonzero()[0].tolist():
-            info = batch.final_info(i)  # the slot stays as it ended (autoreset off)
-            failure = info["failure"] or ("truncated" if truncated[i] and not terminated[i] else "")
-            own = np.array([row[i] for row in rewards])  # every slot started at the first step
-            results[i] = EpisodeResult(
-                int(seeds[i]),
-                {k: float(v) for k, v in info["metrics"].items()},
-                {},
-                len(own),
-                float(info["t_s"]),
-                str(failure),
-                info,
-                own,
-            )
-    assert all(r is not None for r in results)
-    return results  # type: ignore[return-value]
+            end(i, np.array([row[i] for row in rewards]))  # every slot started at the first step
 
 
 def _stepping(

@@ -45,6 +45,8 @@ OBS_SIZE = int(_OFFSETS[-1])
 OBS_LOW, OBS_HIGH = _LO, _HI
 """Each flat entry's box (float64, length :data:`OBS_SIZE`)."""
 _PARTS = [(k, slice(int(_OFFSETS[i]), int(_OFFSETS[i + 1]))) for i, k in enumerate(_KEYS)]
+OBS_COLUMN: dict[str, int] = {k: int(_OFFSETS[i]) for i, k in enumerate(_KEYS)}
+"""Each entry's first column in the flat observation."""
 
 
 def pack_observation(values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
