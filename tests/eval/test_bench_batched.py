@@ -127,3 +127,33 @@ def test_a_batch_cut_short_leaves_each_log_readable_up_to_its_last_logged_step(t
         bench_episode._run_batched(jobs)
     assert [len(df) for df in kept[0]] == [150, 150]  # 30 steps of 5 samples each, 100 of them in a part
     assert (kept[0][0]["step"].to_numpy() == np.repeat(np.arange(30), 5)).all()
+
+
+@pytest.mark.parametrize("clock_step_s", [0.0, 10.0])
+def test_a_batched_log_writes_a_part_once_its_rows_and_its_seconds_are_due(tmp_path, monkeypatch, clock_step_s):
+    """A part waits for 100 rows and one second since the log's last part: on a frozen clock one part (the episode's
+    end), on a clock of 10 s a step one every 20 steps; the compacted log is the same either way."""
+    from drillgym.eval.logs import batch_logger
+    from drillgym.eval.logs.writer import EpisodeLogWriter
+
+    clock = {"t": 0.0}
+
+    def monotonic():
+        clock["t"] += clock_step_s
+        return clock["t"]
+
+    written = []
+    real_flush = EpisodeLogWriter.flush
+
+    def flush(self):
+        written.append(self._buffered)
+        real_flush(self)
+
+    monkeypatch.setattr(batch_logger.time, "monotonic", monotonic)
+    monkeypatch.setattr(EpisodeLogWriter, "flush", flush)
+    (row,) = bench_episode._run_batched(_jobs("li2023", [0], tmp_path))
+    parts = 1 if clock_step_s == 0.0 else -(-row.steps // 20)
+    assert row.steps > 200
+    assert len([n for n in written if n]) == parts
+    _, frames = read_episode_log(tmp_path / "li2023_0.parquet")
+    assert (frames["step"].to_numpy() == np.repeat(np.arange(row.steps), 5)).all()
