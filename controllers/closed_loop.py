@@ -28,6 +28,7 @@ from drillgym.controllers.closed_loop_kernel import (
 )
 from drillgym.controllers.feed_schedule import SlowEntry
 from drillgym.controllers.li2023 import Li2023Controller, _rows
+from drillgym.controllers.step_log import HELD, StepLog
 from drillgym.envs.batched import BatchedDrillEnv
 from drillgym.envs.constants import CONTROL_DT_S, MAX_EPISODE_STEPS, SUBSTEPS_PER_STEP
 from drillgym.envs.observation import OBS_SIZE, unpack_observation
@@ -37,6 +38,12 @@ from drillgym.envs.views import observation_rows
 
 _TWO = np.array([2.0])
 _NO_ENTRY = np.zeros(1)
+_NO_LOG = (
+    np.zeros(1, dtype=bool),
+    np.zeros((1, 1, len(HELD))),
+    np.zeros((1, 1), dtype=bool),
+    np.zeros(1, dtype=np.int64),
+)
 
 
 def closed_loop_parts(policy: Any) -> tuple[Li2023Controller, SlowEntry | None] | None:
@@ -66,12 +73,15 @@ class ClosedLoop:
         batch: the batched env, just reset; one thread.
         li: the ``li2023`` controller set to the batch's episodes (one row each).
         entry: the slow entry over it, or None.
+        log: the episodes' logs, kept step by step (the kernel fills their arrays), or None.
     """
 
-    def __init__(self, batch: BatchedDrillEnv, li: Li2023Controller, entry: SlowEntry | None) -> None:
+    def __init__(
+        self, batch: BatchedDrillEnv, li: Li2023Controller, entry: SlowEntry | None, log: StepLog | None = None
+    ) -> None:
         if batch.threads != 1:
             raise ValueError("the closed loop runs on one thread")
-        self.batch, self.li, self.entry = batch, li, entry
+        self.batch, self.li, self.entry, self.log = batch, li, entry, log
         n = batch.num_envs
         self.obs64 = np.empty((n, OBS_SIZE))
         self.obs32 = np.empty((n, OBS_SIZE), dtype=np.float32)
@@ -105,18 +115,22 @@ class ClosedLoop:
         noisy = np.array([is_noisy(p) for p in batch.params])
         counters = np.array([li.step, 0, 0, 0], dtype=np.int64)
         reward_rows = np.zeros((batch.record.shape[1] // SUBSTEPS_PER_STEP + 2, n))
-        ended = np.zeros(n, dtype=bool)
+        ended, no_end = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
         limit_steps = batch.max_episode_steps < MAX_EPISODE_STEPS
         ctl = self._controller_arrays()
+        log = self.log
+        log_arrays = _NO_LOG if log is None else (np.ones(1, dtype=bool), log.held, log.valid, log.logged)
         while True:
             code = run_steps(
                 tuple(batch.arrays), batch.command, batch.normals.rows, batch.normals.size - NOISE_SIZE, noisy,
                 batch.record, batch.recorded, batch.active, batch._weights, batch.prev_action, batch.peak_lateral_n,
                 batch.max_episode_steps, limit_steps, bool(batch.scenario.tracker), self.obs64, self.obs32, ctl,
-                counters, reward_rows, ended, self.actions, _TWO,
+                counters, reward_rows, ended, self.actions, _TWO, log_arrays,
             )  # fmt: skip
             if code == STOP_DONE:
                 break
+            if log is not None and code in (STOP_POINT, STOP_ENDED):  # every 12 steps at most, and at each end
+                log.write_due(batch.active.nonzero()[0].tolist(), ended if code == STOP_ENDED else no_end)
             if code == STOP_POINT:
                 li.step = int(counters[0])
                 li._compensation_point(unpack_observation(self.obs32), li.step * CONTROL_DT_S)
@@ -145,12 +159,12 @@ class ClosedLoop:
         li.step = int(counters[0])
 
 
-def run_closed_loop(batch: BatchedDrillEnv, policy: Any, on_end: EpisodeEnd) -> bool:
+def run_closed_loop(batch: BatchedDrillEnv, policy: Any, on_end: EpisodeEnd, log: StepLog | None = None) -> bool:
     """Run ``batch``'s episodes with ``policy`` (set to them) in the closed loop if it can; whether it did."""
     parts = closed_loop_parts(policy)
     if parts is None or batch.threads != 1:
         return False
-    ClosedLoop(batch, *parts).run(on_end)
+    ClosedLoop(batch, *parts, log=log).run(on_end)
     return True
 
 

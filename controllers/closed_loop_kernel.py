@@ -42,6 +42,9 @@ rows are full."""
 _FT_MEAN = OBS_COLUMN["ft_wrench_mean"]
 _TCP_ERROR = OBS_COLUMN["tcp_error_base_m"]
 _DEPTH = OBS_COLUMN["path_depth_m"]
+_Q = OBS_COLUMN["q_rad"]
+_TRACKER_ERROR = OBS_COLUMN["tracker_error_base_m"]
+_TRACKER_VALID = OBS_COLUMN["tracker_valid"]
 
 
 @numba.njit(cache=True)
@@ -138,6 +141,38 @@ def _observe(
 
 
 @numba.njit(cache=True)
+def _keep_log_rows(
+    k: int,
+    running: np.ndarray,
+    command: np.ndarray,
+    obs32: np.ndarray,
+    state: np.ndarray,
+    held: np.ndarray,
+    valid: np.ndarray,
+    logged: np.ndarray,
+) -> None:  # pragma: no cover (compiled)
+    """What step ``k`` held for each running episode's log (:data:`drillgym.controllers.step_log.HELD`).
+
+    As :meth:`~drillgym.controllers.step_log.StepLog.log_step` keeps it from the step's command and observation.
+    """
+    for i in range(running.shape[0]):
+        if not running[i]:
+            continue
+        row, s = held[i, k], state[i]
+        ok = obs32[i, _TRACKER_VALID] > 0.5
+        for c in range(4):
+            row[c] = command[i, c]
+        for c in range(6):
+            row[4 + c] = obs32[i, _Q + c]
+        for c in range(3):
+            row[10 + c] = s.rtde_tcp_base_m[c]
+            row[13 + c] = s.tracker_reading_base_m[c] if ok else np.nan
+            row[16 + c] = obs32[i, _TRACKER_ERROR + c]
+        valid[i, k] = ok
+        logged[i] = k + 1
+
+
+@numba.njit(cache=True)
 def run_steps(
     env: tuple,
     command: np.ndarray,
@@ -161,6 +196,7 @@ def run_steps(
     ended: np.ndarray,
     actions: np.ndarray,
     two: np.ndarray,
+    log: tuple,
 ) -> int:  # pragma: no cover (compiled)
     """Step every active episode until an event (a ``STOP_*`` code, returned).
 
@@ -193,7 +229,11 @@ def run_steps(
         actions: (N, 4) float32, written: the controller's last actions.
         two: ``[2.0]``: the feed scale's base, read at run time so that the power is the C library's ``pow``, as
             Python's ``2.0 ** x`` computes it (a constant base may be compiled as another function).
+        log: ``(on (1,) bool, held (N, S, H), valid (N, S), logged (N,))``: whether to keep each step's log rows,
+            and the episode logs' arrays (:class:`~drillgym.controllers.step_log.StepLog`), filled at row
+            ``counters[2]`` of each step.
     """
+    log_on, held, valid, logged = log
     state, params, pend, tab, rows, chains, centre, filled, bins, delay = env
     n = state.shape[0]
     a = np.empty((n, 4))
@@ -228,5 +268,7 @@ def run_steps(
         prev_action[:] = a
         any_ended = _ends(state, running, max_episode_steps, limit_steps, ended)
         _observe(state, params, recorded, tracker_fitted, obs64, obs32)
+        if log_on[0]:
+            _keep_log_rows(counters[2] - 1, running, command, obs32, state, held, valid, logged)
         if any_ended:
             return STOP_ENDED

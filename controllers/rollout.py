@@ -19,6 +19,7 @@ import numpy as np
 from drillgym import envs  # noqa: F401  (registers the ids)
 from drillgym.controllers.base import stack_controllers
 from drillgym.controllers.closed_loop import run_closed_loop
+from drillgym.controllers.step_log import StepLog
 from drillgym.envs.batched import BatchedDrillEnv
 from drillgym.envs.constants import ACTION_DIM
 from drillgym.envs.errors import UserError
@@ -136,6 +137,7 @@ def run_episodes(
     env_kwargs: dict[str, Any] | None = None,
     effects: str | Sequence[str] = "",
     on_step: StepHook | None = None,
+    log: Callable[[BatchedDrillEnv], StepLog] | None = None,
 ) -> list[EpisodeResult]:
     """Run one episode per seed of a simulated scenario on the batched engine, each with its own policy.
 
@@ -148,7 +150,10 @@ def run_episodes(
         env_kwargs: the single env's arguments (scenario, cell parameters).
         effects: an effect spec of compiled effects (:class:`~drillgym.envs.batched.BatchedDrillEnv`), or one per
             seed (a cell drawn per episode).
-        on_step: called after every step (:data:`StepHook`), e.g. to log the episodes as they run.
+        on_step: called after every step (:data:`StepHook`; the steps then run in Python).
+        log: makes the episodes' logs once the batch is reset (:class:`~drillgym.controllers.step_log.StepLog`,
+            e.g. :class:`drillgym.eval.logs.batch_logger.BatchLogger`), kept as the episodes run (in compiled code
+            too, :func:`run_batch`).
 
     Returns:
         One :class:`EpisodeResult` per seed, in order, equal to :func:`run_episode` on the single env with
@@ -157,7 +162,7 @@ def run_episodes(
     per_episode = [effects] * len(seeds) if isinstance(effects, str) else list(effects)
     batch = BatchedDrillEnv(len(seeds), autoreset=False, **(env_kwargs or {}))
     try:
-        return run_batch(batch, make_policy, seeds, on_step=on_step, effects=per_episode)
+        return run_batch(batch, make_policy, seeds, on_step=on_step, effects=per_episode, log=log)
     finally:
         batch.close()
 
@@ -171,6 +176,7 @@ def run_batch(
     started: dict[str, np.ndarray] | None = None,
     effects: Sequence[str] | None = None,
     compiled: bool = True,
+    log: Callable[[BatchedDrillEnv], StepLog] | None = None,
 ) -> list[EpisodeResult]:
     """Run one episode in each slot of ``batch`` (built with ``autoreset=False``) to its end.
 
@@ -180,7 +186,8 @@ def run_batch(
     ``started``: the observation of a reset the caller has just made with these seeds, scenarios and effects (the
     episodes start from it, without another reset); ``compiled``: where one stacked ``li2023``-family controller
     drives every slot, without ``on_step``, run the steps in compiled code
-    (:mod:`drillgym.controllers.closed_loop`: the same numbers; False steps in Python). The rest as
+    (:mod:`drillgym.controllers.closed_loop`: the same numbers; False steps in Python); ``log``: makes the episodes'
+    logs (:class:`~drillgym.controllers.step_log.StepLog`) once the batch is reset, kept step by step. The rest as
     :func:`run_episodes`.
     """
     n = batch.num_envs
@@ -209,11 +216,27 @@ def run_batch(
             str(ended_by), info, own,
         )  # fmt: skip
 
+    logs = None if log is None else log(batch)
+    hook = on_step if logs is None else _logging(logs, on_step)
     whole = len(batched) == 1 and not alone and len(batched[0][0]) == n
-    if not (compiled and on_step is None and whole and run_closed_loop(batch, batched[0][1], end)):
-        _run_python(batch, slots, batched, alone, obs, end, on_step)
+    if not (compiled and on_step is None and whole and run_closed_loop(batch, batched[0][1], end, logs)):
+        _run_python(batch, slots, batched, alone, obs, end, hook)
     assert all(r is not None for r in results)
     return results  # type: ignore[return-value]
+
+
+def _logging(logs: StepLog, on_step: StepHook | None) -> StepHook:
+    """A step hook keeping each step in ``logs``, then calling ``on_step`` (if any)."""
+
+    def hook(
+        batch: BatchedDrillEnv, step: int, actions: np.ndarray, obs: dict[str, np.ndarray], running: list[int],
+        ended: np.ndarray,
+    ) -> None:  # fmt: skip
+        logs.log_step(step, actions, obs, running, ended)
+        if on_step is not None:
+            on_step(batch, step, actions, obs, running, ended)
+
+    return hook
 
 
 def _run_python(

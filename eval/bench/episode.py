@@ -243,18 +243,17 @@ def _run_batched(jobs: list[EpisodeJob]) -> list[EpisodeResult]:
     effects = [j.effects for j in jobs]  # each episode's own cell (the same text for a fixed cell)
     if all(j.log_path is None for j in jobs):
         return run_episodes(make, seeds, first.kwargs, effects)
-    logger: list[BatchLogger] = []  # made at the first step, once the batch is reset
+    logger: list[BatchLogger] = []  # made once the batch is reset
 
-    def log(batch: Any, step: int, actions: Any, obs: Any, running: list[int], ended: Any) -> None:
-        if not logger:
-            extra = {"suite": first.suite, "scenario": first.scenario, "controller_spec": first.controller}
-            paths = [j.log_path for j in jobs]
-            extras = [{**extra, "effects": j.effects} for j in jobs]
-            logger.append(BatchLogger(batch, paths, seeds, make().describe(), extras))
-        logger[0].log_step(step, actions, obs, running, ended)
+    def log(batch: Any) -> BatchLogger:
+        extra = {"suite": first.suite, "scenario": first.scenario, "controller_spec": first.controller}
+        paths = [j.log_path for j in jobs]
+        extras = [{**extra, "effects": j.effects} for j in jobs]
+        logger.append(BatchLogger(batch, paths, seeds, make().describe(), extras))
+        return logger[0]
 
     try:
-        results = run_episodes(make, seeds, first.kwargs, effects, on_step=log)
+        results = run_episodes(make, seeds, first.kwargs, effects, log=log)
     except BaseException:
         for lg in logger:
             lg.abandon()  # keep what was recorded, as a crash would

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.controllers.step_log import HELD
 from drillgym.envs import SIM_ENV_ID
 from drillgym.envs.constants import SUBSTEPS_PER_STEP, scaled_rows
 from drillgym.envs.sample_record import record_channels
@@ -26,17 +27,6 @@ from drillgym.eval.logs.header import build_header
 from drillgym.eval.logs.logger import FT_COLUMNS
 from drillgym.eval.logs.writer import FLUSH_ROWS, EpisodeLogWriter
 
-HELD = (
-    "cmd_dx_base_m",
-    "cmd_dy_base_m",
-    "cmd_dz_base_m",
-    "cmd_feed_scale",
-    *(f"q{i}_rad" for i in range(6)),
-    *(f"tcp_{a}_base_m" for a in "xyz"),
-    *(f"tracker_{a}_base_m" for a in "xyz"),
-    *(f"tracker_err_{a}_base_m" for a in "xyz"),
-)
-"""The columns a step holds for its samples, in :attr:`BatchLogger.held` order (``tracker_valid`` apart)."""
 FLUSH_S = 1.0
 """Wall seconds between two parts of a batched run's log, at least (:class:`BatchLogger`)."""
 
@@ -105,12 +95,20 @@ class BatchLogger:
         self.held[rows, step] = held
         self.valid[rows, step] = valid
         self.logged[rows] = step + 1
+        self.write_due(running, ended)
+
+    def write_due(self, running: list[int], ended: np.ndarray) -> None:
+        """Write the parts now due of the ``running`` episodes' logs (up to the steps kept); close those that ``ended``.
+
+        A part is due once ``flush_rows`` samples wait and ``flush_s`` seconds have passed since the log's last
+        part, or when its episode ended.
+        """
         now = time.monotonic()
         for i in running:
             writer = self.writers[i]
             if writer is None or writer.closed:
                 continue
-            done = step + 1
+            done = int(self.logged[i])
             due = done - self.written[i] >= self.steps_per_part and now - self.parted_s[i] >= self.flush_s
             if ended[i] or due:
                 self._write(i, done)

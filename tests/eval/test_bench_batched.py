@@ -98,10 +98,13 @@ def test_batches_group_by_controller_and_uncompiled_cell_and_split_for_the_worke
     assert max(len(b) for b in batches(_jobs("none", list(range(200))), workers=1)) == BATCH_MAX
 
 
-def test_a_batch_cut_short_leaves_each_log_readable_up_to_its_last_logged_step(tmp_path, monkeypatch):
-    """A controller that raises at step 30 of the second episode: every open log keeps its parts and the steps logged
-    since, as the single env's logger does when an episode raises (then the batch reruns episode by episode)."""
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_batch_cut_short_leaves_each_log_readable_up_to_its_last_logged_step(tmp_path, monkeypatch, compiled):
+    """A controller that raises at its fourth compensation point (step 36): every open log keeps the 36 steps logged,
+    as the single env's logger does when an episode raises (then the batch reruns episode by episode); in the
+    compiled loop and in the Python one."""
     import drillgym.controllers.rollout as rollout
+    from drillgym.controllers.li2023 import Li2023Controller
     from drillgym.eval.logs.batch_logger import BatchLogger
 
     kept = []
@@ -113,26 +116,30 @@ def test_a_batch_cut_short_leaves_each_log_readable_up_to_its_last_logged_step(t
 
     monkeypatch.setattr(BatchLogger, "abandon", abandon)
     calls = {"n": 0}
-    real_step = rollout.BatchedDrillEnv.step
+    real_point = Li2023Controller._compensation_point
 
-    def step(self, actions):
+    def point(self, obs, t):
         calls["n"] += 1
-        if calls["n"] == 31:
+        if calls["n"] == 4:
             raise RuntimeError("controller exploded")
-        return real_step(self, actions)
+        return real_point(self, obs, t)
 
-    monkeypatch.setattr(rollout.BatchedDrillEnv, "step", step)
+    monkeypatch.setattr(Li2023Controller, "_compensation_point", point)
+    real_run_batch = rollout.run_batch
+    monkeypatch.setattr(rollout, "run_batch", lambda *a, **k: real_run_batch(*a, **k, compiled=compiled))
     jobs = _jobs("li2023", [0, 1], tmp_path)
     with pytest.raises(RuntimeError, match="exploded"):
         bench_episode._run_batched(jobs)
-    assert [len(df) for df in kept[0]] == [150, 150]  # 30 steps of 5 samples each, 100 of them in a part
-    assert (kept[0][0]["step"].to_numpy() == np.repeat(np.arange(30), 5)).all()
+    assert [len(df) for df in kept[0]] == [180, 180]  # 36 steps of 5 samples each
+    assert (kept[0][0]["step"].to_numpy() == np.repeat(np.arange(36), 5)).all()
 
 
 @pytest.mark.parametrize("clock_step_s", [0.0, 10.0])
-def test_a_batched_log_writes_a_part_once_its_rows_and_its_seconds_are_due(tmp_path, monkeypatch, clock_step_s):
+@pytest.mark.parametrize("seeds", [[0], [0, 1]])  # one episode steps in Python; two, in the compiled loop
+def test_a_batched_log_writes_a_part_once_its_rows_and_its_seconds_are_due(tmp_path, monkeypatch, clock_step_s, seeds):
     """A part waits for 100 rows and one second since the log's last part: on a frozen clock one part (the episode's
-    end), on a clock of 10 s a step one every 20 steps; the compacted log is the same either way."""
+    end), on a clock of 10 s a call parts of at least 100 rows (every 20 steps in Python, every 24 in the compiled
+    loop, which hands its rows over every 12 steps); the compacted log is the same either way."""
     from drillgym.eval.logs import batch_logger
     from drillgym.eval.logs.writer import EpisodeLogWriter
 
@@ -142,18 +149,23 @@ def test_a_batched_log_writes_a_part_once_its_rows_and_its_seconds_are_due(tmp_p
         clock["t"] += clock_step_s
         return clock["t"]
 
-    written = []
+    written: dict = {}
     real_flush = EpisodeLogWriter.flush
 
     def flush(self):
-        written.append(self._buffered)
+        if self._buffered:
+            written.setdefault(self.path.name, []).append(self._buffered)
         real_flush(self)
 
     monkeypatch.setattr(batch_logger.time, "monotonic", monotonic)
     monkeypatch.setattr(EpisodeLogWriter, "flush", flush)
-    (row,) = bench_episode._run_batched(_jobs("li2023", [0], tmp_path))
-    parts = 1 if clock_step_s == 0.0 else -(-row.steps // 20)
-    assert row.steps > 200
-    assert len([n for n in written if n]) == parts
-    _, frames = read_episode_log(tmp_path / "li2023_0.parquet")
-    assert (frames["step"].to_numpy() == np.repeat(np.arange(row.steps), 5)).all()
+    rows = bench_episode._run_batched(_jobs("li2023", seeds, tmp_path))
+    for seed, row in zip(seeds, rows, strict=True):
+        parts = written[f"li2023_{seed}.parquet"]
+        assert sum(parts) == 5 * row.steps and row.steps > 200
+        if clock_step_s == 0.0:
+            assert len(parts) == 1
+        else:
+            assert all(n >= 100 for n in parts[:-1]) and len(parts) >= row.steps // 24
+        _, frames = read_episode_log(tmp_path / f"li2023_{seed}.parquet")
+        assert (frames["step"].to_numpy() == np.repeat(np.arange(row.steps), 5)).all()
