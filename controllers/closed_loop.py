@@ -79,8 +79,8 @@ class ClosedLoop:
     def __init__(
         self, batch: BatchedDrillEnv, li: Li2023Controller, entry: SlowEntry | None, log: StepLog | None = None
     ) -> None:
-        if batch.threads != 1:
-            raise ValueError("the closed loop runs on one thread")
+        if batch.threads != 1 or batch.autoreset:
+            raise ValueError("the closed loop runs a batch with autoreset=False on one thread")
         self.batch, self.li, self.entry, self.log = batch, li, entry, log
         n = batch.num_envs
         self.obs64 = np.empty((n, OBS_SIZE))
@@ -162,7 +162,7 @@ class ClosedLoop:
 def run_closed_loop(batch: BatchedDrillEnv, policy: Any, on_end: EpisodeEnd, log: StepLog | None = None) -> bool:
     """Run ``batch``'s episodes with ``policy`` (set to them) in the closed loop if it can; whether it did."""
     parts = closed_loop_parts(policy)
-    if parts is None or batch.threads != 1:
+    if parts is None or batch.threads != 1 or batch.autoreset:  # an autoreset batch never ends: the Python loop's
         return False
     ClosedLoop(batch, *parts, log=log).run(on_end)
     return True
