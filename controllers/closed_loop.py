@@ -10,7 +10,7 @@ loop, bit for bit (``tests/controllers/test_closed_loop.py``).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -67,7 +67,7 @@ EpisodeEnd = Callable[[int, np.ndarray], None]
 
 
 class ClosedLoop:
-    """Runs one episode in every slot of ``batch`` (reset, ``autoreset=False``) with ``controller`` driving all.
+    """Runs one episode in every slot of ``batch`` (reset, ``autoreset=False``), one ``li2023`` controller driving all.
 
     Args:
         batch: the batched env, just reset; one thread.
@@ -166,6 +166,3 @@ def run_closed_loop(batch: BatchedDrillEnv, policy: Any, on_end: EpisodeEnd, log
         return False
     ClosedLoop(batch, *parts, log=log).run(on_end)
     return True
-
-
-__all__: Sequence[str] = ["ClosedLoop", "closed_loop_parts", "run_closed_loop"]
