@@ -138,6 +138,7 @@ def run_episodes(
     effects: str | Sequence[str] = "",
     on_step: StepHook | None = None,
     log: Callable[[BatchedDrillEnv], StepLog] | None = None,
+    compiled: bool = True,
 ) -> list[EpisodeResult]:
     """Run one episode per seed of a simulated scenario on the batched engine, each with its own policy.
 
@@ -154,6 +155,7 @@ def run_episodes(
         log: makes the episodes' logs once the batch is reset (:class:`~drillgym.controllers.step_log.StepLog`,
             e.g. :class:`drillgym.eval.logs.batch_logger.BatchLogger`), kept as the episodes run (in compiled code
             too, :func:`run_batch`).
+        compiled: let the li2023 family run in compiled code (:func:`run_batch`); False: the Python loop.
 
     Returns:
         One :class:`EpisodeResult` per seed, in order, equal to :func:`run_episode` on the single env with
@@ -162,7 +164,7 @@ def run_episodes(
     per_episode = [effects] * len(seeds) if isinstance(effects, str) else list(effects)
     batch = BatchedDrillEnv(len(seeds), autoreset=False, **(env_kwargs or {}))
     try:
-        return run_batch(batch, make_policy, seeds, on_step=on_step, effects=per_episode, log=log)
+        return run_batch(batch, make_policy, seeds, on_step=on_step, effects=per_episode, log=log, compiled=compiled)
     finally:
         batch.close()
 

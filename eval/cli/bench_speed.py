@@ -144,7 +144,9 @@ def _print(result: dict[str, Any], specs: tuple[str, ...]) -> None:
             t = r[spec]
             print(
                 f"  {spec:12s} single env {t['single_env_episodes_per_s_median']:6.1f}   "
-                f"batched {t['batched_episodes_per_s_median']:6.1f}   {t['speedup_median']:.1f}x"
+                f"batched {t['batched_episodes_per_s_median']:6.1f}   {t['speedup_median']:.1f}x   "
+                f"(Python loop {t['python_loop_episodes_per_s_median']:6.1f}: the compiled loop "
+                f"{t['compiled_loop_speedup_median']:.2f}x)"
             )
     if "schedule" in result:
         s = result["schedule"]

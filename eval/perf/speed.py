@@ -240,31 +240,38 @@ def rollout_throughput(
     """Controller episodes per second on one core, on the single env and on the batched engine.
 
     ``seeds`` episodes one by one on the single env (:func:`~drillgym.controllers.rollout.run_episode`, one
-    controller) and together on the batched engine
-    (:func:`~drillgym.controllers.rollout.run_episodes`, one copy per episode, as ``drillgym bench`` runs them),
-    interleaved in ``runs`` rounds per controller; the medians and each round's ratio (the results are the same,
-    bit for bit).
+    controller), together on the batched engine (:func:`~drillgym.controllers.rollout.run_episodes`, as
+    ``drillgym bench`` runs them) and together again with the compiled loop off (``compiled=False``: the Python loop,
+    a step at a time; the same as the batched run for controllers the compiled loop does not take), interleaved in
+    ``runs`` rounds per controller; the medians and each round's ratios (the results are the same, bit for bit).
     """
     out: dict[str, Any] = {"seeds": seeds, "runs": runs}
     env = gym.make(SIM_ENV_ID)
     for spec in specs:
         make_controller(spec)  # a bad spec fails before any timing
-        single, batched, ratio = [], [], []
+        single, ratio, loop_ratio = [], [], []
+        batched: list[float] = []
+        python: list[float] = []
         for _ in range(runs):
             controller = make_controller(spec)
             t0 = time.perf_counter()
             for s in range(seeds):
                 run_episode(env, controller, s, keep_trace=False)
             single.append(seeds / (time.perf_counter() - t0))
-            t0 = time.perf_counter()
-            run_episodes(functools.partial(make_controller, spec), list(range(seeds)))
-            batched.append(seeds / (time.perf_counter() - t0))
+            for compiled, into in ((True, batched), (False, python)):
+                t0 = time.perf_counter()
+                run_episodes(functools.partial(make_controller, spec), list(range(seeds)), compiled=compiled)
+                into.append(seeds / (time.perf_counter() - t0))
             ratio.append(batched[-1] / single[-1])
+            loop_ratio.append(batched[-1] / python[-1])
         out[spec] = {
             "single_env_episodes_per_s_median": statistics.median(single),
             "batched_episodes_per_s_median": statistics.median(batched),
+            "python_loop_episodes_per_s_median": statistics.median(python),
             "speedup_median": statistics.median(ratio),
             "speedup_runs": ratio,
+            "compiled_loop_speedup_median": statistics.median(loop_ratio),
+            "compiled_loop_speedup_runs": loop_ratio,
         }
     env.close()
     return out

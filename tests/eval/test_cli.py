@@ -40,6 +40,8 @@ def test_bench_speed_json_reports_a_real_time_factor(capsys):
     rollouts = result["rollouts"]
     assert rollouts["seeds"] == 2 and len(rollouts["none"]["speedup_runs"]) == 3
     assert rollouts["none"]["batched_episodes_per_s_median"] > 0
+    assert len(rollouts["none"]["compiled_loop_speedup_runs"]) == 3  # none runs the Python loop both ways
+    assert rollouts["none"]["python_loop_episodes_per_s_median"] > 0
     schedule = result["schedule"]  # (the rewards were checked equal while measuring)
     assert schedule["holes"] == 2 and len(schedule["speedup_runs"]) == 3 and schedule["batched_holes_per_s_median"] > 0
 
