@@ -126,7 +126,7 @@ def test_a_batch_cut_short_leaves_each_log_readable_up_to_its_last_logged_step(t
 
     monkeypatch.setattr(Li2023Controller, "_compensation_point", point)
     real_run_batch = rollout.run_batch
-    monkeypatch.setattr(rollout, "run_batch", lambda *a, **k: real_run_batch(*a, **k, compiled=compiled))
+    monkeypatch.setattr(rollout, "run_batch", lambda *a, **k: real_run_batch(*a, **{**k, "compiled": compiled}))
     jobs = _jobs("li2023", [0, 1], tmp_path)
     with pytest.raises(RuntimeError, match="exploded"):
         bench_episode._run_batched(jobs)
