@@ -191,15 +191,21 @@ def lip_geometry(
     tangential = np.stack([sin_p, -cos_p, np.zeros_like(phi)])  # opposes velocity (-sin, cos)
     radial = np.stack([-cos_p, -sin_p, np.zeros_like(phi)])  # toward the axis
     lip_total = float((is_lip * db).sum()) * N_ANGULAR
-    lip_engaged, lip_phi, lip_len, lip_moment, chisel_len, cuts = lip_sums(grid, setback, layer_depth, is_lip, db, r)
+    sums = lip_sums(grid, setback, layer_depth, is_lip, db, r)
+    lip_engaged, lip_phi, lip_len, lip_moment, chisel_len, cuts, same = sums
     materials = []
     for m in range(2):
         cut = np.flatnonzero(cuts[m])
         along_t = np.empty((cut.size, 3))
         along_r = np.empty((cut.size, 3))
+        last = -2
         for n, j in enumerate(cut.tolist()):  # per depth: a BLAS product rounds by the shapes it is given
-            along_t[n] = tangential @ lip_phi[m, j]
-            along_r[n] = radial @ lip_phi[m, j]
+            if j == last + 1 and same[m, j]:  # the previous depth's row: the same product of the same numbers
+                along_t[n], along_r[n] = along_t[n - 1], along_r[n - 1]
+            else:
+                along_t[n] = tangential @ lip_phi[m, j]
+                along_r[n] = radial @ lip_phi[m, j]
+            last = j
         materials.append(EngagedLips(cut, along_t, along_r, lip_len[m, cut], lip_moment[m, cut], chisel_len[m, cut]))
     fraction = lip_engaged / lip_total
     for a in (grid, fraction, *(a for part in materials for a in vars(part).values())):

@@ -59,11 +59,11 @@ def _numpy_sums(grid, setback, layer_depth, is_lip, db, r):
     return out
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", range(12))
 def test_lip_sums_equal_numpys_masks_bit_for_bit(seed):
     rng = np.random.default_rng(seed)
     geom = DrillGeometry(diameter_m=float(rng.uniform(1.5e-3, 4.5e-3)))
-    beta = 0.0 if seed == 0 else math.radians(float(rng.uniform(0.0, 60.0)))
+    beta = 0.0 if seed == 0 else math.radians(float(rng.uniform(-60.0, 60.0)))  # past 31°: outer radii lead
     layer = float(rng.uniform(0.5e-3, 8e-3)) / math.cos(beta)
     grid = _depth_grid(geom, beta, layer, layer + float(rng.uniform(1e-3, 15e-3)))
     edges = np.linspace(0.0, geom.radius_m, N_RADIAL + 1)
@@ -75,9 +75,14 @@ def test_lip_sums_equal_numpys_masks_bit_for_bit(seed):
     got = lip_sums(grid, setback, layer, is_lip, db, r)
     want = _numpy_sums(grid, setback, layer, is_lip, db, r)
     names = ("lip_engaged", "lip_phi", "lip_len", "lip_moment", "chisel_len", "cut")
-    for name, value in zip(names, got, strict=True):
+    for name, value in zip(names, got[:6], strict=True):
         assert np.array_equal(value, np.asarray(want[name])), name
     assert got[5].any(axis=1).all()  # both materials are cut somewhere: the comparison covers both
+    lip_phi, same = got[1], got[6]
+    repeated = np.zeros_like(same)
+    repeated[:, 1:] = (lip_phi[:, 1:] == lip_phi[:, :-1]).all(axis=2)
+    assert np.array_equal(same, repeated)  # "same" says exactly which rows repeat the previous depth's
+    assert same.any() and not same.all()
 
 
 def test_a_table_is_the_same_whatever_else_was_built_before():
