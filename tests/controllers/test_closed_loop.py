@@ -196,3 +196,31 @@ def test_online_correction_from_the_point_ring_is_the_deques_bit_for_bit():
             assert np.array_equal(out, _deque_online(points, t, period))
             assert li.point_ring[1] == len(points)
     assert grown
+
+
+@pytest.mark.parametrize("draw", range(4))
+def test_compiled_loop_matches_the_python_loop_on_random_configurations(draw):
+    """Random gains, filters, point periods, predictions, axes, switches, slow entries, holes, cells and step limits
+    (90 such draws were compared while writing the loop; four run here)."""
+    rng = np.random.default_rng(100 + draw)
+    fields = {
+        "kp": round(float(rng.uniform(0, 6)), 3),
+        "ki": round(float(rng.uniform(0, 0.6)), 3),
+        "kd": round(float(rng.uniform(0, 1)), 3),
+        "filter_samples": int(rng.choice([5, 10, 20, 40])),
+        "point_period_s": float(rng.choice([0.05, 0.3, 0.6, 1.2])),
+        "prediction_points": int(rng.integers(1, 4)),
+        "axes": str(rng.choice(["x", "xy"])),
+        "y_gain": round(float(rng.uniform(0, 2)), 3),
+        "offline": int(rng.integers(0, 2)),
+        "online": int(rng.integers(0, 2)),
+        "count_executed_correction": int(rng.integers(0, 2)),
+        "entry_feed_scale": round(float(rng.uniform(0.3, 1)), 3),
+        "entry_depth_mm": round(float(rng.uniform(0, 3)), 3),
+    }
+    spec = "li2023:" + ",".join(f"{k}={v}" for k, v in fields.items())
+    holes = [{"beta_deg": float(rng.uniform(-40, 40)), "feed_mm_s": float(rng.uniform(0.3, 1.5))} for _ in range(3)]
+    cell = ["ft_drift", "joint_friction:coulomb_rad=3e-4", "latency:extra_latency_s=0.1", None][draw]
+    limit = {"max_episode_steps": int(rng.integers(20, 300))} if draw % 2 else {}
+    a = _run(spec, False, cell, holes, seeds=(1, 2, 3), **limit)
+    _assert_same(a, _run(spec, True, cell, holes, seeds=(1, 2, 3), **limit))
