@@ -301,11 +301,10 @@ class EpisodeAppender:
 
     def __call__(self, row: dict[str, Any]) -> None:
         """Append one finished episode's row (one write: a crash cuts at most that line)."""
-        from drillgym.eval.bench.report import episodes_frame
+        from drillgym.eval.bench.episode_line import episode_line
 
-        text = episodes_frame([row]).to_csv(index=False, header=False)
         with self.path.open("a") as f:
-            f.write(text)
+            f.write(episode_line(row))
 
 
 def resume_command(args: argparse.Namespace) -> str:
