@@ -80,3 +80,13 @@ def test_matvec_gives_the_elementwise_sum_in_its_order_bit_for_bit():
         rows = m if m.ndim == 3 else np.broadcast_to(m, (n, 3, 3))
         expected = rows[:, :, 0] * x[:, None, 0] + rows[:, :, 1] * x[:, None, 1] + rows[:, :, 2] * x[:, None, 2]
         assert np.array_equal(matvec(m, x), expected)
+
+
+def test_zhang2005_cross_product_is_numpys_bit_for_bit():
+    from drillgym.controllers.zhang2005 import _cross
+
+    rng = np.random.default_rng(3)
+    for _ in range(2000):
+        a = rng.normal(size=3) * 10.0 ** rng.integers(-8, 8, 3) * (rng.random(3) > 0.3)
+        b = rng.normal(size=3) * 10.0 ** rng.integers(-8, 8, 3) * (rng.random(3) > 0.3)
+        assert _cross(a, b).tobytes() == np.cross(a, b).tobytes()  # signed zeros too
