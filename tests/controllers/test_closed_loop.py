@@ -224,3 +224,12 @@ def test_compiled_loop_matches_the_python_loop_on_random_configurations(draw):
     limit = {"max_episode_steps": int(rng.integers(20, 300))} if draw % 2 else {}
     a = _run(spec, False, cell, holes, seeds=(1, 2, 3), **limit)
     _assert_same(a, _run(spec, True, cell, holes, seeds=(1, 2, 3), **limit))
+
+
+def test_compiled_loop_grows_its_reward_rows_when_they_run_out(monkeypatch):
+    """The rows for each step's rewards start at the record's step capacity; made to start at two, they grow."""
+    import drillgym.controllers.closed_loop as closed_loop
+
+    want = _run("li2023_tuned", False, seeds=(3, 5))
+    monkeypatch.setattr(closed_loop, "SUBSTEPS_PER_STEP", 10**9)  # capacity // huge + 2 = 2 rows to begin with
+    _assert_same(want, _run("li2023_tuned", True, seeds=(3, 5)))
