@@ -120,22 +120,14 @@ def test_the_li2023_family_runs_compiled_and_other_policies_do_not():
         assert closed_loop_parts(subclass) is None
     finally:
         batch.close()
-    threaded = BatchedDrillEnv(2, autoreset=False, threads=2)
-    try:
-        threaded.reset(seed=0)
-        li = make_controller("li2023")
-        li.set_plan(threaded.envs[0].plan, 2)
-        assert not run_closed_loop(threaded, li, lambda i, r: None)
-    finally:
-        threaded.close()
-    restarting = BatchedDrillEnv(2)  # autoreset: its slots restart as they end
-    try:
-        restarting.reset(seed=0)
-        li = make_controller("li2023")
-        li.set_plan(restarting.envs[0].plan, 2)
-        assert not run_closed_loop(restarting, li, lambda i, r: None)
-    finally:
-        restarting.close()
+    for batch in (BatchedDrillEnv(2, autoreset=False, threads=2), BatchedDrillEnv(2)):  # two threads; autoreset
+        try:
+            batch.reset(seed=0)
+            li = make_controller("li2023")
+            li.set_plan(batch.envs[0].plan, 2)
+            assert not run_closed_loop(batch, li, lambda i, r: None)
+        finally:
+            batch.close()
 
 
 def test_a_nan_action_in_the_compiled_loop_is_the_python_loops_error():
