@@ -141,6 +141,21 @@ class Li2023Controller(Controller):
         cfg = self.config
         self._gains(cfg.kp, cfg.ki, cfg.kd, np.array([cfg.y_gain]))
         super().set_plan(plan, num_episodes)
+        self._load_kernels()
+
+    def _load_kernels(self) -> None:
+        """Call the step's compiled kernels once on scratch arrays of this controller's layouts (nothing kept).
+
+        numba loads a kernel's machine code at its first call in a process (≈ 10 ms each): here, before the hole,
+        rather than at its first step, where a real cell's 50 ms step would pay it.
+        """
+        n, cfg, m = self.num_episodes, self.config, self._model_rows
+        actions_into(np.zeros(n), cfg.offline, m.depth_m, m.lateral_task_n, m.sizes, m.model_of, _rows(self.lateral),
+                     _rows(self.R), _rows(self.C_tool), np.zeros((n, 3)), self.y_gain, self._y_any, self._y_all,
+                     cfg.max_correction_m, np.empty((n, 3)), np.empty((n, 4), dtype=np.float32))  # fmt: skip
+        online_into(self.point_times_s.copy(), self.point_corrections.copy(), self.point_ring.copy(), 0.0,
+                    cfg.point_period_s, np.empty((n, 3)))  # fmt: skip
+        matvec(self.R, np.zeros((n, 3)))
 
     def _gains(self, kp: Any, ki: Any, kd: Any, y_gain: np.ndarray) -> None:
         """The gains as the step uses them.
