@@ -95,7 +95,7 @@ class ClosedLoop:
     def _controller_arrays(self) -> tuple[Any, ...]:
         """The controller's arrays in :func:`~drillgym.controllers.closed_loop_kernel.run_steps`' order.
 
-        Read anew after each compensation point: the point queue may have grown.
+        Read anew only when a compensation point has grown the point queue into new arrays.
         """
         li, m = self.li, self.li._model_rows
         entry_m, entry_offset = self.entry._entry if self.entry is not None else (_NO_ENTRY, _NO_ENTRY)
@@ -105,6 +105,17 @@ class ClosedLoop:
             np.ascontiguousarray(_rows(li.R)), np.ascontiguousarray(_rows(li.C_tool)), li.y_gain, entry_m,
             entry_offset, self._switches, self._reals, self._per_point,
         )  # fmt: skip
+
+    def _take_point(self, counters: np.ndarray, ctl: tuple[Any, ...]) -> tuple[Any, ...]:
+        """li2023's compensation point at the loop's step, in Python (its Jacobian and BLAS product).
+
+        Returns the controller's arrays for the loop: anew only if the point queue grew into new arrays.
+        """
+        li = self.li
+        li.step = int(counters[0])
+        li._compensation_point(unpack_observation(self.obs32), li.step * CONTROL_DT_S)
+        counters[1] = 1
+        return ctl if li.point_times_s is ctl[2] else self._controller_arrays()
 
     def run(self, on_end: EpisodeEnd) -> None:
         """Step until every slot has ended, calling ``on_end`` for each as it ends."""
@@ -132,10 +143,7 @@ class ClosedLoop:
             if log is not None and code in (STOP_POINT, STOP_ENDED):  # every 12 steps at most, and at each end
                 log.write_due(batch.active.nonzero()[0].tolist(), ended if code == STOP_ENDED else no_end)
             if code == STOP_POINT:
-                li.step = int(counters[0])
-                li._compensation_point(unpack_observation(self.obs32), li.step * CONTROL_DT_S)
-                counters[1] = 1
-                ctl = self._controller_arrays()
+                ctl = self._take_point(counters, ctl)
             elif code == STOP_REFILL:
                 batch._draw_ahead(batch.active.copy())
             elif code == STOP_FULL:

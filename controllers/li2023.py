@@ -97,6 +97,10 @@ class Li2023Config:
             raise UserError(f"y_gain={self.y_gain} must lie in [0, 3]")
 
 
+_kernels_loaded = False
+"""Whether this process has called li2023's compiled kernels (:meth:`Li2023Controller._load_kernels`)."""
+
+
 def lateral_projector(R_base_task: np.ndarray, axes: str) -> np.ndarray:
     """Projector onto the compensated task axes (``"x"`` or ``"xy"``), in the base frame (3, 3)."""
     if axes not in ("x", "xy"):
@@ -144,18 +148,20 @@ class Li2023Controller(Controller):
         self._load_kernels()
 
     def _load_kernels(self) -> None:
-        """Call the step's compiled kernels once on scratch arrays of this controller's layouts (nothing kept).
+        """Call the step's compiled kernels once per process, on scratch data of this controller's layouts.
 
-        numba loads a kernel's machine code at its first call in a process (≈ 10 ms each): here, before the hole,
-        rather than at its first step, where a real cell's 50 ms step would pay it.
+        numba loads a kernel's machine code at its first call in a process (≈ 10 ms each): here, at the first plan,
+        rather than at the first hole's first step, where a real cell's 50 ms step would pay it. Nothing is kept.
         """
-        n, cfg, m = self.num_episodes, self.config, self._model_rows
-        actions_into(np.zeros(n), cfg.offline, m.depth_m, m.lateral_task_n, m.sizes, m.model_of, _rows(self.lateral),
-                     _rows(self.R), _rows(self.C_tool), np.zeros((n, 3)), self.y_gain, self._y_any, self._y_all,
-                     cfg.max_correction_m, np.empty((n, 3)), np.empty((n, 4), dtype=np.float32))  # fmt: skip
+        global _kernels_loaded
+        if _kernels_loaded:
+            return
+        n = self.num_episodes
+        self._actions(np.zeros(n), np.zeros((n, 3)))
         online_into(self.point_times_s.copy(), self.point_corrections.copy(), self.point_ring.copy(), 0.0,
-                    cfg.point_period_s, np.empty((n, 3)))  # fmt: skip
+                    self.config.point_period_s, np.empty((n, 3)))  # fmt: skip
         matvec(self.R, np.zeros((n, 3)))
+        _kernels_loaded = True
 
     def _gains(self, kp: Any, ki: Any, kd: Any, y_gain: np.ndarray) -> None:
         """The gains as the step uses them.
@@ -281,26 +287,19 @@ class Li2023Controller(Controller):
             online_into(self.point_times_s, self.point_corrections, self.point_ring, t + CONTROL_DT_S,
                         cfg.point_period_s, online)  # fmt: skip
         self.step += 1
-        model = self._model_rows
+        return self._actions(obs["path_depth_m"][:, 0].astype(float), online)
+
+    def _actions(self, depth_m: np.ndarray, online_base_m: np.ndarray) -> np.ndarray:
+        """Every episode's action (N, 4) float32 from its nominal depth (m) and online correction (m, base).
+
+        Offline + online correction, the y gain, the clips and the action, as the numpy expressions give them
+        (:func:`~drillgym.controllers.li2023_step.actions_into`).
+        """
+        n, cfg, model = self.num_episodes, self.config, self._model_rows
         actions = np.empty((n, 4), dtype=np.float32)
-        actions_into(
-            obs["path_depth_m"][:, 0].astype(float),
-            cfg.offline,
-            model.depth_m,
-            model.lateral_task_n,
-            model.sizes,
-            model.model_of,
-            _rows(self.lateral),
-            _rows(self.R),
-            _rows(self.C_tool),
-            online,
-            self.y_gain,
-            self._y_any,
-            self._y_all,
-            cfg.max_correction_m,
-            np.empty((n, 3)),
-            actions,
-        )  # offline + online, the y gain, the clips and the action, as the numpy expressions give them
+        actions_into(depth_m, cfg.offline, model.depth_m, model.lateral_task_n, model.sizes, model.model_of,
+                     _rows(self.lateral), _rows(self.R), _rows(self.C_tool), online_base_m, self.y_gain, self._y_any,
+                     self._y_all, cfg.max_correction_m, np.empty((n, 3)), actions)  # fmt: skip
         return actions
 
     def _compensation_point(self, obs: dict[str, np.ndarray], t: float) -> None:
