@@ -32,6 +32,7 @@ from drillgym.eval.diagnosis.location import location_check
 from drillgym.eval.diagnosis.pairs import PAIR_TRY_RESIDUAL, pair_roles, possible_second_effects, second_effect_evidence
 from drillgym.eval.diagnosis.pool import Runner
 from drillgym.eval.diagnosis.rank import (
+    RESCUE_CI_LOW_MIN,
     ModelScore,
     alternatives,
     baseline_score,
@@ -216,14 +217,19 @@ def _name(
     its effects falls back to its other effect alone, refined and decided on again without the pair.
     """
     verdict, chosen, location, guard = decide(significance, scores, before, data, null)
-    if chosen is not None and chosen.fit.per_episode is None:  # a random effect's fit is every episode's own
-        bar.total += 1
-        bar.set_postfix_str("refining the named model")
-        fits = list(fits)
-        k = next(i for i, f in enumerate(fits) if f is chosen.fit)
-        fits[k] = _polish(runner, data, chosen.fit, fits, bar)
+    # The named model is refined and decided on again. Where a significant gap has nothing named, so is the best
+    # single effect (its search may have stopped short of its valley); what is named after that second look must
+    # be surely better than nothing: the low end of its shrink interval at least RESCUE_CI_LOW_MIN.
+    rescue = chosen is None and verdict == "unexplained"
+    target = _best_single(scores) if rescue else chosen
+    if target is not None and target.fit.per_episode is None:  # a random effect's fit is every episode's own
+        bar.set_postfix_str("refining the best single" if rescue else "refining the named model")
+        fits = _repolished(runner, data, fits, next(i for i, f in enumerate(fits) if f is target.fit), bar)
         scores = score_models(fits, before, null, seed)
         verdict, chosen, location, guard = decide(significance, scores, before, data, null)
+        if rescue and chosen is not None and chosen.ci_low < RESCUE_CI_LOW_MIN:
+            chosen.named, chosen = False, None
+            verdict, location = "unexplained", gap_location(data)
     _bound(scores, seed)
     off_point = [] if chosen is None else off_point_inside(chosen.intervals, chosen.fit.names)
     if chosen is not None and off_point:  # not told apart from its absence: not named as it is
@@ -234,9 +240,7 @@ def _name(
             # A pair whose other effect is not told apart from its absence is its first effect alone: that single
             # is decided on again, refined from the pair's values for it (which may be better than its own fit's,
             # as the pair's are refined and the single's are not).
-            bar.total += 1
-            fits = list(fits)
-            fits[single] = _polish(runner, data, fits[single], fits, bar)
+            fits = _repolished(runner, data, fits, single, bar)
             scores = score_models(fits, before, null, seed)
             verdict, chosen, location, guard = decide(
                 significance, [s for s in scores if s.fit is not refused], before, data, null
@@ -256,6 +260,19 @@ def _bound(scores: list[ModelScore], seed: int) -> None:
     for s in scores:
         if not s.intervals:
             s.intervals = s.fit.intervals if s.fit.intervals is not None else parameter_intervals(s.fit.samples, seed)
+
+
+def _best_single(scores: list[ModelScore]) -> ModelScore | None:
+    """The best-scoring single effect (``scores`` best first), or None."""
+    return next((s for s in scores if len(s.fit.names) == 1), None)
+
+
+def _repolished(runner: Runner, data: DiagnosisData, fits: list[FitResult], k: int, bar: tqdm) -> list[FitResult]:
+    """``fits`` with its ``k``-th fit refined (:func:`_polish`); one more step on the progress bar."""
+    bar.total += 1
+    out = list(fits)
+    out[k] = _polish(runner, data, fits[k], fits, bar)
+    return out
 
 
 def _polish(runner: Runner, data: DiagnosisData, fit: FitResult, fits: list[FitResult], bar: tqdm) -> FitResult:

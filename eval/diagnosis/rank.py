@@ -34,6 +34,9 @@ NAME_SHRINK_MIN = 0.5
 """A model is named only if it removes at least this share of the held-out excess gap."""
 NAME_CI_LOW_MIN = 0.2
 """... and the lower end of its 95 % interval is above this."""
+RESCUE_CI_LOW_MIN = 0.5
+"""A model named only after the best single effect was refined on a gap that had nothing named: the lower end of
+its shrink interval must be at least this (a second look is not taken on a model that is barely better than none)."""
 
 
 @dataclass
