@@ -141,7 +141,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
                 singles = [_best_anywhere(f, pairs) for f in singles]
                 scores = score_models(singles + pairs, before, null, opt.seed)
         timings["pairs_s"] = time.perf_counter() - t0 - timings["baseline_s"] - timings["singles_s"]
-        verdict, chosen, location, guard, off_point, scores = _name(
+        verdict, chosen, location, guard, off_point, scores, rescue = _name(
             runner, data, significance, singles + pairs, scores, before, null, opt.seed, bar
         )
     timings["polish_s"] = time.perf_counter() - t0 - sum(timings.values())
@@ -173,6 +173,7 @@ def run_diagnosis(episodes: list[EpisodeData], options: DiagnoseOptions | None =
         "per_episode": None if chosen is None else chosen.fit.per_episode,
         "single_guard": guard,
         "off_point_guard": off_point or None,
+        "rescue": rescue,
         "effects": [s.to_json() for s in scores],
         "alternatives": alts,
         "possible_second_effects": seconds,
@@ -222,14 +223,17 @@ def _name(
     # be surely better than nothing: the low end of its shrink interval at least RESCUE_CI_LOW_MIN.
     rescue = chosen is None and verdict == "unexplained"
     target = _best_single(scores) if rescue else chosen
+    record: dict[str, Any] | None = None
     if target is not None and target.fit.per_episode is None:  # a random effect's fit is every episode's own
         bar.set_postfix_str("refining the best single" if rescue else "refining the named model")
         fits = _repolished(runner, data, fits, next(i for i, f in enumerate(fits) if f is target.fit), bar)
         scores = score_models(fits, before, null, seed)
         verdict, chosen, location, guard = decide(significance, scores, before, data, null)
-        if rescue and chosen is not None and chosen.ci_low < RESCUE_CI_LOW_MIN:
-            chosen.named, chosen = False, None
-            verdict, location = "unexplained", gap_location(data)
+        if rescue:
+            record = _rescue_record(target.name, chosen)
+            if chosen is not None and not record["named"]:
+                chosen.named, chosen = False, None
+                verdict, location = "unexplained", gap_location(data)
     _bound(scores, seed)
     off_point = [] if chosen is None else off_point_inside(chosen.intervals, chosen.fit.names)
     if chosen is not None and off_point:  # not told apart from its absence: not named as it is
@@ -252,7 +256,21 @@ def _name(
                 chosen.named, chosen = False, None
         if chosen is None:
             verdict, location = "unexplained", gap_location(data)
-    return Decision(verdict, chosen, location, guard, off_point, scores)
+    return Decision(verdict, chosen, location, guard, off_point, scores, record)
+
+
+def _rescue_record(effect: str, decided: ModelScore | None) -> dict[str, Any]:
+    """What came of refining the best single ``effect`` on a gap that had nothing named (``Decision.rescue``)."""
+    out: dict[str, Any] = {"effect": effect, "decided": None, "named": False, "reason": None}
+    if decided is None:
+        return out
+    out.update(decided=decided.name, named=decided.ci_low >= RESCUE_CI_LOW_MIN)
+    if not out["named"]:
+        out["reason"] = (
+            f"named only after the best single was refined, and its shrink interval starts at "
+            f"{100 * decided.ci_low:.0f} %, under the {100 * RESCUE_CI_LOW_MIN:.0f} % such a second look asks"
+        )
+    return out
 
 
 def _bound(scores: list[ModelScore], seed: int) -> None:

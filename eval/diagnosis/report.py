@@ -164,6 +164,9 @@ def why_not_named(effect: dict[str, Any], res: dict[str, Any]) -> str:
     guard = res.get("single_guard") or {}
     if guard.get("contradicted") and guard.get("effect") == effect["name"]:
         return "no: it predicts a change before contact that the data do not show"
+    rescue = res.get("rescue") or {}
+    if rescue.get("reason") and rescue.get("decided") == effect["name"]:
+        return "no: " + rescue["reason"]
     off = res.get("off_point_guard") or []
     if named is None and set(effect["effects"]) & set(off):
         return "no: its parameters' intervals contain the off point (" + ", ".join(off) + ")"

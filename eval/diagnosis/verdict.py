@@ -45,6 +45,9 @@ class Decision(NamedTuple):
     guard: dict[str, Any] | None
     off_point: list[str]
     scores: list[ModelScore]
+    rescue: dict[str, Any] | None = None
+    """Where a significant gap had nothing named and the best single effect was refined: ``effect``, the model
+    ``decided`` on after that (None: none), whether it was ``named`` and, when refused, the ``reason``."""
 
 
 def decide(

@@ -142,6 +142,17 @@ def test_the_ranking_says_why_a_model_above_the_named_one_was_not_named():
     assert why_not_named(effects[3], res) == ""  # ranked below the named model: nothing to explain
 
 
+def test_the_ranking_gives_the_rescue_bar_as_the_reason_a_refined_single_was_refused():
+    from drillgym.eval.diagnosis.report import why_not_named
+
+    effects = [{"name": "a", "effects": ["a"], "shrink": 0.7, "ci_low": 0.3, "named": False}]
+    reason = "named only after the best single was refined, and its shrink interval starts at 30 %"
+    rescue = {"effect": "a", "decided": "a", "named": False, "reason": reason}
+    res = {"effects": effects, "verdict": "unexplained", "rescue": rescue}
+    assert why_not_named(effects[0], res) == "no: " + reason
+    assert why_not_named(effects[0], {**res, "rescue": None}) == "no: unexplained"
+
+
 def test_gap_map_cells_print_noise_as_below_the_floor():
     from drillgym.eval.diagnosis.figures import gap_text
 

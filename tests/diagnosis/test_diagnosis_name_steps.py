@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from drillgym.eval.diagnosis.fit import FitResult
-from drillgym.eval.diagnosis.rank import ModelScore
+from drillgym.eval.diagnosis.rank import RESCUE_CI_LOW_MIN, ModelScore
 
 dg = importlib.import_module("drillgym.eval.diagnosis.diagnose")  # the module (the package exports the function)
 
@@ -97,7 +97,7 @@ def test_a_named_model_is_refined_rescored_decided_on_again_and_bounded(monkeypa
     fits, bar = [FitResult(SINGLE, [{}], 1)], _Bar()
     decision = _name(steps, fits, bar)
     named = steps.scores[SINGLE]
-    assert decision == ("explained", named, None, GUARD, [], [named]) and named.named
+    assert decision == ("explained", named, None, GUARD, [], [named], None) and named.named
     decided = ("decide", SIGNIFICANCE, [SINGLE], BEFORE, DATA, NULL)
     assert steps.calls == [
         decided,
@@ -118,10 +118,47 @@ def test_a_random_effect_is_not_refined(monkeypatch):
     assert bar.total == 3
 
 
-def test_nothing_named_is_neither_refined_nor_judged_by_the_off_point_rule(monkeypatch):
-    steps = _Steps(monkeypatch, [None], {SINGLE: {"ft_drift": {"fz_rate_n_s": _interval(True)}}})
-    decision = _name(steps, [FitResult(SINGLE, [{}], 1)], _Bar())
-    assert decision == ("unexplained", None, LOCATION, None, [], [steps.scores[SINGLE]])
+def test_nothing_named_refines_the_best_single_decides_again_and_skips_the_off_point_rule(monkeypatch):
+    steps = _Steps(monkeypatch, [None, None], {SINGLE: {"ft_drift": {"fz_rate_n_s": _interval(True)}}})
+    bar = _Bar()
+    decision = _name(steps, [FitResult(SINGLE, [{}], 1)], bar)
+    rescue = {"effect": "ft_drift", "decided": None, "named": False, "reason": None}
+    assert decision == ("unexplained", None, LOCATION, None, [], [steps.scores[SINGLE]], rescue)
+    decided = ("decide", SIGNIFICANCE, [SINGLE], BEFORE, DATA, NULL)
+    assert steps.calls == [
+        decided,
+        ("polish", RUNNER, DATA, SINGLE, [SINGLE], bar),
+        ("score_models", [SINGLE], BEFORE, NULL, SEED),
+        decided,
+        ("bound", [SINGLE], SEED),
+    ]
+    assert bar.total == 3 + 1 and bar.postfix == ["refining the best single"]
+
+
+def test_a_single_refined_after_nothing_was_named_is_named_when_its_interval_clears_the_rescue_bar(monkeypatch):
+    steps = _Steps(monkeypatch, [None, SINGLE], {SINGLE: {"ft_drift": {"fz_rate_n_s": _interval(False)}}})
+    fit = FitResult(SINGLE, [{}], 1)
+    steps.score_of(fit).ci_low = RESCUE_CI_LOW_MIN  # the bar itself passes
+    decision = _name(steps, [fit], _Bar())
+    assert decision.verdict == "explained" and decision.chosen is steps.scores[SINGLE] and decision.chosen.named
+    assert decision.rescue == {"effect": "ft_drift", "decided": "ft_drift", "named": True, "reason": None}
+
+
+def test_a_single_refined_after_nothing_was_named_is_refused_below_the_rescue_bar_and_the_gap_located(monkeypatch):
+    steps = _Steps(monkeypatch, [None, SINGLE], {SINGLE: {"ft_drift": {"fz_rate_n_s": _interval(False)}}})
+    fit = FitResult(SINGLE, [{}], 1)
+    steps.score_of(fit).ci_low = 0.3  # above the usual 20 %, under the rescue's 50 %
+    decision = _name(steps, [fit], _Bar())
+    assert (decision.verdict, decision.chosen, decision.location) == ("unexplained", None, LOCATION)
+    assert not steps.scores[SINGLE].named and ("gap_location", DATA) in steps.calls
+    assert decision.rescue is not None and decision.rescue["decided"] == "ft_drift" and not decision.rescue["named"]
+    assert "starts at 30 %, under the 50 %" in decision.rescue["reason"]
+
+
+def test_a_random_best_single_is_not_refined_when_nothing_is_named(monkeypatch):
+    steps = _Steps(monkeypatch, [None], {SINGLE: {"ft_drift": {"fz_rate_n_s": _interval(False)}}})
+    decision = _name(steps, [FitResult(SINGLE, [{}], 1, per_episode={"spread": {}})], _Bar())
+    assert decision.verdict == "unexplained" and decision.rescue is None
     assert [c[0] for c in steps.calls] == ["decide", "bound"]
 
 
@@ -136,7 +173,7 @@ def test_a_refused_pair_falls_back_to_its_first_effect_with_every_step_given_the
     fits, bar = [FitResult(PAIR, [{}, {}], 2), FitResult(SINGLE, [{}], 1)], _Bar()
     decision = _name(steps, fits, bar)
     single, pair = steps.scores[SINGLE], steps.scores[PAIR]
-    assert decision == ("explained", single, None, GUARD, ["latency"], [pair, single])
+    assert decision == ("explained", single, None, GUARD, ["latency"], [pair, single], None)
     assert single.named and not pair.named  # the refused pair is marked as not named
     assert steps.calls[1] == ("polish", RUNNER, DATA, PAIR, [PAIR, SINGLE], bar)
     assert steps.calls[5:] == [
