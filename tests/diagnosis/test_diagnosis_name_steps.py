@@ -92,20 +92,25 @@ def _name(steps: _Steps, fits: list[FitResult], bar: _Bar):
     return dg._name(RUNNER, DATA, SIGNIFICANCE, fits, scores, BEFORE, NULL, SEED, bar)  # type: ignore[arg-type]
 
 
-def test_a_named_model_is_refined_rescored_decided_on_again_and_bounded(monkeypatch):
-    steps = _Steps(monkeypatch, [SINGLE, SINGLE], {SINGLE: {"ft_drift": {"fz_rate_n_s": _interval(False)}}})
-    fits, bar = [FitResult(SINGLE, [{}], 1)], _Bar()
-    decision = _name(steps, fits, bar)
-    named = steps.scores[SINGLE]
-    assert decision == ("explained", named, None, GUARD, [], [named], None) and named.named
+def _single_refined_calls(bar: _Bar) -> list[tuple[Any, ...]]:
+    """The steps of deciding, refining the one single fit, rescoring, deciding again and bounding."""
     decided = ("decide", SIGNIFICANCE, [SINGLE], BEFORE, DATA, NULL)
-    assert steps.calls == [
+    return [
         decided,
         ("polish", RUNNER, DATA, SINGLE, [SINGLE], bar),
         ("score_models", [SINGLE], BEFORE, NULL, SEED),
         decided,
         ("bound", [SINGLE], SEED),
     ]
+
+
+def test_a_named_model_is_refined_rescored_decided_on_again_and_bounded(monkeypatch):
+    steps = _Steps(monkeypatch, [SINGLE, SINGLE], {SINGLE: {"ft_drift": {"fz_rate_n_s": _interval(False)}}})
+    fits, bar = [FitResult(SINGLE, [{}], 1)], _Bar()
+    decision = _name(steps, fits, bar)
+    named = steps.scores[SINGLE]
+    assert decision == ("explained", named, None, GUARD, [], [named], None) and named.named
+    assert steps.calls == _single_refined_calls(bar)
     assert bar.total == 3 + 1 and bar.postfix == ["refining the named model"]
 
 
@@ -124,14 +129,7 @@ def test_nothing_named_refines_the_best_single_decides_again_and_skips_the_off_p
     decision = _name(steps, [FitResult(SINGLE, [{}], 1)], bar)
     rescue = {"effect": "ft_drift", "decided": None, "named": False, "reason": None}
     assert decision == ("unexplained", None, LOCATION, None, [], [steps.scores[SINGLE]], rescue)
-    decided = ("decide", SIGNIFICANCE, [SINGLE], BEFORE, DATA, NULL)
-    assert steps.calls == [
-        decided,
-        ("polish", RUNNER, DATA, SINGLE, [SINGLE], bar),
-        ("score_models", [SINGLE], BEFORE, NULL, SEED),
-        decided,
-        ("bound", [SINGLE], SEED),
-    ]
+    assert steps.calls == _single_refined_calls(bar)
     assert bar.total == 3 + 1 and bar.postfix == ["refining the best single"]
 
 
