@@ -40,7 +40,7 @@ from drillgym.eval.diagnosis.rank import (
     score_models,
     singles_by_name,
 )
-from drillgym.eval.diagnosis.verdict import Decision, decide, gap_location, summary
+from drillgym.eval.diagnosis.verdict import Decision, best_single, decide, gap_location, summary
 from drillgym.eval.diagnosis.where import gap_map, gap_significance, locate
 from drillgym.eval.progress import bar_size
 
@@ -222,7 +222,7 @@ def _name(
     # single effect (its search may have stopped short of its valley); what is named after that second look must
     # be surely better than nothing: the low end of its shrink interval at least RESCUE_CI_LOW_MIN.
     rescue = chosen is None and verdict == "unexplained"
-    target = _best_single(scores) if rescue else chosen
+    target = best_single(scores) if rescue else chosen
     record: dict[str, Any] | None = None
     if target is not None and target.fit.per_episode is None:  # a random effect's fit is every episode's own
         bar.set_postfix_str("refining the best single" if rescue else "refining the named model")
@@ -278,11 +278,6 @@ def _bound(scores: list[ModelScore], seed: int) -> None:
     for s in scores:
         if not s.intervals:
             s.intervals = s.fit.intervals if s.fit.intervals is not None else parameter_intervals(s.fit.samples, seed)
-
-
-def _best_single(scores: list[ModelScore]) -> ModelScore | None:
-    """The best-scoring single effect (``scores`` best first), or None."""
-    return next((s for s in scores if len(s.fit.names) == 1), None)
 
 
 def _repolished(runner: Runner, data: DiagnosisData, fits: list[FitResult], k: int, bar: tqdm) -> list[FitResult]:

@@ -61,14 +61,19 @@ def decide(
     s0 = baseline_score(before)
     for s in scores:
         s.shape = shape_test(s, before, null, data) if nameable(s, s0) else None
-    best_single = next((s for s in scores if len(s.fit.names) == 1), None)
+    single = best_single(scores)
     guard: dict[str, Any] | None = None
     contradicted = False
-    if best_single is not None and nameable(best_single, s0):
-        contradicted = single_contradicted(best_single, before, null)
-        guard = {"effect": best_single.name, "contradicted": contradicted}
+    if single is not None and nameable(single, s0):
+        contradicted = single_contradicted(single, before, null)
+        guard = {"effect": single.name, "contradicted": contradicted}
     name, chosen, location = verdict(significance, scores, before, data, null, contradicted)
     return name, chosen, location, guard
+
+
+def best_single(scores: list[ModelScore]) -> ModelScore | None:
+    """The best-scoring single effect (``scores`` best first, as ranked), or None."""
+    return next((s for s in scores if len(s.fit.names) == 1), None)
 
 
 def verdict(
